@@ -1,0 +1,199 @@
+"""The environment contract every jaxarm env follows.
+
+`reset(key, params) -> EnvState` and `step(state, action, params) -> EnvState` are pure functions of their
+arguments: jit-, vmap- and grad-safe, no Python side effects. Params are data (vmap over params is domain
+randomisation); static shapes and counts are constructor arguments.
+
+Subclasses implement the task in `_reset` and `_transition`; this module owns the bookkeeping that must
+be the same everywhere: action clipping, NaN-action handling, the time limit, and episode statistics.
+
+NaN actions: inside jit there is no way to raise, so a NaN component is replaced by 0 (the env steps with
+a zero command there) and counted in `state.episode.nan_actions`. Code that runs outside jit (adapters,
+evaluation) calls `check_action` for a clear error instead.
+"""
+
+import abc
+import dataclasses
+from typing import Any, Generic, TypeVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+Params = TypeVar("Params")
+Sim = TypeVar("Sim")
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvSpec:
+    """Static description of an env's spaces.
+
+    Attributes:
+      observation_shape: shape of one observation, e.g. (9,).
+      action_shape: shape of one action, e.g. (2,).
+      action_low: lower bound of each action component; actions are clipped to it.
+      action_high: upper bound of each action component.
+    """
+
+    observation_shape: tuple[int, ...]
+    action_shape: tuple[int, ...]
+    action_low: float = -1.0
+    action_high: float = 1.0
+
+    @property
+    def observation_size(self) -> int:
+        return int(np.prod(self.observation_shape))
+
+    @property
+    def action_size(self) -> int:
+        return int(np.prod(self.action_shape))
+
+
+@struct.dataclass
+class EpisodeStats:
+    """Statistics of one episode, scalars per env.
+
+    Attributes:
+      return_: sum of rewards so far.
+      length: env steps so far.
+      success: whether the task's success condition held at any step.
+      nan_actions: steps whose action had a NaN component (replaced by zero).
+    """
+
+    return_: jax.Array
+    length: jax.Array
+    success: jax.Array
+    nan_actions: jax.Array
+
+    @classmethod
+    def zeros(cls) -> "EpisodeStats":
+        return cls(
+            return_=jnp.zeros((), jnp.float32),
+            length=jnp.zeros((), jnp.int32),
+            success=jnp.zeros((), jnp.bool_),
+            nan_actions=jnp.zeros((), jnp.int32),
+        )
+
+
+@struct.dataclass
+class EnvState(Generic[Sim]):
+    """Everything an env carries between steps. Shapes are per env; vmapped envs add a leading [B].
+
+    Attributes:
+      sim: the env's own physics/task state (a typed pytree, defined by the env).
+      obs: [*observation_shape] observation after this step (after an auto-reset: the new episode's first).
+      reward: [] reward of the last step.
+      terminated: [] bool, the task ended (no bootstrapping from `final_obs`).
+      truncated: [] bool, the time limit ended the episode (bootstrap from `final_obs`).
+      final_obs: [*observation_shape] observation reached by the last step, before any auto-reset.
+      step_count: [] int32, steps taken in the current episode.
+      episode: running statistics of the current episode.
+      last_episode: statistics of the most recently finished episode (valid where `done`).
+      info: per-step diagnostics of the env (a typed pytree, defined by the env).
+      key: PRNG key the env consumes for auto-resets.
+    """
+
+    sim: Sim
+    obs: jax.Array
+    reward: jax.Array
+    terminated: jax.Array
+    truncated: jax.Array
+    final_obs: jax.Array
+    step_count: jax.Array
+    episode: EpisodeStats
+    last_episode: EpisodeStats
+    info: Any
+    key: jax.Array
+
+    @property
+    def done(self) -> jax.Array:
+        """[] bool, the last step ended the episode (terminated or truncated)."""
+        return self.terminated | self.truncated
+
+
+@struct.dataclass
+class Transition(Generic[Sim]):
+    """What an env's task logic returns for one step; the base class does the rest."""
+
+    sim: Sim
+    obs: jax.Array
+    reward: jax.Array
+    terminated: jax.Array
+    success: jax.Array
+    info: Any
+
+
+def check_action(action: np.ndarray, spec: EnvSpec) -> np.ndarray:
+    """Outside-jit validation: raises ValueError on a wrong shape or a NaN; returns a float32 array."""
+    array = np.asarray(action, dtype=np.float32)
+    if array.shape != spec.action_shape:
+        raise ValueError(f"action has shape {array.shape}, expected {spec.action_shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"action contains NaN or inf: {array}")
+    return array
+
+
+class Env(abc.ABC, Generic[Params, Sim]):
+    """Base class of jaxarm envs. Params must have an int field `max_episode_steps`."""
+
+    spec: EnvSpec
+
+    @abc.abstractmethod
+    def default_params(self) -> Params:
+        """The env's default params (a pytree of arrays)."""
+
+    @abc.abstractmethod
+    def _reset(self, key: jax.Array, params: Params) -> tuple[Sim, jax.Array, Any]:
+        """Samples a fresh episode: returns (sim, first observation, info)."""
+
+    @abc.abstractmethod
+    def _transition(self, sim: Sim, action: jax.Array, params: Params) -> Transition[Sim]:
+        """Advances the task by one step with an already clipped, finite action."""
+
+    def reset(self, key: jax.Array, params: Params) -> EnvState[Sim]:
+        """Starts an episode. `key` is a PRNG key; the returned state holds a descendant for auto-resets."""
+        reset_key, carry_key = jax.random.split(key)
+        sim, obs, info = self._reset(reset_key, params)
+        return EnvState(
+            sim=sim,
+            obs=obs,
+            reward=jnp.zeros((), jnp.float32),
+            terminated=jnp.zeros((), jnp.bool_),
+            truncated=jnp.zeros((), jnp.bool_),
+            final_obs=obs,
+            step_count=jnp.zeros((), jnp.int32),
+            episode=EpisodeStats.zeros(),
+            last_episode=EpisodeStats.zeros(),
+            info=info,
+            key=carry_key,
+        )
+
+    def step(self, state: EnvState[Sim], action: jax.Array, params: Params) -> EnvState[Sim]:
+        """Advances one step: clips the action, zeroes NaNs, applies the time limit, updates statistics."""
+        action = jnp.asarray(action, jnp.float32).reshape(self.spec.action_shape)
+        has_nan = jnp.any(jnp.isnan(action))
+        action = jnp.clip(jnp.nan_to_num(action, nan=0.0), self.spec.action_low, self.spec.action_high)
+        out = self._transition(state.sim, action, params)
+        step_count = state.step_count + 1
+        truncated = (step_count >= params.max_episode_steps) & ~out.terminated
+        episode = EpisodeStats(
+            return_=state.episode.return_ + out.reward,
+            length=state.episode.length + 1,
+            success=state.episode.success | out.success,
+            nan_actions=state.episode.nan_actions + has_nan.astype(jnp.int32),
+        )
+        done = out.terminated | truncated
+        last_episode = jax.tree.map(lambda new, old: jnp.where(done, new, old), episode, state.last_episode)
+        return state.replace(
+            sim=out.sim,
+            obs=out.obs,
+            reward=out.reward.astype(jnp.float32),
+            terminated=out.terminated,
+            truncated=truncated,
+            final_obs=out.obs,
+            step_count=step_count,
+            episode=episode,
+            last_episode=last_episode,
+            info=out.info,
+        )

@@ -1,0 +1,82 @@
+"""Named envs: `make(name, **kwargs)` builds one, `names()` lists them, `override_params` edits params.
+
+Factories import their module lazily so that making arm2d never imports MuJoCo.
+"""
+
+import dataclasses
+import difflib
+import importlib
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import jax.numpy as jnp
+import numpy as np
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvEntry:
+    """A registered env: `module:Class` to construct, fixed constructor kwargs, one line of description."""
+
+    target: str
+    kwargs: Mapping[str, Any]
+    description: str
+
+    def build(self, **kwargs):
+        module_name, class_name = self.target.split(":")
+        cls = getattr(importlib.import_module(module_name), class_name)
+        return cls(**{**self.kwargs, **kwargs})
+
+
+_REGISTRY: dict[str, EnvEntry] = {}
+
+
+def register(name: str, target: str, description: str, **kwargs) -> None:
+    """Registers `name` as `target` ("package.module:Class") built with `kwargs`."""
+    if name in _REGISTRY:
+        raise ValueError(f"env {name!r} is already registered")
+    _REGISTRY[name] = EnvEntry(target, kwargs, description)
+
+
+def closest_match_hint(name: str, candidates) -> str:
+    """' (did you mean 'x'?)' for the closest candidate, or '' when nothing is close."""
+    matches = difflib.get_close_matches(name, list(candidates), n=1)
+    return f" (did you mean {matches[0]!r}?)" if matches else ""
+
+
+def names() -> list[str]:
+    """All registered env names, sorted."""
+    return sorted(_REGISTRY)
+
+
+def describe() -> dict[str, str]:
+    """Env name -> one-line description."""
+    return {name: _REGISTRY[name].description for name in names()}
+
+
+def make(name: str, **kwargs):
+    """Builds the registered env `name`; `kwargs` override its static constructor arguments."""
+    if name not in _REGISTRY:
+        raise KeyError(f"unknown env {name!r}{closest_match_hint(name, _REGISTRY)}; known: {', '.join(names())}")
+    return _REGISTRY[name].build(**kwargs)
+
+
+def override_params(params, overrides: Mapping[str, Any]):
+    """Returns `params` with fields replaced by `overrides`, cast to each field's dtype and shape.
+
+    Raises KeyError naming the closest field for an unknown name, ValueError for a value of the wrong shape.
+    """
+    fields = {field.name for field in dataclasses.fields(params)}
+    updates = {}
+    for name, value in overrides.items():
+        if name not in fields:
+            raise KeyError(f"unknown env param {name!r}{closest_match_hint(name, fields)}")
+        current = getattr(params, name)
+        array = jnp.asarray(np.asarray(value), dtype=current.dtype)
+        if array.shape != current.shape:
+            raise ValueError(f"env param {name!r} needs shape {current.shape}, got {array.shape}")
+        updates[name] = array
+    return params.replace(**updates)
+
+
+register("arm2d", "jaxarm.envs.arm2d:Arm2d", "2-link planar reaching arm (the classic tutorial arm)")
+register("arm2d_squid", "jaxarm.envs.arm2d:Arm2d", "5-link planar reaching arm ('squid arm')", num_links=5)

@@ -1,0 +1,99 @@
+"""The contract every registered env must keep (jit, vmap, spec, purity, time limit, auto-reset)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxarm import envs
+
+NUM_ENVS = 1024
+ROLLOUT_STEPS = 8
+
+
+def random_actions(key, env, shape):
+    return jax.random.uniform(key, shape + env.spec.action_shape, minval=-1.0, maxval=1.0)
+
+
+@pytest.fixture(scope="module", params=envs.names())
+def env_and_params(request):
+    env = envs.make(request.param)
+    return env, env.default_params()
+
+
+def rollout(env, params, key, num_envs, steps):
+    """Runs `steps` random-action steps of a vmapped auto-reset env; returns the stacked states."""
+    batch = envs.VmapEnv(envs.AutoReset(env), num_envs)
+
+    def body(state, step_key):
+        next_state = batch.step(state, random_actions(step_key, env, (num_envs,)), params)
+        return next_state, next_state
+
+    reset_key, steps_key = jax.random.split(key)
+    state = batch.reset(reset_key, params)
+    _, states = jax.lax.scan(body, state, jax.random.split(steps_key, steps))
+    return states
+
+
+def test_spec_shapes_and_finite_values_under_jit_and_vmap(env_and_params):
+    env, params = env_and_params
+    states = jax.jit(rollout, static_argnums=(0, 3, 4))(env, params, jax.random.key(0), NUM_ENVS, ROLLOUT_STEPS)
+    assert states.obs.shape == (ROLLOUT_STEPS, NUM_ENVS, *env.spec.observation_shape)
+    assert states.reward.shape == (ROLLOUT_STEPS, NUM_ENVS)
+    assert states.terminated.dtype == jnp.bool_ and states.truncated.dtype == jnp.bool_
+    for leaf in jax.tree.leaves(states):
+        if jnp.issubdtype(leaf.dtype, jnp.floating):
+            assert np.all(np.isfinite(np.asarray(leaf)))
+
+
+def test_same_key_same_trajectory(env_and_params):
+    env, params = env_and_params
+    run = jax.jit(rollout, static_argnums=(0, 3, 4))
+    first = run(env, params, jax.random.key(7), 4, ROLLOUT_STEPS)
+    second = run(env, params, jax.random.key(7), 4, ROLLOUT_STEPS)
+    other = run(env, params, jax.random.key(8), 4, ROLLOUT_STEPS)
+    np.testing.assert_array_equal(first.obs, second.obs)
+    np.testing.assert_array_equal(first.reward, second.reward)
+    assert not np.array_equal(first.obs, other.obs)
+
+
+def test_time_limit_truncates_and_auto_reset_keeps_final_obs(env_and_params):
+    env, params = env_and_params
+    params = envs.override_params(params, {"max_episode_steps": 3})
+    auto = envs.AutoReset(env)
+    state = auto.reset(jax.random.key(3), params)
+    step = jax.jit(auto.step)
+    zero = jnp.zeros(env.spec.action_shape)
+    for _ in range(2):
+        state = step(state, zero, params)
+        assert not bool(state.done)
+    plain_last = jax.jit(env.step)(state, zero, params)
+    state = step(state, zero, params)
+    if bool(plain_last.terminated):
+        pytest.skip("the task terminated on the time-limit step with zero actions")
+    assert bool(state.truncated) and not bool(state.terminated)
+    np.testing.assert_allclose(state.final_obs, plain_last.obs, rtol=1e-5, atol=1e-5)
+    assert int(state.step_count) == 0 and int(state.last_episode.length) == 3
+    assert int(state.episode.length) == 0
+
+
+def test_nan_actions_are_zeroed_and_counted(env_and_params):
+    env, params = env_and_params
+    state = env.reset(jax.random.key(5), params)
+    nan_step = jax.jit(env.step)(state, jnp.full(env.spec.action_shape, jnp.nan), params)
+    zero_step = jax.jit(env.step)(state, jnp.zeros(env.spec.action_shape), params)
+    np.testing.assert_array_equal(nan_step.obs, zero_step.obs)
+    assert int(nan_step.episode.nan_actions) == 1 and int(zero_step.episode.nan_actions) == 0
+
+
+def test_check_action_rejects_nan_and_wrong_shape(env_and_params):
+    env, _ = env_and_params
+    with pytest.raises(ValueError, match="NaN"):
+        envs.check_action(np.full(env.spec.action_shape, np.nan), env.spec)
+    with pytest.raises(ValueError, match="shape"):
+        envs.check_action(np.zeros(env.spec.action_size + 1), env.spec)
+
+
+def test_unknown_env_name_names_the_closest():
+    with pytest.raises(KeyError, match="did you mean 'arm2d'"):
+        envs.make("arm2dd")
