@@ -151,6 +151,10 @@ class Env(abc.ABC, Generic[Params, Sim]):
     def _transition(self, sim: Sim, action: jax.Array, params: Params) -> Transition[Sim]:
         """Advances the task by one step with an already clipped, finite action."""
 
+    def render(self, state: EnvState[Sim], params: Params) -> np.ndarray:
+        """One (non-batched) state as an RGB frame, uint8 [H, W, 3], drawn without a window."""
+        raise NotImplementedError(f"{type(self).__name__} has no renderer")
+
     def reset(self, key: jax.Array, params: Params) -> EnvState[Sim]:
         """Starts an episode. `key` is a PRNG key; the returned state holds a descendant for auto-resets."""
         reset_key, carry_key = jax.random.split(key)

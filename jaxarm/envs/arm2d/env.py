@@ -135,6 +135,11 @@ class Arm2d(Env[Arm2dParams, Arm2dSim]):
             max_episode_steps=jnp.array(200, jnp.int32),
         )
 
+    def render(self, state, params: Arm2dParams):
+        from jaxarm.envs.arm2d.render import draw_frame
+
+        return draw_frame(state.sim, params)
+
     def _observe(self, sim: Arm2dSim, params: Arm2dParams) -> jax.Array:
         ends = link_end_positions(sim.angles, params)
         on_goal = (sim.hold_count > 0).astype(jnp.float32)[None]

@@ -1,0 +1,48 @@
+"""Learning-curve figures drawn without a window (matplotlib's Agg backend)."""
+
+import pathlib
+
+import matplotlib
+
+matplotlib.use("Agg")
+import jax  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def rolling_mean(values: np.ndarray, window: int) -> np.ndarray:
+    """Trailing mean over up to `window` values, same length as `values`."""
+    cumulative = np.cumsum(np.insert(np.asarray(values, float), 0, 0.0))
+    ends = np.arange(1, len(cumulative))
+    starts = np.maximum(ends - window, 0)
+    return (cumulative[ends] - cumulative[starts]) / (ends - starts)
+
+
+def learning_curve(rows: list[dict], path: pathlib.Path, title: str) -> None:
+    """Per-update mean episode return (scatter), its rolling mean and linear trend, and the success rate.
+
+    Updates in which no episode finished are left out. The device is named in the title.
+    """
+    rows = [row for row in rows if row.get("episodes/episodes", 0) > 0]
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    if rows:
+        steps = np.array([row["env_steps"] for row in rows], float)
+        returns = np.array([row["episodes/return_mean"] for row in rows])
+        success = np.array([row["episodes/success_rate"] for row in rows])
+        ax.scatter(steps, returns, s=6, alpha=0.4, label="episode return (mean per update)")
+        ax.plot(steps, rolling_mean(returns, max(1, len(rows) // 20)), color="C0", label="rolling mean")
+        if len(rows) > 1:
+            slope, intercept = np.polyfit(steps, returns, 1)
+            ax.plot(steps, slope * steps + intercept, "--", color="gray", label="linear trend")
+        twin = ax.twinx()
+        twin.plot(steps, success, color="C2", label="success rate")
+        twin.set_ylim(-0.02, 1.02)
+        twin.set_ylabel("success rate")
+        twin.legend(loc="lower right")
+    ax.set_xlabel("env steps")
+    ax.set_ylabel("episode return")
+    ax.legend(loc="upper left")
+    ax.set_title(f"{title} ({jax.devices()[0].device_kind})")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

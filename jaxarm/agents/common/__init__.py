@@ -1,0 +1,1 @@
+"""Pieces every learner shares: configs, networks, the trainer protocol, evaluation, checkpoints."""

@@ -1,0 +1,66 @@
+"""Whole-learner-state checkpoints with orbax, and clear errors for missing, corrupt or mismatched ones.
+
+Saves are synchronous so that a checkpoint on disk is complete (orbax writes to a temporary folder and
+renames it), and a process killed at any moment leaves the last finished checkpoint intact. Restoring
+never writes.
+"""
+
+import pathlib
+
+import jax
+import orbax.checkpoint as ocp
+
+
+class CheckpointError(RuntimeError):
+    """A checkpoint is missing, unreadable, or does not match the learner it is restored into."""
+
+
+def _manager(directory: pathlib.Path, create: bool = False) -> ocp.CheckpointManager:
+    # Reading managers are made with create=False (orbax's read_only mode only logs warnings here).
+    options = ocp.CheckpointManagerOptions(max_to_keep=2, enable_async_checkpointing=False, create=create)
+    return ocp.CheckpointManager(directory.absolute(), options=options)
+
+
+def save(directory: pathlib.Path, step: int, state) -> None:
+    """Saves the learner state pytree as checkpoint `step` (the update count) under `directory`."""
+    with _manager(directory, create=True) as manager:
+        manager.save(step, args=ocp.args.StandardSave(state), force=True)
+
+
+def latest_step(directory: pathlib.Path) -> int | None:
+    """The newest complete checkpoint's step, or None if there is none."""
+    if not directory.exists():
+        return None
+    with _manager(directory) as manager:
+        return manager.latest_step()
+
+
+def restore(directory: pathlib.Path, like, step: int | None = None):
+    """Restores the checkpoint `step` (default: latest) into the structure, shapes and dtypes of `like`.
+
+    Raises CheckpointError when there is none, or when it cannot be read into `like`.
+    """
+    step = latest_step(directory) if step is None else step
+    if step is None:
+        raise CheckpointError(f"no checkpoint found in {directory}")
+    abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, like)
+    try:
+        with _manager(directory) as manager:
+            restored = manager.restore(step, args=ocp.args.StandardRestore(abstract))
+    except Exception as error:  # orbax raises many types for corrupt and mismatched trees
+        raise CheckpointError(
+            f"checkpoint {step} in {directory} cannot be restored into this learner "
+            f"(corrupt, or saved by a different config): {type(error).__name__}: {str(error)[:300]}"
+        ) from error
+    _check_matches(restored, like, directory, step)
+    return restored
+
+
+def _check_matches(restored, like, directory, step) -> None:
+    restored_leaves, like_leaves = jax.tree.leaves(restored), jax.tree.leaves(like)
+    for got, want in zip(restored_leaves, like_leaves, strict=True):
+        if got.shape != want.shape or got.dtype != want.dtype:
+            raise CheckpointError(
+                f"checkpoint {step} in {directory} does not match this learner: a leaf has shape "
+                f"{got.shape} {got.dtype}, expected {want.shape} {want.dtype}"
+            )

@@ -1,0 +1,135 @@
+"""Typed, frozen run configs shared by every learner, and their validated `key=value` overrides.
+
+A config is a frozen dataclass: static choices (sizes, counts, env) are plain fields; the fields named in
+`DYNAMIC_FIELDS` become a hyper-parameter pytree (`hparams()`) that `train` takes as an argument, so
+seeds × hyper-parameters vmap. Env constructor kwargs and env params are (name, value) pairs set on the
+CLI as `env_kwargs.NAME=VALUE` and `env_params.NAME=VALUE`.
+"""
+
+import ast
+import dataclasses
+import json
+import typing
+from collections.abc import Iterable
+from typing import Any, ClassVar
+
+import jax.numpy as jnp
+
+from jaxarm import envs
+from jaxarm.envs.registry import closest_match_hint
+
+Pairs = tuple[tuple[str, Any], ...]
+
+
+@dataclasses.dataclass(frozen=True)
+class RunConfig:
+    """Fields every learner's config has.
+
+    Attributes:
+      env: registered env name (see `jaxarm.envs.names()`).
+      env_kwargs: static env constructor arguments as (name, value) pairs.
+      env_params: overrides of the env's default params as (name, value) pairs.
+      num_envs: envs stepped in parallel.
+      total_env_steps: training budget in env steps (rounded up to whole updates).
+      updates_per_chunk: updates compiled into one call; the runner logs and checkpoints between calls.
+      checkpoint_every_updates: save the learner state at the first chunk end after this many updates.
+      eval_episodes: fresh episodes for the final deterministic evaluation.
+      seed: PRNG seed of the run.
+    """
+
+    DYNAMIC_FIELDS: ClassVar[tuple[str, ...]] = ()
+    AGENT: ClassVar[str] = ""
+
+    env: str = "arm2d"
+    env_kwargs: Pairs = ()
+    env_params: Pairs = ()
+    num_envs: int = 256
+    total_env_steps: int = 1_000_000
+    updates_per_chunk: int = 10
+    checkpoint_every_updates: int = 50
+    eval_episodes: int = 1000
+    seed: int = 0
+
+    def make_env(self):
+        """Returns (env, env_params) described by this config."""
+        env = envs.make(self.env, **dict(self.env_kwargs))
+        return env, envs.override_params(env.default_params(), dict(self.env_params))
+
+    def to_json(self) -> str:
+        return json.dumps({"agent": self.AGENT, **dataclasses.asdict(self)}, indent=2, default=list)
+
+
+def parse_value(text: str, annotation) -> Any:
+    """Parses a CLI string into `annotation` (int, float, bool, str, tuple[int, ...]); ValueError otherwise."""
+    if annotation is bool:
+        if text.lower() in ("true", "1", "yes"):
+            return True
+        if text.lower() in ("false", "0", "no"):
+            return False
+        raise ValueError(f"expected true/false, got {text!r}")
+    if annotation is int:
+        number = float(text)
+        if not number.is_integer():
+            raise ValueError(f"expected an integer, got {text!r}")
+        return int(number)
+    if annotation is float:
+        return float(text)
+    if annotation is str:
+        return text
+    if typing.get_origin(annotation) is tuple:
+        item_type = typing.get_args(annotation)[0]
+        return tuple(parse_value(part, item_type) for part in text.split(",") if part)
+    raise ValueError(f"cannot parse a value of type {annotation}")
+
+
+def parse_literal(text: str) -> Any:
+    """Parses an env param or kwarg value: a Python literal (number, list, bool) or else the string."""
+    try:
+        return ast.literal_eval(text)
+    except (ValueError, SyntaxError):
+        return text
+
+
+def with_pair(pairs: Pairs, name: str, value: Any) -> Pairs:
+    return tuple((key, val) for key, val in pairs if key != name) + ((name, value),)
+
+
+def apply_overrides(config: RunConfig, overrides: Iterable[str]) -> RunConfig:
+    """Returns `config` with `key=value` overrides applied, each parsed to its field's type.
+
+    Raises ValueError with a one-line message (naming the closest key for a typo) on any bad override.
+    """
+    hints = typing.get_type_hints(type(config))
+    fields = {field.name for field in dataclasses.fields(config)}
+    for item in overrides:
+        if "=" not in item:
+            raise ValueError(f"override {item!r} is not of the form key=value")
+        key, text = item.split("=", 1)
+        group, _, name = key.partition(".")
+        if name and group in ("env_kwargs", "env_params"):
+            config = dataclasses.replace(config, **{group: with_pair(getattr(config, group), name, parse_literal(text))})
+            continue
+        if key not in fields:
+            raise ValueError(f"unknown config key {key!r}{closest_match_hint(key, fields)}")
+        try:
+            value = parse_value(text, hints[key])
+        except ValueError as error:
+            raise ValueError(f"bad value for {key}: {error}") from None
+        config = dataclasses.replace(config, **{key: value})
+    validate(config)
+    return config
+
+
+def validate(config: RunConfig) -> None:
+    """Raises ValueError on values no run can use (non-positive sizes, unknown env, bad env params)."""
+    for field in ("num_envs", "total_env_steps", "updates_per_chunk", "checkpoint_every_updates", "eval_episodes"):
+        if getattr(config, field) <= 0:
+            raise ValueError(f"{field} must be positive, got {getattr(config, field)}")
+    try:
+        config.make_env()
+    except (KeyError, ValueError, TypeError) as error:
+        raise ValueError(str(error).strip("\"'")) from None
+
+
+def hparams_array(config: RunConfig, field: str) -> jnp.ndarray:
+    return jnp.asarray(getattr(config, field), jnp.float32)

@@ -1,0 +1,58 @@
+"""Deterministic evaluation of a policy on fresh episodes, and episode recording for videos."""
+
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from jaxarm.envs import EnvState, VmapEnv
+
+
+@struct.dataclass
+class EvalResult:
+    """Per-episode results, each [episodes]: return, length, success (bool)."""
+
+    returns: jax.Array
+    lengths: jax.Array
+    successes: jax.Array
+
+    def summary(self) -> dict:
+        """Plain-Python summary for eval.json."""
+        return {
+            "episodes": int(self.returns.shape[0]),
+            "success_rate": float(jnp.mean(self.successes)),
+            "return_mean": float(jnp.mean(self.returns)),
+            "return_std": float(jnp.std(self.returns)),
+            "length_mean": float(jnp.mean(self.lengths)),
+        }
+
+
+def rollout_episodes(env, env_params, policy: Callable[[jax.Array], jax.Array], key, episodes: int,
+                     max_steps: int) -> EnvState:
+    """Runs `episodes` fresh episodes to their end (no auto-reset) with `policy: obs [B, O] -> action [B, A]`.
+
+    Returns the env states after every step, [max_steps, episodes, ...]; an env that has finished stays
+    frozen at its last state (its `done` stays true).
+    """
+    batch = VmapEnv(env, episodes)
+
+    def body(state, _):
+        stepped = batch.step(state, policy(state.obs), env_params)
+        finished = state.done
+
+        def keep_finished(old, new):
+            return jnp.where(finished.reshape(finished.shape + (1,) * (new.ndim - 1)), old, new)
+
+        state = jax.tree.map(keep_finished, state, stepped)
+        return state, state
+
+    _, states = jax.lax.scan(body, batch.reset(key, env_params), None, length=max_steps)
+    return states
+
+
+def evaluate(env, env_params, policy, key, episodes: int) -> EvalResult:
+    """Runs `episodes` fresh episodes with a deterministic `policy` and returns their results (jit-able)."""
+    max_steps = int(env_params.max_episode_steps)
+    final = jax.tree.map(lambda leaf: leaf[-1], rollout_episodes(env, env_params, policy, key, episodes, max_steps))
+    return EvalResult(returns=final.episode.return_, lengths=final.episode.length, successes=final.episode.success)

@@ -1,0 +1,25 @@
+"""Multi-layer perceptrons for policies, values and critics (flax.linen)."""
+
+from collections.abc import Sequence
+
+import flax.linen as nn
+import jax.numpy as jnp
+
+
+class MLP(nn.Module):
+    """[..., in] -> [..., out]: hidden layers with `activation`, a linear output layer.
+
+    `output_scale` scales the last layer's initialisation (small for policy heads, as PPO practice has it).
+    """
+
+    hidden_sizes: Sequence[int]
+    output_size: int
+    activation: str = "tanh"
+    output_scale: float = 1.0
+
+    @nn.compact
+    def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
+        act = getattr(nn, self.activation)
+        for size in self.hidden_sizes:
+            x = act(nn.Dense(size, kernel_init=nn.initializers.orthogonal(jnp.sqrt(2.0)))(x))
+        return nn.Dense(self.output_size, kernel_init=nn.initializers.orthogonal(self.output_scale))(x)

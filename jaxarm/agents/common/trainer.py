@@ -1,0 +1,86 @@
+"""The protocol the runner drives, and the generic whole-run / chunked compilation built on it.
+
+A learner provides a `Trainer`: `init(key, hparams)` and a single `update(state, hparams)`, both pure.
+`run_updates` scans `update` any number of times; `make_train` turns that into the whole run as one
+function `train(key, hparams)`, and the runner jits `run_updates` with a fixed count to compile in chunks.
+"""
+
+import dataclasses
+from collections.abc import Callable
+from functools import partial
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from jaxarm.envs import EnvState
+
+
+@dataclasses.dataclass(frozen=True)
+class Trainer:
+    """A learner, ready to run.
+
+    Attributes:
+      init: (key, hparams) -> learner state.
+      update: (learner state, hparams) -> (learner state, per-update metrics pytree of scalars).
+      act: (learner state, obs [B, O]) -> deterministic actions [B, A] (for evaluation).
+      num_updates: updates in the whole run.
+      env_steps_per_update: env steps each update consumes.
+    """
+
+    init: Callable[[jax.Array, Any], Any]
+    update: Callable[[Any, Any], tuple[Any, Any]]
+    act: Callable[[Any, jax.Array], jax.Array]
+    num_updates: int
+    env_steps_per_update: int
+
+
+def run_updates(trainer: Trainer, state, hparams, num_updates: int):
+    """Runs `num_updates` updates in one `lax.scan`; metrics come back stacked, [num_updates] per leaf."""
+    return jax.lax.scan(lambda carry, _: trainer.update(carry, hparams), state, None, length=num_updates)
+
+
+def make_train(trainer: Trainer) -> Callable[[jax.Array, Any], tuple[Any, Any]]:
+    """The whole run as one pure function `train(key, hparams) -> (final state, metrics [num_updates])`."""
+
+    def train(key, hparams):
+        return run_updates(trainer, trainer.init(key, hparams), hparams, trainer.num_updates)
+
+    return train
+
+
+def make_chunk_runner(trainer: Trainer, updates_per_chunk: int):
+    """A jitted `(state, hparams) -> (state, metrics [updates_per_chunk])`; compiled once, reused."""
+    return jax.jit(partial(run_updates, trainer, num_updates=updates_per_chunk), donate_argnums=0)
+
+
+@struct.dataclass
+class EpisodeSummary:
+    """Episodes that finished during one update: count, mean return, mean length and success rate.
+
+    Means are NaN-free: 0 when no episode finished (the count says so).
+    """
+
+    episodes: jax.Array
+    return_mean: jax.Array
+    length_mean: jax.Array
+    success_rate: jax.Array
+
+
+def summarise_episodes(states: EnvState) -> EpisodeSummary:
+    """Summarises the episodes that ended in a stack of env states (any leading axes)."""
+    done = states.done.astype(jnp.float32)
+    count = done.sum()
+    safe = jnp.maximum(count, 1.0)
+
+    def mean(values):
+        return (values.astype(jnp.float32) * done).sum() / safe
+
+    last = states.last_episode
+    return EpisodeSummary(
+        episodes=count,
+        return_mean=mean(last.return_),
+        length_mean=mean(last.length),
+        success_rate=mean(last.success),
+    )

@@ -1,0 +1,97 @@
+"""PPO's frozen config: static sizes as fields, dynamic hyper-parameters gathered by `hparams()`."""
+
+import dataclasses
+from typing import ClassVar
+
+import jax.numpy as jnp
+from flax import struct
+
+from jaxarm.agents.common.config import RunConfig, hparams_array
+
+
+@struct.dataclass
+class PPOHParams:
+    """Dynamic hyper-parameters, scalars (or [S] under vmap over a sweep).
+
+    Attributes:
+      learning_rate: Adam step size (linearly annealed to 0 when `anneal_learning_rate`).
+      gamma: discount.
+      gae_lambda: GAE's λ.
+      clip_epsilon: PPO's ratio clip.
+      entropy_coef: weight of the entropy bonus.
+      value_coef: weight of the value loss.
+      max_grad_norm: global gradient-norm clip.
+      reward_scale: rewards are multiplied by this before GAE.
+    """
+
+    learning_rate: jnp.ndarray
+    gamma: jnp.ndarray
+    gae_lambda: jnp.ndarray
+    clip_epsilon: jnp.ndarray
+    entropy_coef: jnp.ndarray
+    value_coef: jnp.ndarray
+    max_grad_norm: jnp.ndarray
+    reward_scale: jnp.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOConfig(RunConfig):
+    """PPO run config.
+
+    Attributes (beyond RunConfig's):
+      rollout_length: env steps per env between updates (T).
+      num_minibatches: minibatches per epoch; T·num_envs must divide by it.
+      num_epochs: passes over each rollout.
+      policy_hidden_sizes: hidden layer sizes of the policy MLP.
+      value_hidden_sizes: hidden layer sizes of the value MLP.
+      activation: flax.linen activation name for hidden layers.
+      normalize_observations: keep running mean/std of observations in the learner state.
+      normalize_advantages: standardise advantages per minibatch.
+      anneal_learning_rate: decay the learning rate linearly to 0 over the run.
+      initial_log_std: initial policy standard deviation's log (pre-tanh).
+      learning_rate ... reward_scale: dynamic hyper-parameters, see PPOHParams.
+    """
+
+    DYNAMIC_FIELDS: ClassVar[tuple[str, ...]] = tuple(field.name for field in dataclasses.fields(PPOHParams))
+    AGENT: ClassVar[str] = "ppo"
+
+    rollout_length: int = 16
+    num_minibatches: int = 8
+    num_epochs: int = 4
+    policy_hidden_sizes: tuple[int, ...] = (64, 64)
+    value_hidden_sizes: tuple[int, ...] = (64, 64)
+    activation: str = "tanh"
+    normalize_observations: bool = True
+    normalize_advantages: bool = True
+    anneal_learning_rate: bool = True
+    initial_log_std: float = 0.0
+    learning_rate: float = 3e-4
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_epsilon: float = 0.2
+    entropy_coef: float = 0.01
+    value_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    reward_scale: float = 1.0
+
+    @property
+    def env_steps_per_update(self) -> int:
+        return self.rollout_length * self.num_envs
+
+    @property
+    def num_updates(self) -> int:
+        return max(1, -(-self.total_env_steps // self.env_steps_per_update))
+
+    @property
+    def minibatch_size(self) -> int:
+        return self.env_steps_per_update // self.num_minibatches
+
+    def hparams(self) -> PPOHParams:
+        return PPOHParams(**{name: hparams_array(self, name) for name in self.DYNAMIC_FIELDS})
+
+    def check(self) -> None:
+        """Raises ValueError on sizes PPO cannot use."""
+        if self.env_steps_per_update % self.num_minibatches:
+            raise ValueError(
+                f"rollout_length*num_envs={self.env_steps_per_update} must divide by num_minibatches={self.num_minibatches}"
+            )

@@ -1,0 +1,227 @@
+"""PPO compiled end to end: rollout over vmapped envs, GAE, epochs × minibatches, all inside `lax.scan`.
+
+One `update` collects `rollout_length` steps from every env with the stochastic policy, updates the
+observation normaliser, computes GAE (bootstrapping from the pre-reset observation on truncation, not on
+termination), and runs `num_epochs` × `num_minibatches` clipped-surrogate steps. Distributions (tanh-squashed
+Gaussian) and running statistics are brax's.
+"""
+
+import jax
+import jax.numpy as jnp
+import optax
+from brax.training import distribution
+from brax.training.acme import running_statistics, specs
+from flax import struct
+
+from jaxarm.agents.common.networks import MLP
+from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
+from jaxarm.agents.ppo import losses
+from jaxarm.agents.ppo.config import PPOConfig, PPOHParams
+from jaxarm.envs import AutoReset, EnvState, VmapEnv
+
+
+@struct.dataclass
+class NetworkParams:
+    """Parameters of the policy and value MLPs."""
+
+    policy: dict
+    value: dict
+
+
+@struct.dataclass
+class PPOState:
+    """The whole learner state, checkpointed as one pytree.
+
+    Attributes:
+      params: network parameters.
+      opt_state: Adam state over `params`.
+      normalizer: brax running mean/std of observations.
+      env_state: [num_envs] batched env state.
+      key: PRNG key (raw uint32[2]).
+      env_steps: env steps taken so far.
+      updates: updates done so far.
+    """
+
+    params: NetworkParams
+    opt_state: optax.OptState
+    normalizer: running_statistics.RunningStatisticsState
+    env_state: EnvState
+    key: jax.Array
+    env_steps: jax.Array
+    updates: jax.Array
+
+
+@struct.dataclass
+class PPOMetrics:
+    """Scalars logged per update."""
+
+    env_steps: jax.Array
+    episodes: EpisodeSummary
+    loss: losses.LossTerms
+    learning_rate: jax.Array
+    grad_norm: jax.Array
+
+
+@struct.dataclass
+class Samples:
+    """Flattened training samples, [N, ...] per field."""
+
+    obs: jax.Array
+    raw_action: jax.Array
+    log_prob: jax.Array
+    advantage: jax.Array
+    target: jax.Array
+
+
+@struct.dataclass
+class Rollout:
+    """One rollout, [T, B, ...] per field. Observations are raw (not normalised)."""
+
+    obs: jax.Array
+    raw_action: jax.Array
+    log_prob: jax.Array
+    reward: jax.Array
+    terminated: jax.Array
+    done: jax.Array
+    final_obs: jax.Array
+
+
+def make_optimizer(hparams: PPOHParams, learning_rate) -> optax.GradientTransformation:
+    """Built inside the compiled update from dynamic values; its state does not depend on them."""
+    return optax.chain(optax.clip_by_global_norm(hparams.max_grad_norm), optax.adam(learning_rate, eps=1e-5))
+
+
+def make_trainer(config: PPOConfig) -> Trainer:
+    """PPO for `config`: see the module docstring."""
+    config.check()
+    env, env_params = config.make_env()
+    batch_env = VmapEnv(AutoReset(env), config.num_envs)
+    action_dist = distribution.NormalTanhDistribution(event_size=env.spec.action_size)
+    policy_net = MLP(config.policy_hidden_sizes, action_dist.param_size, config.activation, output_scale=0.01)
+    value_net = MLP(config.value_hidden_sizes, 1, config.activation)
+    obs_size = env.spec.observation_size
+    # brax's NormalTanhDistribution maps the raw scale through softplus; this offset sets the initial std.
+    scale_offset = float(jnp.log(jnp.expm1(jnp.exp(config.initial_log_std))))
+
+    def normalize(normalizer, obs):
+        if not config.normalize_observations:
+            return obs
+        return running_statistics.normalize(obs, normalizer)
+
+    def policy_params_of(params, normalizer, obs):
+        out = policy_net.apply(params.policy, normalize(normalizer, obs))
+        loc, raw_scale = jnp.split(out, 2, axis=-1)
+        return jnp.concatenate([loc, raw_scale + scale_offset], axis=-1)
+
+    def value_of(params, normalizer, obs):
+        return value_net.apply(params.value, normalize(normalizer, obs))[..., 0]
+
+    def init(key, hparams: PPOHParams) -> PPOState:
+        policy_key, value_key, env_key, run_key = jax.random.split(key, 4)
+        dummy = jnp.zeros((1, obs_size))
+        params = NetworkParams(policy=policy_net.init(policy_key, dummy), value=value_net.init(value_key, dummy))
+        return PPOState(
+            params=params,
+            opt_state=make_optimizer(hparams, hparams.learning_rate).init(params),
+            normalizer=running_statistics.init_state(specs.Array((obs_size,), jnp.float32)),
+            env_state=batch_env.reset(env_key, env_params),
+            key=run_key,
+            env_steps=jnp.zeros((), jnp.int32),
+            updates=jnp.zeros((), jnp.int32),
+        )
+
+    def collect(state: PPOState, key) -> tuple[EnvState, Rollout]:
+        def env_step(env_state, step_key):
+            dist_params = policy_params_of(state.params, state.normalizer, env_state.obs)
+            raw_action = action_dist.sample_no_postprocessing(dist_params, step_key)
+            log_prob = action_dist.log_prob(dist_params, raw_action)
+            next_state = batch_env.step(env_state, action_dist.postprocess(raw_action), env_params)
+            step = Rollout(
+                obs=env_state.obs,
+                raw_action=raw_action,
+                log_prob=log_prob,
+                reward=next_state.reward,
+                terminated=next_state.terminated.astype(jnp.float32),
+                done=next_state.done.astype(jnp.float32),
+                final_obs=next_state.final_obs,
+            )
+            return next_state, (step, next_state)
+
+        env_state, (rollout, states) = jax.lax.scan(
+            env_step, state.env_state, jax.random.split(key, config.rollout_length)
+        )
+        return env_state, rollout, summarise_episodes(states)
+
+    def minibatch_loss(params, normalizer, batch, hparams, key):
+        dist_params = policy_params_of(params, normalizer, batch.obs)
+        log_prob = action_dist.log_prob(dist_params, batch.raw_action)
+        advantages = batch.advantage
+        if config.normalize_advantages:
+            advantages = losses.normalize(advantages)
+        policy_loss, approx_kl, clip_fraction = losses.clipped_policy_loss(
+            log_prob, batch.log_prob, advantages, hparams.clip_epsilon
+        )
+        value_loss = losses.value_loss(value_of(params, normalizer, batch.obs), batch.target)
+        entropy = jnp.mean(action_dist.entropy(dist_params, key))
+        total = policy_loss + hparams.value_coef * value_loss - hparams.entropy_coef * entropy
+        return total, losses.LossTerms(policy_loss, value_loss, entropy, approx_kl, clip_fraction)
+
+    def update(state: PPOState, hparams: PPOHParams) -> tuple[PPOState, PPOMetrics]:
+        collect_key, shuffle_key, next_key = jax.random.split(state.key, 3)
+        env_state, rollout, episodes = collect(state, collect_key)
+        normalizer = state.normalizer
+        if config.normalize_observations:
+            normalizer = running_statistics.update(normalizer, rollout.obs)
+        values = value_of(state.params, normalizer, rollout.obs)
+        next_values = value_of(state.params, normalizer, rollout.final_obs)
+        advantages, targets = losses.gae(
+            rollout.reward * hparams.reward_scale, values, next_values, rollout.terminated, rollout.done,
+            hparams.gamma, hparams.gae_lambda,
+        )
+        samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets)
+        samples = jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
+
+        progress = state.updates.astype(jnp.float32) / config.num_updates
+        learning_rate = hparams.learning_rate * (1.0 - progress if config.anneal_learning_rate else 1.0)
+        optimizer = make_optimizer(hparams, learning_rate)
+
+        def sgd_step(carry, minibatch_and_key):
+            params, opt_state = carry
+            minibatch, key = minibatch_and_key
+            grads, terms = jax.grad(minibatch_loss, has_aux=True)(params, normalizer, minibatch, hparams, key)
+            updates, opt_state = optimizer.update(grads, opt_state, params)
+            return (optax.apply_updates(params, updates), opt_state), (terms, optax.global_norm(grads))
+
+        def epoch(carry, key):
+            permute_key, step_key = jax.random.split(key)
+            order = jax.random.permutation(permute_key, config.env_steps_per_update)
+            minibatches = jax.tree.map(
+                lambda x: x[order].reshape((config.num_minibatches, config.minibatch_size) + x.shape[1:]), samples
+            )
+            return jax.lax.scan(sgd_step, carry, (minibatches, jax.random.split(step_key, config.num_minibatches)))
+
+        (params, opt_state), (terms, grad_norms) = jax.lax.scan(
+            epoch, (state.params, state.opt_state), jax.random.split(shuffle_key, config.num_epochs)
+        )
+        env_steps = state.env_steps + config.env_steps_per_update
+        new_state = PPOState(
+            params=params, opt_state=opt_state, normalizer=normalizer, env_state=env_state, key=next_key,
+            env_steps=env_steps, updates=state.updates + 1,
+        )
+        metrics = PPOMetrics(
+            env_steps=env_steps,
+            episodes=episodes,
+            loss=jax.tree.map(jnp.mean, terms),
+            learning_rate=learning_rate,
+            grad_norm=jnp.mean(grad_norms),
+        )
+        return new_state, metrics
+
+    def act(state: PPOState, obs):
+        """Deterministic action: tanh of the Gaussian's mean."""
+        return action_dist.mode(policy_params_of(state.params, state.normalizer, obs))
+
+    return Trainer(
+        init=init, update=update, act=act, num_updates=config.num_updates,
+        env_steps_per_update=config.env_steps_per_update,
+    )

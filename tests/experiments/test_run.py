@@ -1,0 +1,115 @@
+"""The runner end to end: files of a run, CLI errors, resume after SIGKILL, NaN stop, bad checkpoints."""
+
+import json
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import time
+
+import jax
+import numpy as np
+import pytest
+
+from jaxarm.agents.common import checkpoint
+from experiments import configs, eval as eval_cli, rundir, run
+
+SMALL = ["num_envs=64", "rollout_length=16", "num_minibatches=2", "total_env_steps=24576",
+         "updates_per_chunk=4", "checkpoint_every_updates=4", "eval_episodes=20"]
+
+
+def run_cli(*args):
+    return run.main(["--config", "ppo_arm2d_fixed", *args])
+
+
+def final_params(run_dir: pathlib.Path):
+    config, _ = rundir.read_config(run_dir)
+    return rundir.restore_state(run_dir, configs.make_trainer(config), config)
+
+
+@pytest.fixture(scope="module")
+def finished_run(tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp("runs") / "full"
+    assert run_cli(*SMALL, "--out", str(run_dir)) == 0
+    return run_dir
+
+
+def test_a_run_writes_config_metrics_checkpoints_curve_and_eval(finished_run):
+    config = json.loads((finished_run / "config.json").read_text())
+    assert config["preset"] == "ppo_arm2d_fixed" and config["num_envs"] == 64
+    rows = rundir.read_metrics(finished_run)
+    assert [row["updates"] for row in rows] == list(range(1, 25))
+    assert {"env_steps", "episodes/return_mean", "episodes/success_rate", "loss/policy_loss", "steps_per_second",
+            "wall_time"} <= set(rows[0])
+    assert checkpoint.latest_step(finished_run / "checkpoints") == 24
+    assert (finished_run / "curve.png").stat().st_size > 10_000
+    assert any((finished_run / "tensorboard").iterdir())
+    result = json.loads((finished_run / "eval.json").read_text())
+    assert result["episodes"] == 20 and 0.0 <= result["success_rate"] <= 1.0 and "return_mean" in result
+
+
+def test_eval_cli_rewrites_eval_json_and_draws_a_video(finished_run):
+    assert eval_cli.main([str(finished_run), "--episodes", "7", "--video"]) == 0
+    assert json.loads((finished_run / "eval.json").read_text())["episodes"] == 7
+    assert (finished_run / "video.gif").stat().st_size > 1000
+
+
+def test_cli_errors_are_one_line_and_name_the_closest(capsys, tmp_path):
+    assert run.main(["--config", "ppo_arm2dd"]) == 2
+    assert "did you mean 'ppo_arm2d'" in capsys.readouterr().err
+    assert run_cli("learnin_rate=1", "--out", str(tmp_path / "a")) == 2
+    assert "did you mean 'learning_rate'" in capsys.readouterr().err
+    assert run_cli("num_envs=-3", "--out", str(tmp_path / "b")) == 2
+    assert "num_envs must be positive" in capsys.readouterr().err
+    assert run_cli("gamma=high", "--out", str(tmp_path / "c")) == 2
+    assert "bad value for gamma" in capsys.readouterr().err
+    assert not (tmp_path / "a").exists()
+
+
+def test_resume_after_sigkill_matches_an_uninterrupted_run(finished_run, tmp_path):
+    run_dir = tmp_path / "killed"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    command = [sys.executable, "-m", "experiments.run", "--config", "ppo_arm2d_fixed", *SMALL, "--out", str(run_dir)]
+    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 240
+    while time.time() < deadline and (checkpoint.latest_step(run_dir / "checkpoints") or 0) < 8:
+        time.sleep(0.2)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    killed_at = checkpoint.latest_step(run_dir / "checkpoints")
+    assert killed_at is not None and killed_at < 24, "the run finished before it could be killed"
+    assert run.main(["--resume", str(run_dir)]) == 0
+    assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 25))
+    for resumed, uninterrupted in zip(jax.tree.leaves(final_params(run_dir)), jax.tree.leaves(final_params(finished_run))):
+        np.testing.assert_array_equal(resumed, uninterrupted)
+
+
+def test_nan_stops_the_run_naming_the_update_and_keeps_the_last_good_checkpoint(finished_run, tmp_path, capsys):
+    config, preset = rundir.read_config(finished_run)
+    good = final_params(finished_run)
+    diverging = config.__class__(**{**config.__dict__, "learning_rate": float("nan")})
+    with pytest.raises(run.TrainingDiverged, match=r"update 25 .*last good checkpoint \(update 24\)"):
+        run.train(diverging.__class__(**{**diverging.__dict__, "total_env_steps": 2 * config.total_env_steps}),
+                  preset, finished_run, resume=True)
+    assert checkpoint.latest_step(finished_run / "checkpoints") == 24
+    for kept, before in zip(jax.tree.leaves(final_params(finished_run)), jax.tree.leaves(good)):
+        np.testing.assert_array_equal(kept, before)
+
+
+def test_corrupt_or_mismatched_checkpoint_gives_a_clear_error(finished_run, tmp_path, capsys):
+    mismatched = tmp_path / "mismatched"
+    mismatched.mkdir()
+    config = json.loads((finished_run / "config.json").read_text())
+    (mismatched / "config.json").write_text(json.dumps({**config, "policy_hidden_sizes": [8]}))
+    os.symlink(finished_run / "checkpoints", mismatched / "checkpoints")
+    assert run.main(["--resume", str(mismatched)]) == 2
+    assert "cannot be restored" in capsys.readouterr().err or "does not match" in capsys.readouterr().err
+
+    corrupt = tmp_path / "corrupt"
+    (corrupt / "checkpoints" / "4").mkdir(parents=True)
+    (corrupt / "config.json").write_text((finished_run / "config.json").read_text())
+    (corrupt / "checkpoints" / "4" / "garbage").write_text("not a checkpoint")
+    assert eval_cli.main([str(corrupt), "--episodes", "2"]) == 2
+    assert "error:" in capsys.readouterr().err
+    assert not (corrupt / "eval.json").exists()
