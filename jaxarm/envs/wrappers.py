@@ -44,8 +44,10 @@ class AutoReset(Wrapper):
 
     def step(self, state: EnvState, action: jax.Array, params) -> EnvState:
         stepped = self.env.step(state, action, params)
-        reset_key, carry_key = jax.random.split(stepped.key)
-        fresh = self.env.reset(reset_key, params)
+        # The reset is computed for every env (vmap turns a branch into a select), so it must be cheap: it
+        # draws from the carried key, which only advances when an episode ends. Random numbers dominated
+        # the cost of a step (threefry hashes), so no extra split happens here.
+        fresh = self.env.reset(stepped.key, params)
         done = stepped.done
 
         def pick(new, old):
@@ -56,7 +58,7 @@ class AutoReset(Wrapper):
             obs=pick(fresh.obs, stepped.obs),
             step_count=pick(fresh.step_count, stepped.step_count),
             episode=jax.tree.map(pick, fresh.episode, stepped.episode),
-            key=carry_key,
+            key=pick(fresh.key, stepped.key),
         )
 
 

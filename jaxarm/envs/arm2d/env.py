@@ -94,14 +94,13 @@ def goal_reachable(goal: jax.Array, params: Arm2dParams) -> jax.Array:
     return (nearest < outer) & (farthest > inner)
 
 
-def sample_goal(key: jax.Array, params: Arm2dParams) -> jax.Array:
-    """[2] goal centre for a new episode, drawn according to `params.goal_mode`."""
-    world_key, radius_key, angle_key = jax.random.split(key, 3)
-    in_world = jax.random.uniform(world_key, (2,)) * params.world_size
+def sample_goal(uniforms: jax.Array, params: Arm2dParams) -> jax.Array:
+    """[2] goal centre for a new episode from 4 uniform [0, 1) numbers, according to `params.goal_mode`."""
+    in_world = uniforms[:2] * params.world_size
     inner, outer = reach_radii(params)
     # Uniform over the annulus's area: the squared radius is uniform.
-    radius = jnp.sqrt(jax.random.uniform(radius_key, minval=inner**2, maxval=outer**2))
-    angle = jax.random.uniform(angle_key, maxval=2 * jnp.pi)
+    radius = jnp.sqrt(inner**2 + uniforms[2] * (outer**2 - inner**2))
+    angle = uniforms[3] * 2 * jnp.pi
     in_reach = params.base_pos + radius * jnp.stack([jnp.cos(angle), jnp.sin(angle)])
     return jnp.select(
         [params.goal_mode == GOAL_FIXED, params.goal_mode == GOAL_UNIFORM_WORLD],
@@ -156,10 +155,11 @@ class Arm2d(Env[Arm2dParams, Arm2dSim]):
         )
 
     def _reset(self, key, params):
-        angle_key, goal_key = jax.random.split(key)
+        # One draw for everything: each threefry call costs more than the arm's maths (see BENCHMARKS.md).
+        uniforms = jax.random.uniform(key, (self.num_links + 4,))
         sim = Arm2dSim(
-            angles=jax.random.uniform(angle_key, (self.num_links,), maxval=2 * jnp.pi),
-            goal=sample_goal(goal_key, params),
+            angles=uniforms[: self.num_links] * 2 * jnp.pi,
+            goal=sample_goal(uniforms[self.num_links:], params),
             hold_count=jnp.zeros((), jnp.int32),
         )
         return sim, self._observe(sim, params), self._info(sim, params, jnp.zeros((), jnp.bool_))

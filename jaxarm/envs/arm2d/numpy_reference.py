@@ -34,12 +34,9 @@ class ClassicArm:
 
     def joints(self):
         """[..., N, 2] position of every link end, the finger last."""
-        positions, point, total = [], np.broadcast_to(self.base, self.angles.shape[:-1] + (2,)), 0.0
-        for i, length in enumerate(self.link_lengths):
-            total = total + self.angles[..., i]
-            point = point + length * np.stack([np.cos(total), np.sin(total)], axis=-1)
-            positions.append(point)
-        return np.stack(positions, axis=-2).astype(np.float32)
+        total = np.cumsum(self.angles, axis=-1)
+        segments = self.link_lengths[:, None] * np.stack([np.cos(total), np.sin(total)], axis=-1)
+        return (self.base + np.cumsum(segments, axis=-2)).astype(np.float32)
 
     def observation(self):
         joints = self.joints()

@@ -1,0 +1,80 @@
+"""arm2d env steps/s (auto-reset and episode statistics included) beside the numpy reference, same run.
+
+The JAX env runs `steps` steps inside one jitted `lax.scan` per batch size; the peers are the plain-numpy
+reference stepping one env in a Python loop (the classic tutorial's way) and the same numpy code on a batch.
+"""
+
+import argparse
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm import envs
+from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
+from jaxarm.envs.arm2d.numpy_reference import ClassicArm
+
+
+def jax_steps_per_second(num_envs: int, steps: int, repeats: int = 3) -> tuple[float, float]:
+    """(env steps/s of the best repeat, compile seconds) for `num_envs` auto-reset envs over `steps` steps."""
+    env = envs.make("arm2d")
+    params = envs.override_params(env.default_params(), {"goal_mode": GOAL_UNIFORM_REACHABLE})
+    batch = envs.VmapEnv(envs.AutoReset(env), num_envs)
+    # A fixed bang-bang action pattern: cheap to make, and it visits goals, resets and time limits.
+    pattern = jnp.sign(jax.random.normal(jax.random.PRNGKey(1), (num_envs, env.spec.action_size)))
+
+    @jax.jit
+    def run(state):
+        def body(carry, step):
+            return batch.step(carry, pattern * jnp.cos(step * 0.05), params), None
+
+        state, _ = jax.lax.scan(body, state, jnp.arange(steps, dtype=jnp.float32))
+        return state
+
+    state = jax.jit(batch.reset)(jax.random.PRNGKey(0), params)
+    start = time.perf_counter()
+    state = jax.block_until_ready(run(state))
+    compile_seconds = time.perf_counter() - start
+    best = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        state = jax.block_until_ready(run(state))
+        best = min(best, time.perf_counter() - start)
+    return num_envs * steps / best, compile_seconds
+
+
+def numpy_steps_per_second(num_envs: int | None, seconds: float = 1.0) -> float:
+    """Env steps/s of the numpy reference: one env in a Python loop (None) or a numpy batch of `num_envs`."""
+    rng = np.random.default_rng(0)
+    shape = () if num_envs is None else (num_envs,)
+    arm = ClassicArm()
+    arm.reset_to(rng.uniform(0, 2 * np.pi, shape + (2,)), rng.uniform(0, 400, shape + (2,)))
+    actions = rng.uniform(-1, 1, (256,) + shape + (2,)).astype(np.float32)
+    count, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        for action in actions:
+            _, _, terminated, truncated = arm.step(action)
+            if num_envs is None and (terminated or truncated):
+                arm.reset_to(rng.uniform(0, 2 * np.pi, 2), rng.uniform(0, 400, 2))
+        count += len(actions)
+    return count * (1 if num_envs is None else num_envs) / (time.perf_counter() - start)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m experiments.bench arm2d", description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", default="1,1024,65536,1048576", help="comma-separated env counts")
+    parser.add_argument("--steps", type=int, default=1000, help="steps per timed scan")
+    args = parser.parse_args(argv)
+    reference = numpy_steps_per_second(None)
+    batched_numpy = numpy_steps_per_second(1024)
+    device = jax.devices()[0].device_kind
+    print(f"device: {device}; jax {jax.__version__}")
+    print(f"numpy reference, single env loop: {reference:,.0f} steps/s")
+    print(f"numpy reference, batch of 1024:   {batched_numpy:,.0f} steps/s ({batched_numpy / reference:,.0f}x single)")
+    print("| envs | env steps/s | vs numpy single env | compile s |")
+    print("|---:|---:|---:|---:|")
+    for size in (int(text) for text in args.sizes.split(",")):
+        steps = max(10, min(args.steps, 2 * 10**9 // (size * 100)))
+        rate, compile_seconds = jax_steps_per_second(size, steps)
+        print(f"| {size:,} | {rate:,.3g} | {rate / reference:,.0f}x | {compile_seconds:.1f} |", flush=True)
