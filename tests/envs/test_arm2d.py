@@ -22,14 +22,14 @@ def start_state(env, params, angles, goal):
 @pytest.mark.parametrize("num_links", [2, 3, 5])
 def test_parity_with_numpy_reference_on_random_action_sequences(num_links):
     env = Arm2d(num_links)
-    params = env.default_params()
+    params = env.default_params().replace(success_bonus=jnp.float32(7.0))
     rng = np.random.default_rng(num_links)
     step = jax.jit(env.step)
     for episode in range(4):
         angles = rng.uniform(0, 2 * np.pi, num_links).astype(np.float32)
         # Every other episode starts near the goal so that the bonus, holding and termination are exercised.
         goal = rng.uniform(0, 400, 2) if episode % 2 else np.array(env_finger(angles, params))
-        reference = ClassicArm(link_lengths=np.asarray(params.link_lengths))
+        reference = ClassicArm(link_lengths=np.asarray(params.link_lengths), success_bonus=7.0)
         np.testing.assert_allclose(reference.reset_to(angles, goal), start_state(env, params, angles, goal).obs,
                                    atol=1e-5)
         state = start_state(env, params, angles, goal)

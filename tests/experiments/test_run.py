@@ -1,5 +1,6 @@
 """The runner end to end: files of a run, CLI errors, resume after SIGKILL, NaN stop, bad checkpoints."""
 
+import dataclasses
 import json
 import os
 import pathlib
@@ -88,10 +89,9 @@ def test_resume_after_sigkill_matches_an_uninterrupted_run(finished_run, tmp_pat
 def test_nan_stops_the_run_naming_the_update_and_keeps_the_last_good_checkpoint(finished_run, tmp_path, capsys):
     config, preset = rundir.read_config(finished_run)
     good = final_params(finished_run)
-    diverging = config.__class__(**{**config.__dict__, "learning_rate": float("nan")})
+    diverging = dataclasses.replace(config, learning_rate=float("nan"), total_env_steps=2 * config.total_env_steps)
     with pytest.raises(run.TrainingDiverged, match=r"update 25 .*last good checkpoint \(update 24\)"):
-        run.train(diverging.__class__(**{**diverging.__dict__, "total_env_steps": 2 * config.total_env_steps}),
-                  preset, finished_run, resume=True)
+        run.train(diverging, preset, finished_run, resume=True)
     assert checkpoint.latest_step(finished_run / "checkpoints") == 24
     for kept, before in zip(jax.tree.leaves(final_params(finished_run)), jax.tree.leaves(good)):
         np.testing.assert_array_equal(kept, before)

@@ -30,7 +30,8 @@ class RunConfig:
       env_kwargs: static env constructor arguments as (name, value) pairs.
       env_params: overrides of the env's default params as (name, value) pairs.
       num_envs: envs stepped in parallel.
-      total_env_steps: training budget in env steps (rounded up to whole updates).
+      total_env_steps: training budget in env steps (rounded up to whole chunks of updates, so that every
+        chunk is the same compiled program: a shorter last chunk would compile again).
       updates_per_chunk: updates compiled into one call; the runner logs and checkpoints between calls.
       checkpoint_every_updates: save the learner state at the first chunk end after this many updates.
       eval_episodes: fresh episodes for the final deterministic evaluation.
@@ -49,6 +50,11 @@ class RunConfig:
     checkpoint_every_updates: int = 50
     eval_episodes: int = 1000
     seed: int = 0
+
+    def whole_chunks(self, env_steps_per_update: int) -> int:
+        """Updates in the run: `total_env_steps` rounded up to whole chunks of `updates_per_chunk`."""
+        chunk_steps = env_steps_per_update * self.updates_per_chunk
+        return max(1, -(-self.total_env_steps // chunk_steps)) * self.updates_per_chunk
 
     def make_env(self):
         """Returns (env, env_params) described by this config."""

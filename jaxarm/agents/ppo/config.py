@@ -80,7 +80,7 @@ class PPOConfig(RunConfig):
 
     @property
     def num_updates(self) -> int:
-        return max(1, -(-self.total_env_steps // self.env_steps_per_update))
+        return self.whole_chunks(self.env_steps_per_update)
 
     @property
     def minibatch_size(self) -> int:

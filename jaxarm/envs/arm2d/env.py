@@ -36,6 +36,8 @@ class Arm2dParams:
       action_scale: joint-angle change (radians) per unit action.
       distance_weight: weight of the −distance/world reward term.
       goal_bonus: reward per step with the finger inside the goal square.
+      success_bonus: reward on the step that completes the hold (0 in the tutorial). Without it, leaving the
+        goal for a step to restart the hold count earns more per-step bonus than finishing the task.
       hold_steps: terminated once the goal has been held for more than this many consecutive steps.
       max_episode_steps: time limit (truncation).
     """
@@ -49,6 +51,7 @@ class Arm2dParams:
     action_scale: jax.Array
     distance_weight: jax.Array
     goal_bonus: jax.Array
+    success_bonus: jax.Array
     hold_steps: jax.Array
     max_episode_steps: jax.Array
 
@@ -130,6 +133,7 @@ class Arm2d(Env[Arm2dParams, Arm2dSim]):
             action_scale=jnp.array(0.1, f32),
             distance_weight=jnp.array(1.0, f32),
             goal_bonus=jnp.array(1.0, f32),
+            success_bonus=jnp.array(0.0, f32),
             hold_steps=jnp.array(50, jnp.int32),
             max_episode_steps=jnp.array(200, jnp.int32),
         )
@@ -175,7 +179,8 @@ class Arm2d(Env[Arm2dParams, Arm2dSim]):
         return Transition(
             sim=sim,
             obs=self._observe(sim, params),
-            reward=-params.distance_weight * info.distance + params.goal_bonus * on_goal,
+            reward=(-params.distance_weight * info.distance + params.goal_bonus * on_goal
+                    + params.success_bonus * terminated),
             terminated=terminated,
             success=terminated,
             info=info,

@@ -15,13 +15,14 @@ class ClassicArm:
     """
 
     def __init__(self, link_lengths=(100.0, 100.0), base=(200.0, 200.0), world=400.0, goal_size=40.0,
-                 action_scale=0.1, hold_steps=50, max_episode_steps=200):
+                 action_scale=0.1, hold_steps=50, success_bonus=0.0, max_episode_steps=200):
         self.link_lengths = np.asarray(link_lengths, np.float32)
         self.base = np.asarray(base, np.float32)
         self.world = np.float32(world)
         self.goal_size = np.float32(goal_size)
         self.action_scale = np.float32(action_scale)
         self.hold_steps = hold_steps
+        self.success_bonus = np.float32(success_bonus)
         self.max_episode_steps = max_episode_steps
 
     def reset_to(self, angles, goal):
@@ -58,5 +59,6 @@ class ClassicArm:
         self.on_goal = np.where(inside, self.on_goal + 1, 0)
         self.steps += 1
         terminated = self.on_goal > self.hold_steps
+        reward = reward + self.success_bonus * terminated
         truncated = (self.steps >= self.max_episode_steps) & ~terminated
         return self.observation(), reward.astype(np.float32), terminated, truncated
