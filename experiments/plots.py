@@ -9,6 +9,8 @@ import jax  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from experiments.stats import confidence_halfwidth  # noqa: E402
+
 
 def rolling_mean(values: np.ndarray, window: int) -> np.ndarray:
     """Trailing mean over up to `window` values, same length as `values`."""
@@ -43,6 +45,30 @@ def learning_curve(rows: list[dict], path: pathlib.Path, title: str) -> None:
     ax.set_ylabel("episode return")
     ax.legend(loc="upper left")
     ax.set_title(f"{title} ({jax.devices()[0].device_kind})")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
+    """Mean success rate and episode return over env steps, with 95% CI bands across seeds.
+
+    `curves` maps a setting's label to (env_steps, success_rate, return_mean), each [seeds, updates].
+    """
+    fig, (success_ax, return_ax) = plt.subplots(1, 2, figsize=(12, 4.5))
+    for index, (label, (steps, success, returns)) in enumerate(curves.items()):
+        x = np.asarray(steps, float)[0]
+        for ax, values in ((success_ax, success), (return_ax, returns)):
+            values = np.asarray(values, float)
+            mean, half = values.mean(axis=0), confidence_halfwidth(values)
+            ax.plot(x, mean, color=f"C{index}", label=label)
+            ax.fill_between(x, mean - half, mean + half, color=f"C{index}", alpha=0.2)
+    success_ax.set_ylabel("success rate (training episodes)")
+    return_ax.set_ylabel("episode return")
+    for ax in (success_ax, return_ax):
+        ax.set_xlabel("env steps")
+    success_ax.legend(fontsize=7)
+    fig.suptitle(f"{title} ({jax.devices()[0].device_kind}); bands: 95% CI over seeds")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -3,7 +3,8 @@
 The learner is compiled in chunks of `updates_per_chunk` updates; between chunks the runner logs metrics
 (JSON lines, TensorBoard), shows progress, checks for NaN/inf and checkpoints the whole learner state.
 `--resume RUN_DIR` continues from the latest checkpoint; on CPU the result is bit-identical to an
-uninterrupted run. At the end it evaluates the deterministic policy and draws the learning curve.
+uninterrupted run. With several devices the env batch is split across all of them (data parallel, see
+jaxarm/agents/common/sharding.py). At the end it evaluates the deterministic policy and draws the curve.
 """
 
 import argparse
@@ -17,6 +18,7 @@ import numpy as np
 
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
+from jaxarm.agents.common.sharding import data_mesh, data_parallel
 from jaxarm.agents.common.trainer import make_chunk_runner
 from experiments import configs, plots, progress, rundir
 
@@ -31,6 +33,8 @@ def parse_args(argv):
     parser.add_argument("--list", action="store_true", help="list presets and exit")
     parser.add_argument("--out", help="run directory (default runs/<config>-<timestamp>)")
     parser.add_argument("--resume", help="continue the run in this directory from its latest checkpoint")
+    parser.add_argument("--distributed", action="store_true",
+                        help="call jax.distributed.initialize() first (multi-host: run the same command on every host)")
     parser.add_argument("overrides", nargs="*", help="config overrides key=value (env_params.NAME=VALUE too)")
     args = parser.parse_args(argv)
     if not (args.list or args.config or args.resume):
@@ -76,6 +80,8 @@ def train(config, preset: str, run_dir: pathlib.Path, resume: bool) -> dict:
         rundir.write_config(run_dir, config, preset)
         state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams)
         done_updates, wall_offset = 0, 0.0
+    if jax.device_count() > 1:
+        state = data_parallel(state, data_mesh())
     runners = {}
     writer = SummaryWriter(str(run_dir / "tensorboard"))
     last_saved = done_updates
@@ -121,6 +127,8 @@ def train(config, preset: str, run_dir: pathlib.Path, resume: bool) -> dict:
 
 def main(argv=None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
+    if args.distributed:
+        jax.distributed.initialize()
     if args.list:
         for name, description in configs.describe().items():
             print(f"{name:24s} {description}")

@@ -1,0 +1,151 @@
+"""Sweep seeds × hyper-parameters: `python -m experiments.sweep --config NAME --seeds N key=v1,v2 ...`.
+
+Dynamic hyper-parameters (the config's DYNAMIC_FIELDS) of every seed and value are vmapped into one
+compiled call; static choices (num_envs, sizes, ...) form separate groups, each compiled once. Writes
+results.csv and results.md (mean, std and 95% CI over seeds of final return and success, wall time) and
+curves.png (mean success rate and return over env steps with 95% CI bands) into the sweep directory.
+"""
+
+import argparse
+import csv
+import dataclasses
+import itertools
+import pathlib
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm.agents.common.config import RunConfig, apply_overrides
+from jaxarm.agents.common.evaluate import evaluate
+from jaxarm.agents.common.trainer import run_updates
+from experiments import configs, plots
+from experiments.stats import confidence_halfwidth
+
+@dataclasses.dataclass(frozen=True)
+class Grid:
+    """A sweep: the static config groups and, inside each, the dynamic combinations to vmap."""
+
+    groups: list[RunConfig]
+    dynamic: list[dict[str, float]]
+
+
+def parse_grid(base: RunConfig, assignments: list[str]) -> Grid:
+    """Splits `key=v1,v2` assignments into static groups (cartesian product) and dynamic combinations."""
+    static, dynamic = [[]], [{}]
+    for item in assignments:
+        key, _, values = item.partition("=")
+        options = [value for value in values.split(",") if value]
+        if not options:
+            raise ValueError(f"sweep assignment {item!r} has no values")
+        if key in base.DYNAMIC_FIELDS:
+            parsed = [apply_overrides(base, [f"{key}={value}"]) for value in options]
+            dynamic = [{**combo, key: getattr(config, key)} for combo in dynamic for config in parsed]
+        else:
+            static = [overrides + [f"{key}={value}"] for overrides in static for value in options]
+    return Grid(groups=[apply_overrides(base, overrides) for overrides in static], dynamic=dynamic)
+
+
+def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, progress=print):
+    """Trains every (dynamic combination × seed) of one static group in one vmapped program.
+
+    Returns (metrics with leaves [members, updates], eval results [members, episodes], wall seconds); members
+    are ordered combination-major, seed-minor.
+    """
+    trainer = configs.make_trainer(config)
+    members = [(combo, seed) for combo in dynamic for seed in range(seeds)]
+    base = config.hparams()
+    hparams = jax.tree.map(lambda *leaves: jnp.stack(leaves), *[
+        base.replace(**{name: jnp.float32(value) for name, value in combo.items()}) for combo, _ in members
+    ])
+    keys = jnp.stack([jax.random.PRNGKey(config.seed + seed) for _, seed in members])
+    start = time.perf_counter()
+    state = jax.jit(jax.vmap(trainer.init))(keys, hparams)
+    chunk = jax.jit(jax.vmap(lambda s, h: run_updates(trainer, s, h, config.updates_per_chunk)))
+    chunks = []
+    for index in range(trainer.num_updates // config.updates_per_chunk):
+        state, metrics = chunk(state, hparams)
+        chunks.append(jax.device_get(metrics))
+        progress(f"  chunk {index + 1}/{trainer.num_updates // config.updates_per_chunk} "
+                 f"({time.perf_counter() - start:.1f} s)")
+    metrics = jax.tree.map(lambda *parts: np.concatenate(parts, axis=1), *chunks)
+    env, env_params = config.make_env()
+    eval_keys = jax.random.split(jax.random.PRNGKey(config.seed + 1_000_003), len(members))
+    results = jax.jit(jax.vmap(
+        lambda learner, key: evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, config.eval_episodes)
+    ))(state, eval_keys)
+    return metrics, jax.device_get(results), time.perf_counter() - start
+
+
+def summarise(label: str, success: np.ndarray, returns: np.ndarray, wall: float) -> dict:
+    """Per-seed final success rates and returns [seeds] -> one results row."""
+    return {
+        "setting": label,
+        "seeds": len(success),
+        "success_mean": float(success.mean()),
+        "success_std": float(success.std()),
+        "success_ci95": float(confidence_halfwidth(success)),
+        "return_mean": float(returns.mean()),
+        "return_std": float(returns.std()),
+        "return_ci95": float(confidence_halfwidth(returns)),
+        "group_wall_s": round(wall, 1),
+    }
+
+
+def describe(config: RunConfig, base: RunConfig, combo: dict) -> str:
+    changed = [f"{field.name}={getattr(config, field.name)}" for field in dataclasses.fields(config)
+               if getattr(config, field.name) != getattr(base, field.name)]
+    return " ".join(changed + [f"{name}={value:g}" for name, value in combo.items()]) or "base"
+
+
+def write_tables(rows: list[dict], out: pathlib.Path) -> None:
+    with (out / "results.csv").open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    lines = ["| setting | seeds | success (mean ± 95% CI) | return (mean ± 95% CI) | group wall s |",
+             "|---|---:|---:|---:|---:|"]
+    lines += [f"| {row['setting']} | {row['seeds']} | {row['success_mean']:.3f} ± {row['success_ci95']:.3f} | "
+              f"{row['return_mean']:.2f} ± {row['return_ci95']:.2f} | {row['group_wall_s']} |" for row in rows]
+    (out / "results.md").write_text("\n".join(lines) + "\n")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m experiments.sweep", description=__doc__.splitlines()[0])
+    parser.add_argument("--config", required=True)
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--out", help="sweep directory (default runs/sweep-<config>-<timestamp>)")
+    parser.add_argument("assignments", nargs="*", help="key=v1,v2,... (one value: a plain override)")
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        if args.seeds <= 0:
+            raise ValueError(f"--seeds must be positive, got {args.seeds}")
+        base = configs.get(args.config)
+        grid = parse_grid(base, args.assignments)
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    out = pathlib.Path(args.out or f"runs/sweep-{args.config}-{time.strftime('%Y%m%d-%H%M%S')}")
+    out.mkdir(parents=True, exist_ok=True)
+    rows, curves = [], {}
+    for config in grid.groups:
+        print(f"group {describe(config, base, {})}: {len(grid.dynamic)} settings × {args.seeds} seeds", flush=True)
+        metrics, results, wall = run_group(config, grid.dynamic, args.seeds)
+        for index, combo in enumerate(grid.dynamic):
+            members = slice(index * args.seeds, (index + 1) * args.seeds)
+            label = describe(config, base, combo)
+            rows.append(summarise(label, results.successes[members].mean(axis=1),
+                                  results.returns[members].mean(axis=1), wall))
+            curves[label] = (metrics.env_steps[members], metrics.episodes.success_rate[members],
+                             metrics.episodes.return_mean[members])
+    write_tables(rows, out)
+    plots.sweep_curves(curves, out / "curves.png", title=f"{args.config}, {args.seeds} seeds")
+    print((out / "results.md").read_text())
+    print(f"wrote {out}/results.csv, results.md, curves.png")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
