@@ -1,4 +1,4 @@
-"""PPO: whole-run compilation, vmap over seeds × hyper-parameters, and a small solve on arm2d."""
+"""PPO: whole-run compilation, vmap over seeds × hyper-parameters, probe envs, and a small solve on arm2d."""
 
 import dataclasses
 
@@ -7,9 +7,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from brax.training.acme import running_statistics
+
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import make_chunk_runner, make_train
 from jaxarm.agents.ppo import PPOConfig, make_trainer
+from jaxarm.agents.ppo.train import make_networks
+from tests.agents.probe_envs import ConstantRewardEnv, TargetActionEnv
 
 TINY = PPOConfig(num_envs=8, rollout_length=4, num_minibatches=2, num_epochs=2, total_env_steps=32 * 4,
                  updates_per_chunk=2, policy_hidden_sizes=(16,), value_hidden_sizes=(16,))
@@ -57,3 +61,32 @@ def test_ppo_solves_the_fixed_goal_arm():
     env, env_params = config.make_env()
     result = evaluate(env, env_params, lambda obs: trainer.act(state, obs), jax.random.PRNGKey(1), 100)
     assert float(result.successes.mean()) >= 0.95
+
+
+PROBE = PPOConfig(num_envs=64, rollout_length=8, num_minibatches=4, num_epochs=4, total_env_steps=64 * 8 * 60,
+                  updates_per_chunk=60, policy_hidden_sizes=(32,), value_hidden_sizes=(32,), gamma=0.9,
+                  learning_rate=3e-3, entropy_coef=0.0)
+
+
+def probe_value(config, state, obs):
+    """V(obs) of a trained PPO state, through the same normaliser and network the learner uses."""
+    _, _, value_net = make_networks(config, 1)
+    return value_net.apply(state.params.value, running_statistics.normalize(obs, state.normalizer))[..., 0]
+
+
+@pytest.mark.parametrize("terminate, expected", [(True, 1.0), (False, 1.0 / (1.0 - 0.9))])
+def test_value_learns_termination_and_bootstraps_truncation(terminate, expected):
+    env = ConstantRewardEnv()
+    params = env.default_params().replace(terminate=jnp.array(terminate))
+    trainer = make_trainer(PROBE, env, params)
+    state, _ = jax.jit(make_train(trainer))(jax.random.PRNGKey(0), PROBE.hparams())
+    value = float(probe_value(PROBE, state, jnp.ones((1, 1)))[0])
+    assert abs(value - expected) < 0.1 * expected, value
+
+
+def test_policy_learns_an_observation_dependent_action():
+    env = TargetActionEnv()
+    trainer = make_trainer(PROBE, env, env.default_params())
+    state, _ = jax.jit(make_train(trainer))(jax.random.PRNGKey(0), PROBE.hparams())
+    targets = jnp.linspace(-0.5, 0.5, 11)[:, None]
+    np.testing.assert_allclose(trainer.act(state, targets), targets, atol=0.1)

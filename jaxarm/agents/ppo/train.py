@@ -91,14 +91,21 @@ def make_optimizer(hparams: PPOHParams, learning_rate) -> optax.GradientTransfor
     return optax.chain(optax.clip_by_global_norm(hparams.max_grad_norm), optax.adam(learning_rate, eps=1e-5))
 
 
-def make_trainer(config: PPOConfig) -> Trainer:
-    """PPO for `config`: see the module docstring."""
-    config.check()
-    env, env_params = config.make_env()
-    batch_env = VmapEnv(AutoReset(env), config.num_envs)
-    action_dist = distribution.NormalTanhDistribution(event_size=env.spec.action_size)
+def make_networks(config: PPOConfig, action_size: int):
+    """(tanh-Gaussian action distribution, policy MLP, value MLP) for `config`."""
+    action_dist = distribution.NormalTanhDistribution(event_size=action_size)
     policy_net = MLP(config.policy_hidden_sizes, action_dist.param_size, config.activation, output_scale=0.01)
     value_net = MLP(config.value_hidden_sizes, 1, config.activation)
+    return action_dist, policy_net, value_net
+
+
+def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
+    """PPO for `config` (see the module docstring). `env`, `env_params` replace the config's env (probes)."""
+    config.check()
+    if env is None:
+        env, env_params = config.make_env()
+    batch_env = VmapEnv(AutoReset(env), config.num_envs)
+    action_dist, policy_net, value_net = make_networks(config, env.spec.action_size)
     obs_size = env.spec.observation_size
     # brax's NormalTanhDistribution maps the raw scale through softplus; this offset sets the initial std.
     scale_offset = float(jnp.log(jnp.expm1(jnp.exp(config.initial_log_std))))

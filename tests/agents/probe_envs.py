@@ -1,0 +1,79 @@
+"""Tiny envs with known optimal actions and values, for testing any learner (PPO, TD3, ...).
+
+Each isolates one thing a learner can get wrong:
+- `TargetActionEnv`: one step, reward −Σ(a − obs)²; the optimal action is the observation itself and the
+  optimal value is 0. Tests that the policy learns an observation-dependent continuous action.
+- `ConstantRewardEnv`: constant observation, reward `reward` every step, episodes of `max_episode_steps`
+  steps. With `terminate` the episode ends by termination after one step, so V = Q = reward; without it
+  the time limit truncates, and a learner that bootstraps on truncation (as it must) learns
+  V = Q = reward / (1 − γ), while one that treats truncation as termination learns less.
+"""
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from jaxarm.envs.base import Env, EnvSpec, Transition
+
+
+@struct.dataclass
+class ProbeSim:
+    """Probe state: the observation the episode shows (fixed within an episode)."""
+
+    obs: jax.Array
+
+
+@struct.dataclass
+class TargetActionParams:
+    """target_range: targets are uniform in ±target_range per action dim; max_episode_steps: time limit."""
+
+    target_range: jax.Array
+    max_episode_steps: jax.Array
+
+
+class TargetActionEnv(Env[TargetActionParams, ProbeSim]):
+    """One-step episodes: obs is a random target in ±target_range, reward −Σ(a − target)², then terminated."""
+
+    def __init__(self, action_size: int = 1):
+        self.spec = EnvSpec(observation_shape=(action_size,), action_shape=(action_size,))
+
+    def default_params(self) -> TargetActionParams:
+        return TargetActionParams(target_range=jnp.array(0.5, jnp.float32),
+                                  max_episode_steps=jnp.array(1, jnp.int32))
+
+    def _reset(self, key, params):
+        target = jax.random.uniform(key, self.spec.action_shape, minval=-params.target_range,
+                                    maxval=params.target_range)
+        return ProbeSim(obs=target), target, ()
+
+    def _transition(self, sim, action, params):
+        return Transition(sim=sim, obs=sim.obs, reward=-jnp.sum(jnp.square(action - sim.obs)),
+                          terminated=jnp.ones((), jnp.bool_), success=jnp.ones((), jnp.bool_), info=())
+
+
+@struct.dataclass
+class ConstantRewardParams:
+    """reward: per-step reward; terminate: end every episode by termination after one step (bool);
+    max_episode_steps: time limit (truncation) when not terminating."""
+
+    reward: jax.Array
+    terminate: jax.Array
+    max_episode_steps: jax.Array
+
+
+class ConstantRewardEnv(Env[ConstantRewardParams, ProbeSim]):
+    """Observation always [1], any action, reward `reward` every step; see the module docstring for values."""
+
+    spec = EnvSpec(observation_shape=(1,), action_shape=(1,))
+
+    def default_params(self) -> ConstantRewardParams:
+        return ConstantRewardParams(reward=jnp.array(1.0, jnp.float32), terminate=jnp.array(False),
+                                    max_episode_steps=jnp.array(5, jnp.int32))
+
+    def _reset(self, key, params):
+        obs = jnp.ones((1,), jnp.float32)
+        return ProbeSim(obs=obs), obs, ()
+
+    def _transition(self, sim, action, params):
+        return Transition(sim=sim, obs=sim.obs, reward=params.reward.astype(jnp.float32),
+                          terminated=params.terminate, success=params.terminate, info=())
