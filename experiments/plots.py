@@ -1,15 +1,23 @@
-"""Learning-curve figures drawn without a window (matplotlib's Agg backend)."""
+"""Learning-curve figures drawn without a window.
+
+Figures are made with matplotlib's object API and its Agg canvas, never through pyplot's global backend,
+so importing this module changes nothing for notebooks or other plotting code.
+"""
 
 import pathlib
 
-import matplotlib
+import jax
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import jax  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from experiments.stats import confidence_halfwidth
 
-from experiments.stats import confidence_halfwidth  # noqa: E402
+
+def _figure(width: float, height: float, columns: int = 1):
+    figure = Figure(figsize=(width, height))
+    FigureCanvasAgg(figure)
+    return figure, figure.subplots(1, columns)
 
 
 def rolling_mean(values: np.ndarray, window: int) -> np.ndarray:
@@ -26,7 +34,7 @@ def learning_curve(rows: list[dict], path: pathlib.Path, title: str) -> None:
     Updates in which no episode finished are left out. The device is named in the title.
     """
     rows = [row for row in rows if row.get("episodes/episodes", 0) > 0]
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig, ax = _figure(8, 4.5)
     if rows:
         steps = np.array([row["env_steps"] for row in rows], float)
         returns = np.array([row["episodes/return_mean"] for row in rows])
@@ -41,26 +49,26 @@ def learning_curve(rows: list[dict], path: pathlib.Path, title: str) -> None:
         twin.set_ylim(-0.02, 1.02)
         twin.set_ylabel("success rate")
         twin.legend(loc="lower right")
+        ax.legend(loc="upper left")
     ax.set_xlabel("env steps")
     ax.set_ylabel("episode return")
-    ax.legend(loc="upper left")
     ax.set_title(f"{title} ({jax.devices()[0].device_kind})")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
     """Mean success rate and episode return over env steps, with 95% CI bands across seeds.
 
-    `curves` maps a setting's label to (env_steps, success_rate, return_mean), each [seeds, updates].
+    `curves` maps a setting's label to (env_steps, success_rate, return_mean), each [seeds, updates], with
+    NaN where a seed finished no episode in that update (those points are left out of the mean).
     """
-    fig, (success_ax, return_ax) = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, (success_ax, return_ax) = _figure(12, 4.5, columns=2)
     for index, (label, (steps, success, returns)) in enumerate(curves.items()):
         x = np.asarray(steps, float)[0]
         for ax, values in ((success_ax, success), (return_ax, returns)):
             values = np.asarray(values, float)
-            mean, half = values.mean(axis=0), confidence_halfwidth(values)
+            mean, half = np.nanmean(values, axis=0), confidence_halfwidth(values)
             ax.plot(x, mean, color=f"C{index}", label=label)
             ax.fill_between(x, mean - half, mean + half, color=f"C{index}", alpha=0.2)
     success_ax.set_ylabel("success rate (training episodes)")
@@ -71,4 +79,3 @@ def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
     fig.suptitle(f"{title} ({jax.devices()[0].device_kind}); bands: 95% CI over seeds")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)

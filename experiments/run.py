@@ -33,6 +33,8 @@ def parse_args(argv):
     parser.add_argument("--list", action="store_true", help="list presets and exit")
     parser.add_argument("--out", help="run directory (default runs/<config>-<timestamp>)")
     parser.add_argument("--resume", help="continue the run in this directory from its latest checkpoint")
+    parser.add_argument("--stop-after-minutes", type=float,
+                        help="checkpoint and stop after the chunk that passes this wall time (resume later)")
     parser.add_argument("--distributed", action="store_true",
                         help="call jax.distributed.initialize() first (multi-host: run the same command on every host)")
     parser.add_argument("overrides", nargs="*", help="config overrides key=value (env_params.NAME=VALUE too)")
@@ -64,8 +66,12 @@ def metric_rows(flat: dict[str, np.ndarray], first_update: int, wall_time: float
         yield row
 
 
-def train(config, preset: str, run_dir: pathlib.Path, resume: bool) -> dict:
-    """Trains (or resumes) into `run_dir`; returns the final evaluation. Raises TrainingDiverged on NaN."""
+def train(config, preset: str, run_dir: pathlib.Path, resume: bool, stop_after_s: float | None = None) -> dict:
+    """Trains (or resumes) into `run_dir`; returns the evaluation. Raises TrainingDiverged on NaN.
+
+    With `stop_after_s`, the first chunk that ends past that many seconds of this call is checkpointed and
+    training stops there (the evaluation then describes that state; `--resume` continues).
+    """
     from tensorboardX import SummaryWriter
 
     trainer = configs.make_trainer(config)
@@ -111,15 +117,20 @@ def train(config, preset: str, run_dir: pathlib.Path, resume: bool) -> dict:
                     writer.add_scalar(name, value, row["updates"])
             log.flush()
             done_updates += count
-            if done_updates - last_saved >= config.checkpoint_every_updates or done_updates == trainer.num_updates:
+            out_of_time = stop_after_s is not None and time.perf_counter() - start > stop_after_s
+            if (done_updates - last_saved >= config.checkpoint_every_updates or done_updates == trainer.num_updates
+                    or out_of_time):
                 checkpoint.save(checkpoints, done_updates, state)
                 last_saved = done_updates
             bar.update(done_updates * trainer.env_steps_per_update, rate, flat)
+            if out_of_time:
+                break
     writer.close()
     train_time = wall_offset + time.perf_counter() - start
     result = rundir.evaluate_state(trainer, config, state, config.eval_episodes, seed=config.seed + 1_000_003)
     result["train_wall_time"] = train_time
     result["env_steps"] = int(state.env_steps)
+    result["finished"] = done_updates == trainer.num_updates
     rundir.write_json(run_dir / "eval.json", result)
     plots.learning_curve(rundir.read_metrics(run_dir), run_dir / "curve.png", title=preset)
     return result
@@ -143,7 +154,8 @@ def main(argv=None) -> int:
             run_dir = pathlib.Path(args.out) if args.out else rundir.new_run_dir(preset)
             if (run_dir / "config.json").exists():
                 raise ValueError(f"{run_dir} already holds a run; use --resume {run_dir} or another --out")
-        result = train(config, preset, run_dir, resume=bool(args.resume))
+        stop_after_s = None if args.stop_after_minutes is None else 60 * args.stop_after_minutes
+        result = train(config, preset, run_dir, resume=bool(args.resume), stop_after_s=stop_after_s)
     except (ValueError, checkpoint.CheckpointError, TrainingDiverged) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -94,6 +94,25 @@ def summarise(label: str, success: np.ndarray, returns: np.ndarray, wall: float)
     }
 
 
+def collect(config: RunConfig, base: RunConfig, dynamic: list[dict], seeds: int, metrics, results, wall: float):
+    """One group's outputs -> (results rows, {label: (env_steps, success, return) curves [seeds, updates]}).
+
+    Curve points of updates in which a seed finished no episode are NaN.
+    """
+    rows, curves = [], {}
+    finished = metrics.episodes.episodes > 0
+    for index, combo in enumerate(dynamic):
+        members = slice(index * seeds, (index + 1) * seeds)
+        label = describe(config, base, combo)
+        rows.append(summarise(label, results.successes[members].mean(axis=1), results.returns[members].mean(axis=1),
+                              wall))
+        curves[label] = tuple(np.where(finished[members], values[members], np.nan) if masked else values[members]
+                              for values, masked in ((metrics.env_steps, False),
+                                                     (metrics.episodes.success_rate, True),
+                                                     (metrics.episodes.return_mean, True)))
+    return rows, curves
+
+
 def describe(config: RunConfig, base: RunConfig, combo: dict) -> str:
     changed = [f"{field.name}={getattr(config, field.name)}" for field in dataclasses.fields(config)
                if getattr(config, field.name) != getattr(base, field.name)]
@@ -133,13 +152,9 @@ def main(argv=None) -> int:
     for config in grid.groups:
         print(f"group {describe(config, base, {})}: {len(grid.dynamic)} settings × {args.seeds} seeds", flush=True)
         metrics, results, wall = run_group(config, grid.dynamic, args.seeds)
-        for index, combo in enumerate(grid.dynamic):
-            members = slice(index * args.seeds, (index + 1) * args.seeds)
-            label = describe(config, base, combo)
-            rows.append(summarise(label, results.successes[members].mean(axis=1),
-                                  results.returns[members].mean(axis=1), wall))
-            curves[label] = (metrics.env_steps[members], metrics.episodes.success_rate[members],
-                             metrics.episodes.return_mean[members])
+        group_rows, group_curves = collect(config, base, grid.dynamic, args.seeds, metrics, results, wall)
+        rows += group_rows
+        curves.update(group_curves)
     write_tables(rows, out)
     plots.sweep_curves(curves, out / "curves.png", title=f"{args.config}, {args.seeds} seeds")
     print((out / "results.md").read_text())

@@ -1,0 +1,58 @@
+"""The notebooks under notebooks/ run top to bottom with their small default parameters, and carry no outputs.
+
+Each notebook is executed by nbclient in a fresh kernel ("python3": jupyter_client starts it with the
+interpreter running the tests) whose working directory and TMPDIR are the test's temporary directory, so
+whatever a notebook writes (run directories, sweep tables) lands there and is cleaned up.
+
+Compiling dominates the notebooks' run time (MJX alone takes 1-2 minutes on 2 CPU cores), so the kernels share
+JAX's persistent compilation cache in pytest's cache directory (.pytest_cache, cleared by --cache-clear):
+on a busy 2-core machine a first run takes 4-5 minutes (about 2 minutes of CPU time), later runs about 1.5.
+"""
+
+import pathlib
+
+import nbformat
+import pytest
+from nbclient import NotebookClient
+
+NOTEBOOKS = pathlib.Path(__file__).resolve().parents[2] / "notebooks"
+CELL_TIMEOUT_S = 600
+"""Per cell. The longest cell (MJX's first compile of the Panda sorter) takes about 2 minutes on 2 busy cores."""
+
+
+def notebook_paths() -> list[pathlib.Path]:
+    return sorted(NOTEBOOKS.glob("*.ipynb"))
+
+
+def test_the_notebooks_are_there():
+    names = {path.name for path in notebook_paths()}
+    assert {"01_arm2d.ipynb", "02_panda_sort.ipynb", "03_sweeps.ipynb"} <= names
+
+
+@pytest.mark.parametrize("path", notebook_paths(), ids=lambda path: path.stem)
+def test_notebook_is_committed_without_outputs(path):
+    notebook = nbformat.read(path, as_version=4)
+    nbformat.validate(notebook)
+    for index, cell in enumerate(notebook.cells):
+        if cell.cell_type == "code":
+            assert cell.outputs == [], f"{path.name} cell {index} has outputs: clear them before committing"
+            assert cell.execution_count is None, f"{path.name} cell {index} has an execution count"
+
+
+@pytest.mark.parametrize("path", notebook_paths(), ids=lambda path: path.stem)
+def test_notebook_has_one_parameters_cell(path):
+    notebook = nbformat.read(path, as_version=4)
+    tagged = [cell for cell in notebook.cells if "parameters" in cell.metadata.get("tags", [])]
+    assert len(tagged) == 1 and tagged[0].cell_type == "code", f"{path.name} needs exactly one 'parameters' cell"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", notebook_paths(), ids=lambda path: path.stem)
+def test_notebook_runs_with_its_default_parameters(path, tmp_path, monkeypatch, request):
+    # The kernel inherits these: the notebooks' tempfile directories go to tmp_path, compiled programs persist.
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR", str(request.config.cache.mkdir("jax-compilation-cache")))
+    notebook = nbformat.read(path, as_version=4)
+    client = NotebookClient(notebook, timeout=CELL_TIMEOUT_S, kernel_name="python3",
+                            resources={"metadata": {"path": str(tmp_path)}})
+    client.execute()  # raises CellExecutionError naming the failing cell
