@@ -10,6 +10,11 @@ be the same everywhere: action clipping, NaN-action handling, the time limit, an
 NaN actions: inside jit there is no way to raise, so a NaN component is replaced by 0 (the env steps with
 a zero command there) and counted in `state.episode.nan_actions`. Code that runs outside jit (adapters,
 evaluation) calls `check_action` for a clear error instead.
+
+Diverged physics: a step whose observation or reward is not finite, or whose observation exceeds
+`DIVERGENCE_LIMIT` in magnitude (a simulator blowing up), ends the episode as terminated with reward 0 and
+a zero observation, and is flagged in `state.episode.diverged`, so one unstable env among thousands cannot
+poison a learner's batch.
 """
 
 import abc
@@ -20,6 +25,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
+
+DIVERGENCE_LIMIT = 1e6
+"""Observations beyond this magnitude count as a diverged simulation (see the module docstring)."""
 
 Params = TypeVar("Params")
 Sim = TypeVar("Sim")
@@ -59,12 +67,14 @@ class EpisodeStats:
       length: env steps so far.
       success: whether the task's success condition held at any step.
       nan_actions: steps whose action had a NaN component (replaced by zero).
+      diverged: the simulation diverged and ended the episode.
     """
 
     return_: jax.Array
     length: jax.Array
     success: jax.Array
     nan_actions: jax.Array
+    diverged: jax.Array
 
     @classmethod
     def zeros(cls) -> "EpisodeStats":
@@ -73,6 +83,7 @@ class EpisodeStats:
             length=jnp.zeros((), jnp.int32),
             success=jnp.zeros((), jnp.bool_),
             nan_actions=jnp.zeros((), jnp.int32),
+            diverged=jnp.zeros((), jnp.bool_),
         )
 
 
@@ -179,23 +190,28 @@ class Env(abc.ABC, Generic[Params, Sim]):
         has_nan = jnp.any(jnp.isnan(action))
         action = jnp.clip(jnp.nan_to_num(action, nan=0.0), self.spec.action_low, self.spec.action_high)
         out = self._transition(state.sim, action, params)
+        healthy = jnp.all(jnp.abs(out.obs) < DIVERGENCE_LIMIT) & jnp.isfinite(out.reward)  # False for NaN too
+        obs = jnp.where(healthy, out.obs, 0.0)
+        reward = jnp.where(healthy, out.reward, 0.0).astype(jnp.float32)
+        terminated = out.terminated | ~healthy
         step_count = state.step_count + 1
-        truncated = (step_count >= params.max_episode_steps) & ~out.terminated
+        truncated = (step_count >= params.max_episode_steps) & ~terminated
         episode = EpisodeStats(
-            return_=state.episode.return_ + out.reward,
+            return_=state.episode.return_ + reward,
             length=state.episode.length + 1,
-            success=state.episode.success | out.success,
+            success=state.episode.success | (out.success & healthy),
             nan_actions=state.episode.nan_actions + has_nan.astype(jnp.int32),
+            diverged=state.episode.diverged | ~healthy,
         )
-        done = out.terminated | truncated
+        done = terminated | truncated
         last_episode = jax.tree.map(lambda new, old: jnp.where(done, new, old), episode, state.last_episode)
         return state.replace(
             sim=out.sim,
-            obs=out.obs,
-            reward=out.reward.astype(jnp.float32),
-            terminated=out.terminated,
+            obs=obs,
+            reward=reward,
+            terminated=terminated,
             truncated=truncated,
-            final_obs=out.obs,
+            final_obs=obs,
             step_count=step_count,
             episode=episode,
             last_episode=last_episode,

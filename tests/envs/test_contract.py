@@ -97,3 +97,14 @@ def test_check_action_rejects_nan_and_wrong_shape(env_and_params):
 def test_unknown_env_name_names_the_closest():
     with pytest.raises(KeyError, match="did you mean 'arm2d'"):
         envs.make("arm2dd")
+
+
+def test_a_diverged_step_terminates_with_zero_observation_and_reward():
+    env = envs.make("arm2d")
+    params = env.default_params()
+    state = env.reset(jax.random.key(0), params)
+    broken = jax.jit(env.step)(state, jnp.zeros(2), params.replace(base_pos=jnp.array([jnp.inf, 0.0])))
+    assert bool(broken.terminated) and bool(broken.episode.diverged) and not bool(broken.episode.success)
+    assert float(broken.reward) == 0.0 and np.all(np.asarray(broken.obs) == 0.0)
+    healthy = jax.jit(env.step)(state, jnp.zeros(2), params)
+    assert not bool(healthy.episode.diverged)

@@ -57,7 +57,7 @@ def make_chunk_runner(trainer: Trainer, updates_per_chunk: int):
 
 @struct.dataclass
 class EpisodeSummary:
-    """Episodes that finished during one update: count, mean return, mean length and success rate.
+    """Episodes that finished during one update: count, mean return, length, success and divergence rates.
 
     Means are NaN-free: 0 when no episode finished (the count says so).
     """
@@ -66,6 +66,7 @@ class EpisodeSummary:
     return_mean: jax.Array
     length_mean: jax.Array
     success_rate: jax.Array
+    diverged_rate: jax.Array
 
 
 def summarise_episodes(states: EnvState) -> EpisodeSummary:
@@ -83,4 +84,5 @@ def summarise_episodes(states: EnvState) -> EpisodeSummary:
         return_mean=mean(last.return_),
         length_mean=mean(last.length),
         success_rate=mean(last.success),
+        diverged_rate=mean(last.diverged),
     )
