@@ -1,0 +1,219 @@
+"""Throughput against the number of parallel envs: env steps/s and PPO training env steps/s, plotted.
+
+For every requested env that is registered (default: arm2d, panda_sort), with the params of its PPO preset:
+- env steps/s of `num_envs` auto-reset envs stepping inside one jitted `lax.scan` (compile excluded);
+- PPO env steps/s: whole updates (rollout, GAE, epochs × minibatches) of our PPO with the preset's
+  hyper-parameters at `num_envs` envs, compiled ahead of time, compile excluded;
+- where PPO's time goes at the preset's env count (when the sweep reached it): the same update timed with
+  zero SGD epochs (rollout, value passes, GAE and the normaliser only) and env stepping alone, so the
+  differences isolate the policy side of the rollout and the SGD.
+Sizes are tried in increasing order; the previous size's rate shortens each timed call to fit
+`--max-seconds`, and the sweep stops where even the shortest call would not fit (MJX envs on CPU stop
+early; their compile times are minutes there). One device is used; the output and the plot's title say how
+many there are (multi-device runs come later). The figure goes to `--plot`.
+"""
+
+import argparse
+import dataclasses
+import functools
+import pathlib
+import time
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import matplotlib
+import numpy as np
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from experiments.benchmarks.training import base_ppo_config  # noqa: E402
+from jaxarm import envs  # noqa: E402
+from jaxarm.agents.common.trainer import run_updates  # noqa: E402
+from jaxarm.agents.ppo import make_trainer  # noqa: E402
+
+
+def parse_sizes(text: str) -> list[int]:
+    return sorted(int(part) for part in text.split(",") if part)
+
+
+def timed(function, *args) -> float:
+    """Seconds of one call of an already compiled `function`, results waited for."""
+    start = time.perf_counter()
+    jax.block_until_ready(function(*args))
+    return time.perf_counter() - start
+
+
+def env_seconds(env_name: str, num_envs: int, steps: int) -> tuple[float, float]:
+    """(seconds of `steps` steps of `num_envs` auto-reset envs, compile seconds) under the preset's params."""
+    env, params = base_ppo_config(env_name).make_env()
+    batch = envs.VmapEnv(envs.AutoReset(env), num_envs)
+    # A fixed bang-bang pattern swept by a cosine: cheap to make, and it visits goals, resets and time limits.
+    pattern = jnp.sign(jax.random.normal(jax.random.PRNGKey(1), (num_envs, env.spec.action_size)))
+
+    def run(state):
+        def body(carry, step):
+            return batch.step(carry, pattern * jnp.cos(step * 0.05), params), None
+
+        return jax.lax.scan(body, state, jnp.arange(steps, dtype=jnp.float32))[0]
+
+    state = jax.jit(batch.reset)(jax.random.PRNGKey(0), params)
+    start = time.perf_counter()
+    compiled = jax.jit(run).lower(state).compile()
+    compile_seconds = time.perf_counter() - start
+    timed(compiled, state)  # warm-up: first-call allocations
+    return min(timed(compiled, state) for _ in range(2)), compile_seconds
+
+
+def ppo_seconds(env_name: str, num_envs: int, num_updates: int, **overrides) -> tuple[float, float]:
+    """(seconds of `num_updates` PPO updates, compile seconds) at `num_envs` envs; `overrides` edit the config."""
+    config = dataclasses.replace(base_ppo_config(env_name), num_envs=num_envs, **overrides)
+    trainer = make_trainer(config)
+    hparams = config.hparams()
+    state = jax.jit(trainer.init)(jax.random.PRNGKey(0), hparams)
+    start = time.perf_counter()
+    compiled = jax.jit(functools.partial(run_updates, trainer, num_updates=num_updates)).lower(state, hparams).compile()
+    compile_seconds = time.perf_counter() - start
+    timed(compiled, state, hparams)  # warm-up
+    seconds = min(timed(compiled, state, hparams) for _ in range(2))
+    return seconds, compile_seconds
+
+
+@dataclasses.dataclass(frozen=True)
+class Measure:
+    """One throughput measurement, repeated `units` times per timed call (scan steps or PPO updates).
+
+    Attributes:
+      run: (num_envs, units) -> (seconds of one timed call, compile seconds).
+      steps_per_unit: num_envs -> env steps per unit.
+      min_units, max_units: bounds on units per timed call.
+    """
+
+    run: Callable[[int, int], tuple[float, float]]
+    steps_per_unit: Callable[[int], int]
+    min_units: int
+    max_units: int
+
+
+def env_measure(env_name: str) -> Measure:
+    return Measure(lambda size, units: env_seconds(env_name, size, units), lambda size: size, 10, 1000)
+
+
+def ppo_measure(env_name: str) -> Measure:
+    rollout_length = base_ppo_config(env_name).rollout_length
+    return Measure(
+        lambda size, units: ppo_seconds(env_name, size, units), lambda size: size * rollout_length, 1, 20
+    )
+
+
+def sweep(sizes: list[int], measure: Measure, target_steps: int, max_seconds: float) -> list[tuple[int, float, float]]:
+    """[(size, env steps/s, compile s)]: about `target_steps` env steps per timed call, fewer for slow envs.
+
+    The previous size's rate sizes each call to at most half of `max_seconds`; the sweep stops before a size
+    whose smallest call (`min_units`) would still take longer than `max_seconds`.
+    """
+    rows = []
+    for size in sizes:
+        per_unit = measure.steps_per_unit(size)
+        budget = target_steps if not rows else min(target_steps, rows[-1][1] * max_seconds / 2)
+        if rows and measure.min_units * per_unit / rows[-1][1] > max_seconds:
+            print(f"  skipping {size:,} envs and up: a timed call would take over {max_seconds:g} s", flush=True)
+            break
+        units = int(np.clip(budget // per_unit, measure.min_units, measure.max_units))
+        seconds, compile_seconds = measure.run(size, units)
+        rows.append((size, units * per_unit / seconds, compile_seconds))
+        print(f"  {size:>7,} envs: {rows[-1][1]:>12,.0f} env steps/s (compile {compile_seconds:.1f} s)", flush=True)
+    return rows
+
+
+def time_breakdown(env_name: str, num_updates: int) -> list[tuple[str, float]]:
+    """[(phase, milliseconds per update)] of our PPO at the preset's env count (see the module docstring)."""
+    config = base_ppo_config(env_name)
+    full, _ = ppo_seconds(env_name, config.num_envs, num_updates)
+    no_sgd, _ = ppo_seconds(env_name, config.num_envs, num_updates, num_epochs=0)
+    env_only, _ = env_seconds(env_name, config.num_envs, config.rollout_length * num_updates)
+    sgd_steps = config.num_epochs * config.num_minibatches
+    per_update = 1000.0 / num_updates
+    return [
+        ("whole update", full * per_update),
+        (f"env stepping alone ({config.num_envs:,} envs × {config.rollout_length} steps)", env_only * per_update),
+        ("policy sampling, value passes, GAE, normaliser", (no_sgd - env_only) * per_update),
+        (f"SGD: {config.num_epochs} epochs × {config.num_minibatches} minibatches of {config.minibatch_size:,}",
+         (full - no_sgd) * per_update),
+        ("  per SGD step", (full - no_sgd) * per_update / sgd_steps),
+    ]
+
+
+def plot(curves: dict[str, list[tuple[int, float, float]]], path: pathlib.Path, title: str) -> None:
+    """Log-log env steps/s against num_envs, one line per (env, measurement)."""
+    fig, ax = plt.subplots(figsize=(8, 5))
+    for label, rows in curves.items():
+        if rows:
+            sizes, rates, _ = zip(*rows)
+            ax.plot(sizes, rates, marker="o", label=label)
+    ax.set_xscale("log", base=2)
+    ax.set_yscale("log")
+    ax.set_xlabel("parallel envs")
+    ax.set_ylabel("env steps / s (compile excluded)")
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m experiments.bench scaling", description=__doc__.splitlines()[0])
+    parser.add_argument("--envs", default="arm2d,panda_sort", help="env names; unregistered ones are skipped")
+    parser.add_argument("--env-sizes", default="1,16,256,1024,4096,16384,65536", help="env counts for env stepping")
+    parser.add_argument("--ppo-sizes", default="16,64,256,1024,4096,16384,65536", help="env counts for PPO")
+    parser.add_argument("--max-seconds", type=float, default=45.0, help="longest predicted timed call per size")
+    parser.add_argument("--quick", action="store_true", help="CPU smoke run: fewer steps, calls under 5 s")
+    parser.add_argument("--plot", default="benchmarks_scaling.png", help="where the PNG goes")
+    args = parser.parse_args(argv)
+    target_steps = 200_000 if args.quick else 4_000_000
+    max_seconds = min(args.max_seconds, 5.0) if args.quick else args.max_seconds
+    env_names = [name for name in args.envs.split(",") if name in envs.names()]
+    skipped = [name for name in args.envs.split(",") if name not in envs.names()]
+    device = jax.devices()[0].device_kind
+    devices_note = "" if jax.device_count() == 1 else f", 1 of {jax.device_count()} devices used"
+    print(f"device: {device}; jax.device_count() = {jax.device_count()}{devices_note}; jax {jax.__version__}")
+    if skipped:
+        print(f"not registered, skipped: {', '.join(skipped)}")
+
+    curves = {}
+    for name in env_names:
+        print(f"{name}: env stepping", flush=True)
+        curves[f"{name}: env stepping"] = sweep(
+            parse_sizes(args.env_sizes), env_measure(name), target_steps, max_seconds
+        )
+        print(f"{name}: PPO training", flush=True)
+        # An update is ~50x dearer per env step than stepping alone: a quarter of the work keeps large sizes in.
+        curves[f"{name}: PPO training"] = sweep(
+            parse_sizes(args.ppo_sizes), ppo_measure(name), target_steps // 4, max_seconds
+        )
+
+    print("\n| env | measurement | parallel envs | env steps/s | compile s |")
+    print("|---|---|---:|---:|---:|")
+    for label, rows in curves.items():
+        name, measurement = label.split(": ")
+        for size, rate, compile_seconds in rows:
+            print(f"| {name} | {measurement} | {size:,} | {rate:,.0f} | {compile_seconds:.1f} |")
+
+    for name in env_names:
+        config = base_ppo_config(name)
+        if not any(size >= config.num_envs for size, _, _ in curves[f"{name}: PPO training"]):
+            continue  # the sweep found the preset's size too slow for --max-seconds
+        print(f"\nwhere a PPO update's time goes: {name}, preset {config.num_envs:,} envs (ms per update)")
+        print("| phase | ms / update | share |")
+        print("|---|---:|---:|")
+        breakdown = time_breakdown(name, num_updates=2 if args.quick else 10)
+        for phase, milliseconds in breakdown:
+            share = "" if phase.startswith(" ") else f"{milliseconds / breakdown[0][1]:.0%}"
+            print(f"| {phase} | {milliseconds:.1f} | {share} |")
+
+    path = pathlib.Path(args.plot)
+    plot(curves, path, f"jaxarm throughput on {device} ({jax.device_count()} device(s), 1 used)")
+    print(f"\nplot: {path.resolve()}")

@@ -1,0 +1,232 @@
+"""Our PPO beside brax's PPO on the same env, in the same run: wall clock, env steps/s, deterministic success.
+
+Both learners get the same env (through `jaxarm.interop.brax_env.BraxEnv` for brax, with jaxarm's own time
+limit and auto-reset, so both see freshly sampled episodes), the same env-step budget, the same network
+sizes and activation, and the hyper-parameters of our preset for the env (see `base_ppo_config`)
+mapped onto brax's names: brax's `unroll_length` = our `rollout_length`, `num_minibatches` and
+`num_updates_per_batch` = our minibatches and epochs, `batch_size` = num_envs / num_minibatches, so an
+update consumes the same env steps and each SGD step the same number of samples. What stays different,
+by design of each library: brax's learning rate is constant (`--brax-learning-rate`, 1e-3 by default, the
+top of its usual range) while ours anneals linearly from the preset's; brax's policy std is a learned
+state-independent parameter, ours an output of the policy MLP; brax masks the advantage of time-limit steps,
+ours bootstraps from the pre-reset observation; brax shuffles whole unrolls into minibatches, ours single steps.
+
+Each learner runs the budget as two equal halves (ours: two calls of one compiled program, compiled ahead of
+time, so its compile time is measured; brax: two training epochs, so its compile time is estimated as the
+first epoch minus the second). Evaluation is jaxarm's `evaluate` on the same fresh episodes for both,
+with deterministic policies (tanh of the Gaussian's mean), outside the timings.
+"""
+
+import argparse
+import dataclasses
+import functools
+import time
+
+import flax.linen as nn
+import jax
+
+from experiments import configs
+from jaxarm import envs
+from jaxarm.agents.common.evaluate import evaluate
+from jaxarm.agents.common.trainer import run_updates
+from jaxarm.agents.ppo import PPOConfig, make_trainer
+
+QUICK_NUM_ENVS = 512
+QUICK_ENV_STEPS = 600_000
+
+
+@dataclasses.dataclass(frozen=True)
+class Result:
+    """One learner's run. Seconds are wall clock; `compile_seconds` includes env reset and network init."""
+
+    env_steps: int
+    total_seconds: float
+    compile_seconds: float
+    success_rate: float
+    return_mean: float
+
+    @property
+    def train_seconds(self) -> float:
+        return self.total_seconds - self.compile_seconds
+
+    @property
+    def steps_per_second(self) -> float:
+        return self.env_steps / self.train_seconds
+
+
+def base_ppo_config(env_name: str) -> PPOConfig:
+    """Our PPO preset for `env_name`: `ppo_<env_name>`, else the first PPO preset (by name) on that env,
+    else PPOConfig's defaults on it."""
+    preset = f"ppo_{env_name}"
+    if preset in configs.names():
+        return configs.get(preset)
+    matching = (configs.get(name) for name in configs.names())
+    return next((config for config in matching if isinstance(config, PPOConfig) and config.env == env_name),
+                PPOConfig(env=env_name))
+
+
+def ppo_config(env_name: str, num_envs: int | None, env_steps: int | None) -> PPOConfig:
+    """`base_ppo_config(env_name)` for `num_envs` and `env_steps` (None: the preset's), in two equal halves.
+
+    The budget is rounded up to an even number of updates, so that it splits into two equal halves.
+    """
+    base = base_ppo_config(env_name)
+    num_envs = num_envs or base.num_envs
+    env_steps = env_steps or base.total_env_steps
+    steps_per_update = num_envs * base.rollout_length
+    num_updates = 2 * -(-env_steps // (2 * steps_per_update))
+    config = dataclasses.replace(
+        base, num_envs=num_envs, total_env_steps=num_updates * steps_per_update, updates_per_chunk=num_updates // 2
+    )
+    config.check()
+    if num_envs % config.num_minibatches:
+        raise ValueError(f"num_envs={num_envs} must divide by num_minibatches={config.num_minibatches} for brax")
+    return config
+
+
+def evaluate_policy(env, env_params, policy, episodes: int, seed: int) -> tuple[float, float]:
+    """(success rate, mean return) of a deterministic `policy: obs [B, O] -> action [B, A]` on fresh episodes."""
+    result = jax.jit(lambda key: evaluate(env, env_params, policy, key, episodes))(jax.random.PRNGKey(seed + 1))
+    summary = result.summary()
+    return summary["success_rate"], summary["return_mean"]
+
+
+def run_ours(config: PPOConfig, eval_episodes: int) -> Result:
+    """Trains our PPO (two halves of one AOT-compiled program) and evaluates it."""
+    env, env_params = config.make_env()
+    trainer = make_trainer(config)
+    hparams = config.hparams()
+    start = time.perf_counter()
+    state = jax.block_until_ready(jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams))
+    runner = jax.jit(functools.partial(run_updates, trainer, num_updates=config.num_updates // 2), donate_argnums=0)
+    compiled = runner.lower(state, hparams).compile()
+    compile_seconds = time.perf_counter() - start
+    for _ in range(2):
+        state, _ = compiled(state, hparams)
+    jax.block_until_ready(state)
+    total_seconds = time.perf_counter() - start
+    success, return_mean = evaluate_policy(
+        env, env_params, lambda obs: trainer.act(state, obs), eval_episodes, config.seed
+    )
+    return Result(int(state.env_steps), total_seconds, compile_seconds, success, return_mean)
+
+
+def brax_ppo_kwargs(config: PPOConfig, learning_rate: float) -> dict:
+    """brax.training.agents.ppo.train arguments equivalent to `config` (see the module docstring)."""
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    from jaxarm.interop.brax_env import wrap_for_training
+
+    return dict(
+        num_timesteps=config.total_env_steps,
+        num_envs=config.num_envs,
+        unroll_length=config.rollout_length,
+        num_minibatches=config.num_minibatches,
+        batch_size=config.num_envs // config.num_minibatches,
+        num_updates_per_batch=config.num_epochs,
+        learning_rate=learning_rate,
+        discounting=config.gamma,
+        gae_lambda=config.gae_lambda,
+        clipping_epsilon=config.clip_epsilon,
+        entropy_cost=config.entropy_coef,
+        vf_loss_coefficient=config.value_coef,
+        max_grad_norm=config.max_grad_norm,
+        reward_scaling=config.reward_scale,
+        normalize_observations=config.normalize_observations,
+        normalize_advantage=config.normalize_advantages,
+        network_factory=functools.partial(
+            ppo_networks.make_ppo_networks,
+            policy_hidden_layer_sizes=config.policy_hidden_sizes,
+            value_hidden_layer_sizes=config.value_hidden_sizes,
+            activation=getattr(nn, config.activation),
+        ),
+        wrap_env_fn=wrap_for_training,
+        # Two training epochs (num_evals - 1) and no brax evaluation: jaxarm's evaluate scores both learners.
+        num_evals=3,
+        run_evals=False,
+        num_eval_envs=config.num_minibatches,
+        max_devices_per_host=1,
+        seed=config.seed,
+    )
+
+
+def run_brax(config: PPOConfig, learning_rate: float, eval_episodes: int) -> Result:
+    """Trains brax's PPO on the same env through the adapter (two epochs) and evaluates it."""
+    from brax.training.agents.ppo import train as brax_ppo
+
+    from jaxarm.interop.brax_compat import install_device_put_replicated
+    from jaxarm.interop.brax_env import BraxEnv
+
+    install_device_put_replicated()
+    env, env_params = config.make_env()
+    epochs = []
+    start = time.perf_counter()
+    make_policy, params, _ = brax_ppo.train(
+        environment=BraxEnv(env, env_params),
+        episode_length=int(env_params.max_episode_steps),
+        progress_fn=lambda step, metrics: epochs.append((step, float(metrics["training/walltime"]))),
+        **brax_ppo_kwargs(config, learning_rate),
+    )
+    total_seconds = time.perf_counter() - start
+    (_, first), (steps, both) = epochs
+    # brax's two epochs run the same compiled program on equal work: the first one's extra time is its compile.
+    compile_seconds = max(total_seconds - 2 * (both - first), 0.0)
+    inference = make_policy(params, deterministic=True)
+    unused_key = jax.random.PRNGKey(0)
+    success, return_mean = evaluate_policy(
+        env, env_params, lambda obs: inference(obs, unused_key)[0], eval_episodes, config.seed
+    )
+    return Result(int(steps), total_seconds, compile_seconds, success, return_mean)
+
+
+def format_table(ours: Result, brax: Result) -> str:
+    rows = [
+        ("env steps", f"{ours.env_steps:,}", f"{brax.env_steps:,}", ours.env_steps / brax.env_steps),
+        ("wall clock, compile included (s)", f"{ours.total_seconds:.1f}", f"{brax.total_seconds:.1f}",
+         ours.total_seconds / brax.total_seconds),
+        ("compile + set-up (s)", f"{ours.compile_seconds:.1f}", f"{brax.compile_seconds:.1f} (est.)",
+         ours.compile_seconds / max(brax.compile_seconds, 1e-9)),
+        ("wall clock, compile excluded (s)", f"{ours.train_seconds:.1f}", f"{brax.train_seconds:.1f}",
+         ours.train_seconds / brax.train_seconds),
+        ("env steps/s, compile excluded", f"{ours.steps_per_second:,.0f}", f"{brax.steps_per_second:,.0f}",
+         ours.steps_per_second / brax.steps_per_second),
+        ("deterministic success rate", f"{ours.success_rate:.1%}", f"{brax.success_rate:.1%}",
+         ours.success_rate / max(brax.success_rate, 1e-9)),
+        ("mean return", f"{ours.return_mean:.1f}", f"{brax.return_mean:.1f}", ours.return_mean / brax.return_mean),
+    ]
+    lines = ["| | jaxarm PPO | brax PPO | jaxarm / brax |", "|---|---:|---:|---:|"]
+    lines += [f"| {name} | {ours_text} | {brax_text} | {ratio:.2f} |" for name, ours_text, brax_text, ratio in rows]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m experiments.bench training", description=__doc__.splitlines()[0])
+    parser.add_argument("--env", default="arm2d", help=f"registered env name ({', '.join(envs.names())})")
+    parser.add_argument("--env-steps", type=int, help="env-step budget of each learner (default: the preset's)")
+    parser.add_argument("--num-envs", type=int, help="parallel envs of each learner (default: the preset's)")
+    parser.add_argument("--quick", action="store_true",
+                        help=f"CPU smoke run: {QUICK_NUM_ENVS} envs, {QUICK_ENV_STEPS:,} env steps unless given")
+    parser.add_argument("--brax-learning-rate", type=float, default=1e-3, help="brax's constant learning rate")
+    parser.add_argument("--eval-episodes", type=int, default=1000, help="fresh deterministic episodes per learner")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    if args.env not in envs.names():
+        parser.error(f"unknown env {args.env!r}; registered: {', '.join(envs.names())}")
+    if args.quick:
+        args.num_envs = args.num_envs or QUICK_NUM_ENVS
+        args.env_steps = args.env_steps or QUICK_ENV_STEPS
+    config = dataclasses.replace(ppo_config(args.env, args.num_envs, args.env_steps), seed=args.seed)
+    import brax
+
+    print(f"device: {jax.devices()[0].device_kind} (1 of {jax.device_count()} used by each learner); "
+          f"jax {jax.__version__}, brax {brax.__version__}")
+    print(f"env {config.env} {dict(config.env_params)}; {config.num_envs:,} envs × {config.rollout_length} steps "
+          f"per update, {config.num_updates} updates, {config.num_minibatches} minibatches × {config.num_epochs} "
+          f"epochs, MLPs {config.policy_hidden_sizes}/{config.value_hidden_sizes} {config.activation}, "
+          f"γ {config.gamma}; "
+          f"lr ours {config.learning_rate:g} (linear decay), brax {args.brax_learning_rate:g} (constant)", flush=True)
+    ours = run_ours(config, args.eval_episodes)
+    print(f"jaxarm PPO done: {ours.total_seconds:.1f} s, success {ours.success_rate:.1%}", flush=True)
+    brax_result = run_brax(config, args.brax_learning_rate, args.eval_episodes)
+    print(f"brax PPO done: {brax_result.total_seconds:.1f} s, success {brax_result.success_rate:.1%}", flush=True)
+    print(format_table(ours, brax_result))

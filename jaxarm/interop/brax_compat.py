@@ -1,0 +1,44 @@
+"""Restores the JAX API that brax 0.14.2's trainers still call, for jax >= 0.10 where it was removed.
+
+brax's PPO, SAC and APG trainers (and `brax.training.pmap.bcast_local_devices`) replicate their training
+state with `jax.device_put_replicated(tree, devices)`, which jax 0.10 removed. `install_device_put_replicated()`
+puts back a function with the same contract, built on `jax.device_put` with a sharding: every leaf gains a
+leading [len(devices)] axis, one identical slice per device, laid out the way `jax.pmap` lays out its own
+outputs (a NamedSharding over a 1-D mesh of `devices`), so brax's pmapped training epoch takes it as is.
+
+Nothing else brax's PPO and SAC trainers use is missing on jax 0.10.2: `jax.pmap` still exists (now built on
+shard_map; brax reads its outputs with `addressable_shards`, which works), and `jax.tree_util.tree_map` is
+still there. This module patches nothing when imported; the caller opts in, once, before calling a brax
+trainer. It never replaces a `jax.device_put_replicated` that jax itself provides.
+"""
+
+from collections.abc import Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+_REPLICA_AXIS = "replicas"
+
+
+def device_put_replicated(tree, devices: Sequence[jax.Device]):
+    """`tree` with every leaf stacked [len(devices), ...] and slice i placed on `devices[i]`."""
+    devices = list(devices)
+    if not devices:
+        raise ValueError("device_put_replicated needs a non-empty sequence of devices")
+    sharding = NamedSharding(Mesh(np.array(devices), (_REPLICA_AXIS,)), PartitionSpec(_REPLICA_AXIS))
+
+    def replicate(leaf):
+        leaf = jnp.asarray(leaf)
+        return jax.device_put(jnp.broadcast_to(leaf[None], (len(devices),) + leaf.shape), sharding)
+
+    return jax.tree.map(replicate, tree)
+
+
+def install_device_put_replicated() -> bool:
+    """Sets `jax.device_put_replicated` to `device_put_replicated` if jax lacks it; True if it installed it."""
+    if hasattr(jax, "device_put_replicated"):
+        return False
+    jax.device_put_replicated = device_put_replicated
+    return True
