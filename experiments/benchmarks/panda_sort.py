@@ -1,0 +1,87 @@
+"""Panda sorter (MJX) env steps/s and physics steps/s beside bare jit(vmap(mjx.step)) of the same model, same run.
+
+The env runs `steps` auto-reset env steps (random actions, IK, substeps, scoring, observation, statistics)
+inside one jitted `lax.scan` per batch size. The peer steps the same mjx.Model (this episode's object sizes,
+shared by all envs) with nothing but `mjx.step`, `steps x substeps` times in one scan; their ratio is the cost
+of the env layer around the physics.
+"""
+
+import argparse
+import time
+
+import jax
+import numpy as np
+from mujoco import mjx
+
+from jaxarm import envs
+
+
+def _timed(run, state, repeats: int) -> tuple[float, float]:
+    """(compile + first run seconds, best of `repeats` run seconds) of a jitted `run(state)`."""
+    start = time.perf_counter()
+    state = jax.block_until_ready(run(state))
+    compile_seconds = time.perf_counter() - start
+    best = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        state = jax.block_until_ready(run(state))
+        best = min(best, time.perf_counter() - start)
+    return compile_seconds, best
+
+
+def env_rates(env, num_envs: int, steps: int, repeats: int) -> tuple[float, float]:
+    """(env steps/s, compile seconds) of `num_envs` auto-reset envs over `steps` random-action steps."""
+    params = env.default_params()
+    batch = envs.VmapEnv(envs.AutoReset(env), num_envs)
+
+    @jax.jit
+    def run(state):
+        def body(carry, step_key):
+            action = jax.random.uniform(step_key, (num_envs, *env.spec.action_shape), minval=-1.0, maxval=1.0)
+            return batch.step(carry, action, params), None
+
+        return jax.lax.scan(body, state, jax.random.split(jax.random.key(1), steps))[0]
+
+    state = jax.jit(batch.reset)(jax.random.key(0), params)
+    compile_seconds, best = _timed(run, state, repeats)
+    return num_envs * steps / best, compile_seconds
+
+
+def bare_mjx_rates(env, num_envs: int, physics_steps: int, repeats: int) -> tuple[float, float]:
+    """(physics steps/s, compile seconds) of jit(vmap(mjx.step)) on the env's model, from reset states."""
+    params = env.default_params()
+    keys = jax.random.split(jax.random.key(0), num_envs)
+    sims = jax.vmap(lambda key: env.reset(key, params).sim)(keys)
+    model = env.episode_model(jax.tree.map(lambda leaf: leaf[0], sims), params)
+    data = jax.jit(jax.vmap(lambda sim: env.kinematics(model, sim)))(sims)
+    step = jax.vmap(lambda d: mjx.step(model, d))
+
+    @jax.jit
+    def run(state):
+        return jax.lax.scan(lambda carry, _: (step(carry), None), state, None, length=physics_steps)[0]
+
+    compile_seconds, best = _timed(run, data, repeats)
+    return num_envs * physics_steps / best, compile_seconds
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m experiments.bench panda_sort",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("--env", default="panda_sort", help="registered panda_sort variant")
+    parser.add_argument("--sizes", default="1,256", help="comma-separated env counts (e.g. 1,1024,4096,16384)")
+    parser.add_argument("--steps", type=int, default=20, help="env steps per timed scan")
+    parser.add_argument("--repeats", type=int, default=2, help="timed repeats; the best is reported")
+    args = parser.parse_args(argv)
+    env = envs.make(args.env)
+    print(f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; env {args.env}: "
+          f"{env.objects_count} objects, {env.substeps} physics substeps per env step, "
+          f"{env.mj_model.npair} contact pairs")
+    print("| envs | env steps/s | physics steps/s (env) | bare mjx.step physics steps/s | env / bare "
+          "| compile s (env) | compile s (bare) |")
+    print("|---:|---:|---:|---:|---:|---:|---:|")
+    for size in (int(text) for text in args.sizes.split(",")):
+        rate, env_compile = env_rates(env, size, args.steps, args.repeats)
+        bare, bare_compile = bare_mjx_rates(env, size, args.steps * env.substeps, args.repeats)
+        physics = rate * env.substeps
+        print(f"| {size:,} | {rate:,.4g} | {physics:,.4g} | {bare:,.4g} | {physics / bare:.2f} "
+              f"| {env_compile:.1f} | {bare_compile:.1f} |", flush=True)

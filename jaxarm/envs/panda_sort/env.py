@@ -1,0 +1,435 @@
+"""The Panda sorter: a Franka Panda puts cubes, cylinders and spheres into the bin of their shape, in MJX.
+
+One env step is `CONTROL_DT` = 0.04 s: the action becomes joint position targets (through damped
+least-squares IK in `ee` mode), then MJX takes several physics substeps. An object whose centre enters a bin
+(inside its walls, below the rim) is scored: +500 in the bin of its shape, +200 in another. One that drops
+below the table top is penalised (-50). Either way it leaves play and is parked far away, at rest, for the
+rest of the episode, so it can never be scored twice or touch anything again. The episode terminates when
+no object is left in play and succeeds when all of them went into their own bins.
+
+The env holds the mjx.Model (static). Per-episode object shapes and sizes, and the randomised params
+(friction, density, mass scale), enter by replacing mjx.Model fields inside the step, so vmap over
+states and params is per-env domain randomisation. The sim state keeps only what the physics needs
+between steps (qpos, qvel, ctrl, solver warm start), not a whole mjx.Data.
+"""
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from flax import struct
+from mujoco import mjx
+
+from jaxarm.envs.base import Env, EnvSpec, Transition
+from jaxarm.envs.panda_sort.layout import Layout, make_layout
+from jaxarm.envs.panda_sort.model import ModelIds, build_model, resolve_ids
+from jaxarm.envs.panda_sort.params import PandaSortParams, default_params
+
+CONTROL_DT = 0.04
+"""Seconds of simulated time per env step."""
+MODE_EE = "ee"
+MODE_JOINT = "joint"
+HOME_QPOS = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], np.float32)
+"""Arm posture at reset: the Panda's "ready" pose, tool centre 0.49 m above the table, pointing down."""
+FINGER_OPEN = 0.04
+OBJECT_OBS_SIZE = 18
+"""Per object: position 3, quaternion 4, linear and angular velocity 6, one-hot shape 3, size 1, in play 1."""
+FLOOR_Z = -0.05
+"""An object whose centre is this far below the table top has fallen off."""
+TCP_MIN_Z = 0.01
+"""Lowest tool-centre target: the arm has no contact with the table, so IK must not drive it through."""
+INNER_SCALE = 0.25
+"""Size of an object's geoms that do not belong to its shape, per unit size."""
+CYLINDER_BOX_HALF = 0.7
+"""Half-width of a cylinder's two collision boxes per unit radius: corners at 0.99 r, just inside the circle."""
+PARK_ORIGIN = np.array([3.0, 3.0, 1.0], np.float32)
+PARK_SPACING = 1.0
+"""Out-of-play object k is held at PARK_ORIGIN + k·PARK_SPACING·x, far from everything and from each other."""
+HELD_DISTANCE = 0.01
+"""An object counts as held when its centre is within its size plus this of the tool centre ..."""
+HELD_MAX_WIDTH = 2.9
+"""... and the fingers are open less than this many sizes (about the cube's diagonal) ..."""
+HELD_MIN_WIDTH = 1.5
+"""... but more than this many (fully closed fingers hold nothing)."""
+CARRY_SCALE = 0.1
+"""Distance (metres) over which the carry term decays."""
+
+IN_PLAY = 0
+IN_CORRECT_BIN = 1
+IN_WRONG_BIN = 2
+ON_FLOOR = 3
+"""Outcome of an object slot."""
+
+
+@struct.dataclass
+class PandaSortSim:
+    """Physics and task state of one env (N = objects_count).
+
+    Attributes:
+      qpos: [nq] generalized positions (arm 7, fingers 2, then 7 per object: position, quaternion).
+      qvel: [nv] generalized velocities (arm 7, fingers 2, then 6 per object: linear world, angular local).
+      qacc_warmstart: [nv] the solver's warm start.
+      ctrl: [9] actuator targets (arm joints, then the two fingers).
+      shape: [N] int32 SHAPE_* of each object.
+      size: [N] half-size / radius of each object (metres).
+      colour: [N, 3] RGB of each object; drawn only, never observed, unrelated to the shape.
+      outcome: [N] int32 IN_PLAY, IN_CORRECT_BIN, IN_WRONG_BIN or ON_FLOOR.
+    """
+
+    qpos: jax.Array
+    qvel: jax.Array
+    qacc_warmstart: jax.Array
+    ctrl: jax.Array
+    shape: jax.Array
+    size: jax.Array
+    colour: jax.Array
+    outcome: jax.Array
+
+
+@struct.dataclass
+class RewardTerms:
+    """The reward of one step, term by term (they sum to `EnvState.reward`)."""
+
+    time: jax.Array
+    floor: jax.Array
+    wrong_bin: jax.Array
+    correct_bin: jax.Array
+    reach: jax.Array
+    grasp: jax.Array
+    lift: jax.Array
+    carry: jax.Array
+
+    def total(self) -> jax.Array:
+        return sum(jax.tree.leaves(self))
+
+
+@struct.dataclass
+class PandaSortInfo:
+    """Per-step diagnostics: the reward terms and this episode's object counts (int32 scalars)."""
+
+    reward_terms: RewardTerms
+    correct_count: jax.Array
+    wrong_count: jax.Array
+    floor_count: jax.Array
+    in_play_count: jax.Array
+
+
+def object_geom_sizes(shape: jax.Array, size: jax.Array) -> jax.Array:
+    """[N] shapes, [N] sizes -> [N, 3, 3] geom_size rows of each slot's box, box45 and sphere.
+
+    The drawn shape's geoms get full size; the others INNER_SCALE of it, deep inside where even a finger
+    pressing into the soft contact cannot reach them.
+    """
+    s, half = size[:, None], INNER_SCALE * size[:, None]
+    a = CYLINDER_BOX_HALF * s
+    zero = jnp.zeros_like(s)
+    cube = [jnp.concatenate([s, s, s], -1), jnp.concatenate([half] * 3, -1), jnp.concatenate([half, zero, zero], -1)]
+    cylinder = [jnp.concatenate([a, a, s], -1)] * 2 + [jnp.concatenate([half, zero, zero], -1)]
+    sphere = [jnp.concatenate([half] * 3, -1)] * 2 + [jnp.concatenate([s, zero, zero], -1)]
+    by_shape = jnp.stack([jnp.stack(rows, 1) for rows in (cube, cylinder, sphere)])  # [3, N, 3, 3]
+    return jnp.take_along_axis(by_shape, shape[None, :, None, None], axis=0)[0]
+
+
+def object_mass_inertia(shape: jax.Array, size: jax.Array, density: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """[N] shapes and sizes -> mass [N] and principal inertia [N, 3] of solid cubes, cylinders, spheres.
+
+    Cube of half-size s; cylinder of radius s and height 2s; sphere of radius s.
+    """
+    volume = jnp.stack([8.0 * size**3, 2.0 * jnp.pi * size**3, 4.0 / 3.0 * jnp.pi * size**3])
+    mass = density * jnp.take_along_axis(volume, shape[None], axis=0)[0]
+    ms2 = (mass * size**2)[:, None]
+    cube = jnp.full((3,), 2.0 / 3.0)
+    cylinder = jnp.array([7.0 / 12.0, 7.0 / 12.0, 0.5])
+    sphere = jnp.full((3,), 0.4)
+    factors = jnp.stack([cube, cylinder, sphere])[shape]
+    return mass, ms2 * factors
+
+
+def spawn_xy(key: jax.Array, count: int, layout: Layout, max_extent: jax.Array) -> jax.Array:
+    """[count, 2] object positions in distinct cells of the spawn grid, jittered as far as the cell allows.
+
+    `max_extent` bounds every object's horizontal reach from its centre, so objects never overlap.
+    """
+    cell_key, jitter_key = jax.random.split(key)
+    nx, ny = layout.spawn_cells
+    low, high = jnp.array(layout.spawn_low), jnp.array(layout.spawn_high)
+    cell = (high - low) / jnp.array([nx, ny])
+    chosen = jax.random.permutation(cell_key, nx * ny)[:count]
+    centre = low + (jnp.stack([chosen % nx, chosen // nx], -1) + 0.5) * cell
+    room = jnp.maximum(cell / 2 - max_extent, 0.0)
+    return centre + jax.random.uniform(jitter_key, (count, 2), minval=-room, maxval=room)
+
+
+def bin_membership(position: jax.Array, layout: Layout) -> jax.Array:
+    """[N, 3] object positions -> [N, 3] bool: centre inside bin k's walls and below its rim."""
+    bins = jnp.array(layout.bin_centers)  # [3, 2]
+    inside = jnp.all(jnp.abs(position[:, None, :2] - bins[None]) < layout.bin_half, axis=-1)
+    return inside & (position[:, None, 2] < layout.bin_wall_height)
+
+
+def next_outcome(outcome: jax.Array, shape: jax.Array, position: jax.Array, layout: Layout) -> jax.Array:
+    """Scores in-play objects at their new [N, 3] positions; out-of-play outcomes never change."""
+    in_bin = bin_membership(position, layout)
+    in_own_bin = jnp.take_along_axis(in_bin, shape[:, None], axis=1)[:, 0]
+    scored = jnp.select(
+        [in_own_bin, jnp.any(in_bin, axis=1), position[:, 2] < FLOOR_Z],
+        [IN_CORRECT_BIN, IN_WRONG_BIN, ON_FLOOR],
+        IN_PLAY,
+    )
+    return jnp.where(outcome == IN_PLAY, scored, outcome)
+
+
+def damped_least_squares(jacobian: jax.Array, error: jax.Array, damping: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """[6, J] Jacobian, [6] task error -> ([J] joint step, [J, J] null-space projector).
+
+    dq = Jᵀ(JJᵀ + λ²I)⁻¹ e; the projector I − Jᵀ(JJᵀ + λ²I)⁻¹J passes posture motions the task does not
+    see.
+    """
+    gram = jacobian @ jacobian.T + damping**2 * jnp.eye(jacobian.shape[0])
+    solved = jnp.linalg.solve(gram, jnp.concatenate([error[:, None], jacobian], axis=1))
+    step = jacobian.T @ solved[:, 0]
+    projector = jnp.eye(jacobian.shape[1]) - jacobian.T @ solved[:, 1:]
+    return step, projector
+
+
+def rotation_error(rotation: jax.Array, target: jax.Array) -> jax.Array:
+    """[3, 3] current and target rotation matrices -> [3] world-frame axis·angle error (small-angle form)."""
+    return 0.5 * jnp.sum(jnp.cross(rotation.T, target.T), axis=0)
+
+
+class PandaSort(Env[PandaSortParams, PandaSortSim]):
+    """Franka Panda sorting `objects_count` objects into three shape bins.
+
+    Args:
+      objects_count: number of object slots, 1 to 5 (static: fixes shapes and the contact set).
+      control_mode: "ee" (tool-centre delta xyz and a finger command; 4 actions) or "joint" (7 joint-target
+        deltas and a finger command; 8 actions). The finger command maps [-1, 1] to closed..open.
+      blocker: adds a thin bar between the spawn region and the bins.
+      tosser: puts the bins on a second table across a gap.
+    """
+
+    def __init__(self, objects_count: int = 1, control_mode: str = MODE_EE, blocker: bool = False,
+                 tosser: bool = False):
+        if not 1 <= objects_count <= 5:
+            raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
+        if control_mode not in (MODE_EE, MODE_JOINT):
+            raise ValueError(f"control_mode must be {MODE_EE!r} or {MODE_JOINT!r}, got {control_mode!r}")
+        self.objects_count = objects_count
+        self.control_mode = control_mode
+        self.layout = make_layout(blocker=blocker, tosser=tosser)
+        self.mj_model = build_model(objects_count, self.layout)
+        self.ids: ModelIds = resolve_ids(self.mj_model, objects_count)
+        self.substeps = int(round(CONTROL_DT / self.mj_model.opt.timestep))
+        self.mjx_model = mjx.put_model(self.mj_model)
+        self._data0 = mjx.make_data(self.mj_model)
+        self._tcp_target_rotation = self._home_tcp_rotation()
+        action_size = 4 if control_mode == MODE_EE else 8
+        self.spec = EnvSpec(observation_shape=(OBJECT_OBS_SIZE * objects_count + 21,), action_shape=(action_size,))
+
+    def render(self, state, params: PandaSortParams) -> np.ndarray:
+        from jaxarm.envs.panda_sort.render import render_frame
+
+        return render_frame(self, state)
+
+    def _home_tcp_rotation(self) -> np.ndarray:
+        """[3, 3] tool orientation at HOME_QPOS (pointing down); `ee` mode holds it."""
+        data = mujoco.MjData(self.mj_model)
+        data.qpos[self.ids.arm_qpos] = HOME_QPOS
+        mujoco.mj_kinematics(self.mj_model, data)
+        return data.site_xmat[self.ids.tcp_site].reshape(3, 3).astype(np.float32)
+
+    def default_params(self) -> PandaSortParams:
+        return default_params()
+
+    # --- the physics model of one env -------------------------------------------------------------
+
+    def episode_model(self, sim: PandaSortSim, params: PandaSortParams) -> mjx.Model:
+        """The mjx.Model with this episode's object shapes and sizes and the params' randomisation."""
+        ids, model = self.ids, self.mjx_model
+        geom_ids = ids.object_geom.ravel()
+        sizes = object_geom_sizes(sim.shape, sim.size).reshape(-1, 3)
+        is_sphere = jnp.tile(jnp.array([False, False, True]), self.objects_count)
+        rbound = jnp.where(is_sphere, sizes[:, 0], jnp.linalg.norm(sizes, axis=-1))
+        mass, inertia = object_mass_inertia(sim.shape, sim.size, params.density)
+        mass, inertia = mass * params.mass_scale, inertia * params.mass_scale
+        invweight = jnp.stack([1.0 / mass, jnp.mean(1.0 / inertia, axis=-1)], -1)
+        friction = model.pair_friction.at[ids.finger_pair, :2].set(params.finger_friction)
+        friction = friction.at[ids.object_pair, :2].set(params.object_friction)
+        return model.replace(
+            geom_size=model.geom_size.at[geom_ids].set(sizes),
+            geom_rbound=model.geom_rbound.at[geom_ids].set(rbound),
+            body_mass=model.body_mass.at[ids.object_body].set(mass),
+            body_inertia=model.body_inertia.at[ids.object_body].set(inertia),
+            body_invweight0=model.body_invweight0.at[ids.object_body].set(invweight),
+            pair_friction=friction,
+        )
+
+    def kinematics(self, model: mjx.Model, sim: PandaSortSim) -> mjx.Data:
+        """mjx.Data at the sim's state with positions, orientations and com-frame quantities (for Jacobians)."""
+        data = self._data0.replace(qpos=sim.qpos, qvel=sim.qvel, ctrl=sim.ctrl, qacc_warmstart=sim.qacc_warmstart)
+        return mjx.com_pos(model, mjx.kinematics(model, data))
+
+    def _tcp_jacobian(self, model: mjx.Model, data: mjx.Data) -> jax.Array:
+        """[6, nv] Jacobian of the tool centre: linear rows, then angular rows."""
+        jacp, jacr = mjx.jac(model, data, data.site_xpos[self.ids.tcp_site], self.ids.hand_body)
+        return jnp.concatenate([jacp.T, jacr.T])
+
+    # --- control ------------------------------------------------------------------------------------
+
+    def _arm_targets(self, model, data, action, params) -> jax.Array:
+        """[7] arm joint targets from the action: IK towards the displaced tool centre, or joint deltas."""
+        arm_q = data.qpos[self.ids.arm_qpos]
+        lower, upper = self.ids.arm_limits[:, 0], self.ids.arm_limits[:, 1]
+        if self.control_mode == MODE_JOINT:
+            return jnp.clip(arm_q + action[:7] * params.joint_step, lower, upper)
+        tcp = data.site_xpos[self.ids.tcp_site]
+        target = tcp + action[:3] * params.ee_step
+        target = target.at[2].set(jnp.maximum(target[2], TCP_MIN_Z))
+        rotation = data.site_xmat[self.ids.tcp_site].reshape(3, 3)
+        error = jnp.concatenate([target - tcp, rotation_error(rotation, self._tcp_target_rotation)])
+        jacobian = self._tcp_jacobian(model, data)[:, self.ids.arm_qpos]
+        step, projector = damped_least_squares(jacobian, error, params.ik_damping)
+        posture = projector @ (params.ik_posture_gain * (HOME_QPOS - arm_q))
+        return jnp.clip(arm_q + step + posture, lower, upper)
+
+    def _ctrl(self, model, data, action, params) -> jax.Array:
+        finger = (action[-1] + 1.0) * (FINGER_OPEN / 2)
+        return jnp.concatenate([self._arm_targets(model, data, action, params), jnp.stack([finger, finger])])
+
+    # --- objects ------------------------------------------------------------------------------------
+
+    def object_positions(self, qpos: jax.Array) -> jax.Array:
+        """[nq] -> [N, 3] object centres."""
+        return qpos[self.ids.object_qpos[:, None] + np.arange(3)]
+
+    def _park(self, qpos: jax.Array, qvel: jax.Array, outcome: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """Holds every out-of-play object at its parking pose, at rest."""
+        n = self.objects_count
+        park_pos = PARK_ORIGIN + PARK_SPACING * np.arange(n)[:, None] * np.array([1.0, 0.0, 0.0], np.float32)
+        park_pose = np.concatenate([park_pos, np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))], -1).astype(np.float32)
+        out = (outcome != IN_PLAY)[:, None]
+        pose_idx = self.ids.object_qpos[:, None] + np.arange(7)
+        vel_idx = self.ids.object_qvel[:, None] + np.arange(6)
+        qpos = qpos.at[pose_idx].set(jnp.where(out, park_pose, qpos[pose_idx]))
+        qvel = qvel.at[vel_idx].set(jnp.where(out, 0.0, qvel[vel_idx]))
+        return qpos, qvel
+
+    # --- observation, reward ------------------------------------------------------------------------
+
+    def _observe(self, model: mjx.Model, data: mjx.Data, sim: PandaSortSim) -> jax.Array:
+        """[18 N + 21]: per object (zeros when out of play) 18 values, then tool centre position 3,
+        orientation quaternion 4, linear and angular velocity 6, finger width 1, and the 7 arm joint angles
+        (the arm is redundant, so the tool pose alone does not tell its posture or nearness to joint limits).
+        """
+        ids = self.ids
+        in_play = (sim.outcome == IN_PLAY)[:, None]
+        pose = sim.qpos[ids.object_qpos[:, None] + np.arange(7)]
+        velocity = sim.qvel[ids.object_qvel[:, None] + np.arange(6)]
+        objects = jnp.concatenate(
+            [pose, velocity, jax.nn.one_hot(sim.shape, 3), sim.size[:, None], in_play.astype(jnp.float32)], -1
+        )
+        tcp_velocity = self._tcp_jacobian(model, data) @ sim.qvel
+        tool = [
+            data.site_xpos[ids.tcp_site], data.xquat[ids.hand_body], tcp_velocity,
+            jnp.sum(sim.qpos[ids.finger_qpos])[None], sim.qpos[ids.arm_qpos],
+        ]
+        return jnp.concatenate([(objects * in_play).ravel(), *tool]).astype(jnp.float32)
+
+    def _reward_terms(self, data: mjx.Data, sim: PandaSortSim, previous_outcome: jax.Array,
+                      params: PandaSortParams) -> RewardTerms:
+        """Sparse terms for objects scored this step, dense shaping from the state after it."""
+        newly = (previous_outcome == IN_PLAY) & (sim.outcome != IN_PLAY)
+
+        def count(outcome: int) -> jax.Array:
+            return jnp.sum(newly & (sim.outcome == outcome)).astype(jnp.float32)
+
+        in_play = sim.outcome == IN_PLAY
+        position = self.object_positions(sim.qpos)
+        tcp = data.site_xpos[self.ids.tcp_site]
+        distance = jnp.linalg.norm(position - tcp, axis=-1)
+        nearest = jnp.min(jnp.where(in_play, distance, jnp.inf))
+        width = jnp.sum(sim.qpos[self.ids.finger_qpos])
+        held = (
+            in_play
+            & (distance < sim.size + HELD_DISTANCE)
+            & (width < HELD_MAX_WIDTH * sim.size)
+            & (width > HELD_MIN_WIDTH * sim.size)
+        )
+        lift = held * jnp.clip((position[:, 2] - sim.size) / params.lift_height, 0.0, 1.0)
+        own_bin = jnp.array(self.layout.bin_centers)[sim.shape]
+        to_bin = jnp.linalg.norm(position[:, :2] - own_bin, axis=-1)
+        carry = lift * jnp.exp(-to_bin / CARRY_SCALE)
+        return RewardTerms(
+            time=params.step_reward,
+            floor=params.floor_reward * count(ON_FLOOR),
+            wrong_bin=params.wrong_bin_reward * count(IN_WRONG_BIN),
+            correct_bin=params.correct_bin_reward * count(IN_CORRECT_BIN),
+            reach=-params.reach_weight * jnp.where(jnp.any(in_play), nearest, 0.0),
+            grasp=params.grasp_weight * jnp.any(held).astype(jnp.float32),
+            lift=params.lift_weight * jnp.max(lift),
+            carry=params.carry_weight * jnp.max(carry),
+        )
+
+    def _info(self, terms: RewardTerms, outcome: jax.Array) -> PandaSortInfo:
+        def count(value: int) -> jax.Array:
+            return jnp.sum(outcome == value).astype(jnp.int32)
+
+        return PandaSortInfo(
+            reward_terms=terms,
+            correct_count=count(IN_CORRECT_BIN),
+            wrong_count=count(IN_WRONG_BIN),
+            floor_count=count(ON_FLOOR),
+            in_play_count=count(IN_PLAY),
+        )
+
+    # --- the contract -------------------------------------------------------------------------------
+
+    def _reset(self, key, params):
+        shape_key, size_key, colour_key, spawn_key, yaw_key, arm_key = jax.random.split(key, 6)
+        n, ids = self.objects_count, self.ids
+        shape = jax.random.randint(shape_key, (n,), 0, 3).astype(jnp.int32)
+        scale = jax.random.uniform(size_key, (n,), minval=params.size_scale_low, maxval=params.size_scale_high)
+        size = params.object_size * scale
+        xy = spawn_xy(spawn_key, n, self.layout, params.object_size * params.size_scale_high * np.sqrt(2.0))
+        yaw = jax.random.uniform(yaw_key, (n,), maxval=2 * jnp.pi)
+        # Resting on the table, 1 mm above it, turned about z.
+        zero = jnp.zeros(n)
+        pose = jnp.stack([xy[:, 0], xy[:, 1], size + 0.001, jnp.cos(yaw / 2), zero, zero, jnp.sin(yaw / 2)], -1)
+        arm_q = HOME_QPOS + jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
+        qpos = self._data0.qpos.at[ids.arm_qpos].set(arm_q).at[ids.finger_qpos].set(FINGER_OPEN)
+        qpos = qpos.at[ids.object_qpos[:, None] + np.arange(7)].set(pose)
+        sim = PandaSortSim(
+            qpos=qpos,
+            qvel=jnp.zeros_like(self._data0.qvel),
+            qacc_warmstart=jnp.zeros_like(self._data0.qacc_warmstart),
+            ctrl=jnp.concatenate([arm_q, jnp.full((2,), FINGER_OPEN)]),
+            shape=shape,
+            size=size,
+            colour=jax.random.uniform(colour_key, (n, 3), minval=0.15, maxval=0.95),
+            outcome=jnp.full((n,), IN_PLAY, jnp.int32),
+        )
+        model = self.episode_model(sim, params)
+        zero_terms = RewardTerms(*(jnp.zeros((), jnp.float32) for _ in range(8)))
+        return sim, self._observe(model, self.kinematics(model, sim), sim), self._info(zero_terms, sim.outcome)
+
+    def _transition(self, sim, action, params):
+        model = self.episode_model(sim, params)
+        data = self.kinematics(model, sim)
+        data = data.replace(ctrl=self._ctrl(model, data, action, params))
+        data = jax.lax.fori_loop(0, self.substeps, lambda _, d: mjx.step(model, d), data)
+        outcome = next_outcome(sim.outcome, sim.shape, self.object_positions(data.qpos), self.layout)
+        qpos, qvel = self._park(data.qpos, data.qvel, outcome)
+        next_sim = sim.replace(qpos=qpos, qvel=qvel, qacc_warmstart=data.qacc_warmstart, ctrl=data.ctrl,
+                               outcome=outcome)
+        data = self.kinematics(model, next_sim)
+        terms = self._reward_terms(data, next_sim, sim.outcome, params)
+        info = self._info(terms, outcome)
+        return Transition(
+            sim=next_sim,
+            obs=self._observe(model, data, next_sim),
+            reward=terms.total(),
+            terminated=info.in_play_count == 0,
+            success=info.correct_count == self.objects_count,
+            info=info,
+        )
+

@@ -1,0 +1,164 @@
+"""Builds the MuJoCo model of the sorting scene and resolves the ids the env needs, once, outside jit.
+
+Object slots. MJX shapes are static, yet every slot must hold a cube, a cylinder or a sphere. Each slot is
+one free body with three collision geoms (`box`, `box45`, `sphere`) whose sizes the env sets per episode
+(mjx.Model.geom_size is read at run time, so it can differ per env under vmap). The drawn shape gets its
+full size; the others shrink to a quarter, deep inside it, where they can never touch anything.
+One body per slot (rather than three bodies with two parked) keeps nv at 6 per slot and the contact set
+at three geoms per slot.
+
+Cylinders. MJX 3.17 has no cylinder-box collision, and its cylinder-capsule/sphere collisions are SDF
+searches (slow). A cylinder object therefore collides as an octagonal prism: `box` and `box45` (the same
+box turned 45 degrees about z) with their corners on the cylinder's circle; their convex hull is a
+regular octagon with 92-100 % of the radius, the flat bottom stands on the table and the fingers grip its
+faces when one of the octagon's faces is turned towards them (a flat pad on a corner ridge slips). A
+contype-0 `cylinder` geom is added for drawing only.
+
+Contacts come only from the explicit <pair>s made here: finger pads and hand vs objects; objects vs tables,
+bin walls, blocker and each other. There is no floor contact: an object is taken out of play as soon as it
+drops below the table top, long before it could reach the floor.
+"""
+
+import dataclasses
+import functools
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from jaxarm.envs.panda_sort.layout import Layout
+
+ASSETS = Path(__file__).parent / "assets"
+OBJECT_GEOMS = ("box", "box45", "sphere")
+"""Collision geoms of one object slot, in geom-id order."""
+MAX_OBJECT_SIZE = 0.05
+"""Largest half-size/radius the XML is built with (geom_rbound for MJX's broad phase is recomputed anyway)."""
+ARM_JOINTS = tuple(f"joint{k}" for k in range(1, 8))
+FINGER_JOINTS = ("finger_left", "finger_right")
+FINGER_FRICTION = (2.5, 2.5, 0.005, 0.0001, 0.0001)
+FINGER_SOLIMP = (0.97, 0.995, 0.001, 0.5, 2.0)
+"""Gripper contacts are hard (impedance 0.99..0.999, default 0.9..0.95): squeezed by the fingers, a light
+sphere is penetrated by about a millimetre, not by a third of its radius."""
+OBJECT_FRICTION = (0.8, 0.8, 0.005, 0.0001, 0.0001)
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelIds:
+    """Indices into the compiled model, resolved once (numpy ints / arrays, static under jit).
+
+    Attributes:
+      arm_qpos: [7] qpos addresses of the arm joints (also their dof addresses: the arm comes first).
+      finger_qpos: [2] qpos addresses of the finger joints.
+      object_qpos: [N] qpos address of each object's free joint (7 values: pos, quat).
+      object_qvel: [N] dof address of each object's free joint (6 values: linear, angular velocity).
+      object_body: [N] body ids of the objects.
+      object_geom: [N, 3] geom ids of each slot's box, box45 and sphere.
+      object_visual: [N] geom id of each slot's drawing-only cylinder.
+      hand_body: body id of the hand.
+      tcp_site: site id of the tool centre point.
+      finger_pair: [P] ids of the finger/hand-object pairs (their friction is FINGER_FRICTION).
+      object_pair: [Q] ids of the other pairs (their friction is OBJECT_FRICTION).
+      arm_limits: [7, 2] arm joint ranges.
+    """
+
+    arm_qpos: np.ndarray
+    finger_qpos: np.ndarray
+    object_qpos: np.ndarray
+    object_qvel: np.ndarray
+    object_body: np.ndarray
+    object_geom: np.ndarray
+    object_visual: np.ndarray
+    hand_body: int
+    tcp_site: int
+    finger_pair: np.ndarray
+    object_pair: np.ndarray
+    arm_limits: np.ndarray
+
+
+def _add_box(body, name: str, box, rgba) -> None:
+    body.add_geom(
+        name=name, type=mujoco.mjtGeom.mjGEOM_BOX, pos=box.center, size=box.half, rgba=rgba, contype=0, conaffinity=0
+    )
+
+
+def _add_object(worldbody, slot: int) -> None:
+    body = worldbody.add_body(name=f"object{slot}", pos=[2.0 + slot, 2.0, 0.1])
+    body.add_freejoint(name=f"object{slot}")
+    # Mass and inertia are set per episode from shape, size and density; these are placeholders.
+    body.explicitinertial = True
+    body.mass, body.inertia = 0.1, [1e-4, 1e-4, 1e-4]
+    body.ipos, body.iquat = [0, 0, 0], [1, 0, 0, 0]  # centre of mass at the body frame (left unset: at the spawn point)
+    s = MAX_OBJECT_SIZE
+    common = dict(contype=0, conaffinity=0, rgba=[0.8, 0.3, 0.3, 1])
+    body.add_geom(name=f"object{slot}_box", type=mujoco.mjtGeom.mjGEOM_BOX, size=[s, s, s], **common)
+    body.add_geom(
+        name=f"object{slot}_box45", type=mujoco.mjtGeom.mjGEOM_BOX, size=[s, s, s],
+        quat=[np.cos(np.pi / 8), 0, 0, np.sin(np.pi / 8)], **common,
+    )
+    body.add_geom(name=f"object{slot}_sphere", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[s, 0, 0], **common)
+    body.add_geom(name=f"object{slot}_cylinder", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[s, s, 0], **common)
+
+
+def build_spec(objects_count: int, layout: Layout) -> mujoco.MjSpec:
+    """The scene as an MjSpec: robot and table from assets/scene.xml, the rest from `layout`."""
+    spec = mujoco.MjSpec.from_file(str(ASSETS / "scene.xml"))
+    world = spec.worldbody
+    static = [f"table{k}" for k in range(len(layout.tables))]
+    for name, box in zip(static, layout.tables):
+        _add_box(world, name, box, [0.55, 0.45, 0.35, 1])
+    for k, wall in enumerate(layout.bin_walls):
+        _add_box(world, f"bin_wall{k}", wall, [0.3, 0.3, 0.35, 1])
+        static.append(f"bin_wall{k}")
+    if layout.blocker is not None:
+        _add_box(world, "blocker", layout.blocker, [0.7, 0.2, 0.2, 1])
+        static.append("blocker")
+    for slot in range(objects_count):
+        _add_object(world, slot)
+
+    def pair(name1: str, name2: str, friction, **kwargs) -> None:
+        spec.add_pair(geomname1=name1, geomname2=name2, condim=3, friction=friction, **kwargs)
+
+    slot_geoms = [[f"object{slot}_{kind}" for kind in OBJECT_GEOMS] for slot in range(objects_count)]
+    for geoms in slot_geoms:
+        for geom in geoms:
+            for gripper in ("left_pad", "right_pad", "hand"):
+                pair(gripper, geom, FINGER_FRICTION, solimp=FINGER_SOLIMP)
+    for slot, geoms in enumerate(slot_geoms):
+        for geom in geoms:
+            for other in static:
+                pair(other, geom, OBJECT_FRICTION)
+            for later in slot_geoms[slot + 1 :]:
+                for other in later:
+                    pair(geom, other, OBJECT_FRICTION)
+    return spec
+
+
+@functools.lru_cache(maxsize=None)
+def build_model(objects_count: int, layout: Layout) -> mujoco.MjModel:
+    """Compiled model for `objects_count` object slots in `layout` (cached: both arguments are hashable)."""
+    return build_spec(objects_count, layout).compile()
+
+
+def resolve_ids(model: mujoco.MjModel, objects_count: int) -> ModelIds:
+    """Looks up every id the env uses, by name."""
+
+    joint = model.joint
+    gripper_geoms = {model.geom(name).id for name in ("left_pad", "right_pad", "hand")}
+    is_finger_pair = np.array([int(model.pair_geom1[k]) in gripper_geoms for k in range(model.npair)])
+    return ModelIds(
+        arm_qpos=np.array([joint(name).qposadr[0] for name in ARM_JOINTS]),
+        finger_qpos=np.array([joint(name).qposadr[0] for name in FINGER_JOINTS]),
+        object_qpos=np.array([joint(f"object{k}").qposadr[0] for k in range(objects_count)], dtype=np.int64),
+        object_qvel=np.array([joint(f"object{k}").dofadr[0] for k in range(objects_count)], dtype=np.int64),
+        object_body=np.array([model.body(f"object{k}").id for k in range(objects_count)], dtype=np.int64),
+        object_geom=np.array(
+            [[model.geom(f"object{k}_{kind}").id for kind in OBJECT_GEOMS] for k in range(objects_count)],
+            dtype=np.int64,
+        ).reshape(objects_count, len(OBJECT_GEOMS)),
+        object_visual=np.array([model.geom(f"object{k}_cylinder").id for k in range(objects_count)], dtype=np.int64),
+        hand_body=model.body("hand").id,
+        tcp_site=model.site("tcp").id,
+        finger_pair=np.flatnonzero(is_finger_pair),
+        object_pair=np.flatnonzero(~is_finger_pair),
+        arm_limits=np.stack([joint(name).range for name in ARM_JOINTS]),
+    )

@@ -1,0 +1,255 @@
+"""Panda sorter (MJX): kinematics against the published DH parameters, resting and grasping physics, scoring
+exactly once per object, finite values under randomised params, and headless rendering.
+
+Every test that steps the env shares one jitted single-env `reset`/`step` (compiling MJX is the slow part).
+Rendering needs an offscreen GL; MUJOCO_GL defaults to egl here (Mesa's software EGL works without a GPU).
+"""
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from jaxarm import envs  # noqa: E402
+from jaxarm.envs.panda_sort import (  # noqa: E402
+    IN_CORRECT_BIN,
+    SHAPE_CUBE,
+    SHAPE_CYLINDER,
+    SHAPE_SPHERE,
+    PandaSort,
+)
+from jaxarm.envs.panda_sort.env import HOME_QPOS  # noqa: E402
+
+# Craig (modified) DH parameters of the Franka Panda as published by Franka Emika.
+DH_A = [0.0, 0.0, 0.0, 0.0825, -0.0825, 0.0, 0.088]
+DH_D = [0.333, 0.0, 0.316, 0.0, 0.384, 0.0, 0.0]
+DH_ALPHA = [0.0, -np.pi / 2, np.pi / 2, np.pi / 2, -np.pi / 2, np.pi / 2, np.pi / 2]
+FLANGE_D = 0.107
+HAND_YAW = -np.pi / 4
+TCP_OFFSET = 0.1034
+PAD_CENTRE_ABOVE_TCP = 0.003
+"""The finger pads' centre is this far above the tool centre; the script grips objects at their centre."""
+
+
+def dh_transform(a: float, d: float, alpha: float, theta: float) -> np.ndarray:
+    """Modified-DH link transform RotX(alpha) TransX(a) RotZ(theta) TransZ(d), [4, 4]."""
+    ca, sa, ct, st = np.cos(alpha), np.sin(alpha), np.cos(theta), np.sin(theta)
+    return np.array([
+        [ct, -st, 0.0, a],
+        [st * ca, ct * ca, -sa, -d * sa],
+        [st * sa, ct * sa, ca, d * ca],
+        [0.0, 0.0, 0.0, 1.0],
+    ])
+
+
+def dh_hand_pose(q: np.ndarray) -> np.ndarray:
+    """[7] joint angles -> [4, 4] pose of the hand (flange, turned by the hand's -45 degrees)."""
+    pose = np.eye(4)
+    for a, d, alpha, theta in zip(DH_A, DH_D, DH_ALPHA, q):
+        pose = pose @ dh_transform(a, d, alpha, theta)
+    return pose @ dh_transform(0.0, FLANGE_D, 0.0, HAND_YAW)
+
+
+@pytest.fixture(scope="module")
+def env():
+    return PandaSort(objects_count=1)
+
+
+@pytest.fixture(scope="module")
+def params(env):
+    return env.default_params()
+
+
+@pytest.fixture(scope="module")
+def reset(env):
+    return jax.jit(env.reset)
+
+
+@pytest.fixture(scope="module")
+def step(env):
+    return jax.jit(env.step)
+
+
+def with_object(env, state, shape: int, size: float, pose, velocity=(0.0,) * 6):
+    """`state` with object 0 replaced: shape, size, pose [7] (position, quaternion), velocity [6]."""
+    ids = env.ids
+    sim = state.sim
+    qpos = sim.qpos.at[ids.object_qpos[0] + np.arange(7)].set(jnp.asarray(pose, jnp.float32))
+    qvel = sim.qvel.at[ids.object_qvel[0] + np.arange(6)].set(jnp.asarray(velocity, jnp.float32))
+    sim = sim.replace(qpos=qpos, qvel=qvel, shape=jnp.array([shape], jnp.int32), size=jnp.array([size], jnp.float32))
+    return state.replace(sim=sim)
+
+
+def object_position(state) -> np.ndarray:
+    return np.asarray(state.obs[0:3])
+
+
+def tcp_position(state) -> np.ndarray:
+    return np.asarray(state.obs[18:21])
+
+
+def run_steps(step, state, params, actions):
+    """Steps through `actions`; returns the final state and the stacked reward terms (dict of [T] arrays)."""
+    terms = []
+    for action in actions:
+        state = step(state, jnp.asarray(action, jnp.float32), params)
+        terms.append(jax.tree.map(np.asarray, state.info.reward_terms))
+    return state, jax.tree.map(lambda *x: np.stack(x), *terms)
+
+
+def scripted_pick_and_place(step, state, params, bin_xy, speed=0.25, max_steps=400):
+    """Top-down pick of object 0 and release above `bin_xy`, with a proportional ee controller.
+
+    Phases: above the object, down until the pads are level with its centre, close, lift, over the bin, open.
+    Returns (final state, [T] correct-bin rewards, [T] wrong-bin rewards).
+    """
+    phase, closing_steps, hold = 0, 0, None
+    correct, wrong = [], []
+    for _ in range(max_steps):
+        obj, tcp = object_position(state), tcp_position(state)
+        targets = [
+            (np.r_[obj[:2], obj[2] + 0.1], 1.0),
+            (obj - [0.0, 0.0, PAD_CENTRE_ABOVE_TCP], 1.0),
+            (hold, -1.0),
+            (None if hold is None else np.r_[hold[:2], 0.18], -1.0),
+            (np.r_[bin_xy, 0.18], -1.0),
+            (np.r_[bin_xy, 0.18], 1.0),
+        ]
+        target, grip = targets[phase]
+        error = target - tcp
+        if phase in (0, 1, 3, 4) and np.linalg.norm(error) < 0.01:
+            phase, hold = phase + 1, tcp.copy()
+        elif phase == 2:
+            closing_steps += 1
+            phase += closing_steps > 8
+        action = np.r_[np.clip(error / 0.05, -speed, speed), grip]
+        state = step(state, jnp.asarray(action, jnp.float32), params)
+        correct.append(float(state.info.reward_terms.correct_bin))
+        wrong.append(float(state.info.reward_terms.wrong_bin))
+        if bool(state.terminated):
+            break
+    return state, np.array(correct), np.array(wrong)
+
+
+@pytest.mark.parametrize("q", [
+    HOME_QPOS,
+    np.array([0.3, 0.2, -0.4, -1.5, 0.6, 2.0, -0.7]),
+    np.array([-1.2, -0.9, 1.1, -2.6, -1.4, 0.8, 2.1]),
+    np.array([2.0, 1.2, 0.5, -0.5, 2.5, 3.0, 0.3]),
+])
+def test_hand_pose_matches_published_dh_kinematics(env, q):
+    data = mujoco.MjData(env.mj_model)
+    data.qpos[env.ids.arm_qpos] = q
+    mujoco.mj_kinematics(env.mj_model, data)
+    expected = dh_hand_pose(q)
+    hand = env.ids.hand_body
+    np.testing.assert_allclose(data.xpos[hand], expected[:3, 3], atol=1e-3)
+    np.testing.assert_allclose(data.xmat[hand].reshape(3, 3), expected[:3, :3], atol=1e-3)
+    tcp = expected[:3, 3] + expected[:3, 2] * TCP_OFFSET
+    np.testing.assert_allclose(data.site_xpos[env.ids.tcp_site], tcp, atol=1e-3)
+
+
+@pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])
+def test_dropped_object_comes_to_rest_on_the_table(env, params, reset, step, shape):
+    size = 0.03
+    state = with_object(env, reset(jax.random.key(1), params), shape, size, [0.5, -0.15, size + 0.1, 1, 0, 0, 0])
+    state, _ = run_steps(step, state, params, [np.r_[0.0, 0.0, 0.0, 1.0]] * 40)
+    np.testing.assert_allclose(object_position(state), [0.5, -0.15, size], atol=3e-3)
+    assert np.all(np.abs(np.asarray(state.obs[7:13])) < 1e-2), "still moving"
+    assert int(state.info.in_play_count) == 1
+
+
+@pytest.mark.slow
+# The sphere is left out: carried this way it spins about the grip axis and slips out (see the env report);
+# test_each_shape_dropped_into_its_bin_scores_500_once covers its scoring.
+@pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER])
+def test_scripted_pick_and_place_scores_500_exactly_once(env, params, reset, step, shape):
+    size = 0.025
+    # The pads must meet a face: the cylinder's octagon has one facing the fingers at a yaw of 22.5 degrees.
+    yaw = np.pi / 8 if shape == SHAPE_CYLINDER else 0.0
+    pose = [0.5, -0.1, size + 0.001, np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)]
+    state = with_object(env, reset(jax.random.key(0), params), shape, size, pose)
+    state, correct, wrong = scripted_pick_and_place(step, state, params, np.array(env.layout.bin_centers[shape]))
+    assert bool(state.terminated), "the object never reached a bin"
+    assert list(correct[correct != 0]) == [500.0] and not np.any(wrong)
+    assert int(state.info.correct_count) == 1 and bool(state.episode.success)
+    state, terms = run_steps(step, state, params, [np.zeros(4)] * 3)
+    assert not np.any(terms.correct_bin) and not np.any(terms.wrong_bin)
+
+
+@pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])
+def test_each_shape_dropped_into_its_bin_scores_500_once(env, params, reset, step, shape):
+    size = 0.025
+    own_bin = env.layout.bin_centers[shape]
+    state = with_object(env, reset(jax.random.key(3), params), shape, size, [*own_bin, 0.12, 1, 0, 0, 0])
+    state, terms = run_steps(step, state, params, [np.zeros(4)] * 20)
+    assert list(terms.correct_bin[terms.correct_bin != 0]) == [500.0] and not np.any(terms.wrong_bin)
+    assert int(state.info.correct_count) == 1 and bool(state.episode.success) and bool(state.terminated)
+
+
+def test_wrong_bin_scores_200_once_and_the_object_leaves_play(env, params, reset, step):
+    size = 0.025
+    sphere_bin = env.layout.bin_centers[SHAPE_SPHERE]
+    state = with_object(env, reset(jax.random.key(3), params), SHAPE_CUBE, size, [*sphere_bin, 0.12, 1, 0, 0, 0])
+    state, terms = run_steps(step, state, params, [np.zeros(4)] * 20)
+    assert list(terms.wrong_bin[terms.wrong_bin != 0]) == [200.0] and not np.any(terms.correct_bin)
+    assert int(state.info.wrong_count) == 1 and not bool(state.episode.success)
+    np.testing.assert_array_equal(np.asarray(state.obs[:18]), 0.0)
+
+
+def test_object_pushed_off_the_table_costs_50_once(env, params, reset, step):
+    size = 0.025
+    state = with_object(
+        env, reset(jax.random.key(4), params), SHAPE_SPHERE, size, [0.8, -0.1, size, 1, 0, 0, 0],
+        velocity=[1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    )
+    state, terms = run_steps(step, state, params, [np.zeros(4)] * 20)
+    assert list(terms.floor[terms.floor != 0]) == [-50.0]
+    assert int(state.info.floor_count) == 1 and bool(state.terminated)
+
+
+def test_in_play_objects_never_score_and_the_bin_counts_are_consistent(env, params, reset, step):
+    state, terms = run_steps(step, reset(jax.random.key(5), params), params, [np.zeros(4)] * 5)
+    assert not np.any(terms.correct_bin) and not np.any(terms.wrong_bin) and not np.any(terms.floor)
+    assert int(state.info.in_play_count) == 1 and int(state.sim.outcome[0]) != IN_CORRECT_BIN
+
+
+@pytest.mark.slow
+def test_random_actions_stay_finite_with_per_env_randomised_params():
+    env = envs.make("panda_sort3")
+    num_envs, steps = 8, 40
+    base = env.default_params()
+    key = jax.random.key(6)
+    scale = jax.random.uniform(key, (num_envs,), minval=0.5, maxval=1.5)
+    params = jax.tree.map(lambda leaf: jnp.broadcast_to(leaf, (num_envs, *leaf.shape)), base)
+    params = params.replace(
+        object_friction=base.object_friction * scale, mass_scale=scale, size_scale_high=1.0 + 0.5 * scale,
+    )
+    batch = envs.VmapEnv(envs.AutoReset(env), num_envs, batched_params=True)
+
+    @jax.jit
+    def rollout(key):
+        def body(state, step_key):
+            action = jax.random.uniform(step_key, (num_envs, *env.spec.action_shape), minval=-1.0, maxval=1.0)
+            state = batch.step(state, action, params)
+            return state, (state.obs, state.reward)
+
+        reset_key, steps_key = jax.random.split(key)
+        return jax.lax.scan(body, batch.reset(reset_key, params), jax.random.split(steps_key, steps))[1]
+
+    obs, reward = rollout(key)
+    assert obs.shape == (steps, num_envs, *env.spec.observation_shape)
+    assert np.all(np.isfinite(np.asarray(obs))) and np.all(np.isfinite(np.asarray(reward)))
+
+
+def test_render_frame_is_an_rgb_image(env, params, reset):
+    from jaxarm.envs.panda_sort.render import render_frame
+
+    frame = render_frame(env, reset(jax.random.key(7), params), height=120, width=160)
+    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
+    assert frame.std() > 5.0, "a blank frame"
