@@ -1,0 +1,76 @@
+"""TD3 and DDPG presets (DDPG is TD3Config with one critic, no target smoothing, no policy delay)."""
+
+from experiments.configs import preset
+from jaxarm.agents.td3 import TD3Config
+from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
+
+
+@preset("TD3 on the 2-link arm, goals uniform over the reachable annulus")
+def td3_arm2d() -> TD3Config:
+    # gamma 0.9, not 0.99: success terminates the episode and ends the +1-per-step goal bonus, so with a long
+    # horizon never completing the hold is worth more than succeeding; with gamma 0.99 the success rate fell
+    # while Q grew (88% at 40k env steps, 43% at 200k). Step sizes 3e-4 steady the deterministic policy,
+    # which swung between 87% and 99% with 1e-3. Measured: 97.6% of 1,000 fresh episodes at 200k env steps.
+    return TD3Config(
+        env="arm2d",
+        env_params=(("goal_mode", GOAL_UNIFORM_REACHABLE),),
+        actor_learning_rate=3e-4,
+        critic_learning_rate=3e-4,
+        gamma=0.9,
+        total_env_steps=200_000,
+        num_envs=16,
+        grad_steps_per_update=4,
+    )
+
+
+@preset("DDPG on the 2-link arm, fixed goal, close to the classic tutorial ")
+def ddpg_arm2d() -> TD3Config:
+    # The tutorial ran 500 episodes of at most 200 steps, one gradient step per env step. Measured: 100% of
+    # 200 eval episodes from 20k env steps, but it swings (47% to 100% between 20k and 100k), so the budget
+    # stops at 30k, where a run scored 100% on 1,000 episodes (the tutorial needed 54k to solve it).
+    return TD3Config(
+        env="arm2d",
+        hidden_sizes=(100,),
+        actor_learning_rate=1e-3,
+        critic_learning_rate=1e-3,
+        gamma=0.9,
+        tau=0.01,
+        batch_size=32,
+        buffer_size=30_000,
+        num_critics=1,
+        policy_delay=1,
+        target_smoothing=False,
+        num_envs=1,
+        rollout_length=1,
+        grad_steps_per_update=1,
+        learning_starts=1_000,
+        total_env_steps=30_000,
+        updates_per_chunk=5_000,
+        checkpoint_every_updates=25_000,
+    )
+
+
+@preset("DDPG on the 2-link arm, fixed goal, tuned: 4 envs, replay ratio 1, gamma 0.9, slower actor")
+def ddpg_arm2d_tuned() -> TD3Config:
+    # Measured on the 2-core CPU: 100% of 1,000 episodes at 20k env steps (and at every 5k before), ~17 s of
+    # training; the tutorial's settings reach 100% too but swing back down (as low as 47%) between 20k and 100k.
+    return TD3Config(
+        env="arm2d",
+        hidden_sizes=(64, 64),
+        actor_learning_rate=3e-4,
+        critic_learning_rate=1e-3,
+        gamma=0.9,
+        tau=0.005,
+        batch_size=128,
+        buffer_size=100_000,
+        num_critics=1,
+        policy_delay=1,
+        target_smoothing=False,
+        num_envs=4,
+        rollout_length=1,
+        grad_steps_per_update=4,
+        learning_starts=1_000,
+        total_env_steps=20_000,
+        updates_per_chunk=1_250,
+        checkpoint_every_updates=2_500,
+    )

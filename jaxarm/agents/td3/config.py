@@ -1,0 +1,101 @@
+"""TD3's run config and its dynamic hyper-parameters. DDPG is this config with one critic, no target
+smoothing and no policy delay (see `ddpg_arm2d` in experiments/configs/td3.py)."""
+
+import dataclasses
+from typing import ClassVar
+
+import jax
+from flax import struct
+
+from jaxarm.agents.common.config import RunConfig, hparams_array
+
+
+@struct.dataclass
+class TD3HParams:
+    """Hyper-parameters `train` takes as data, [] float32 each (vmap adds axes). See `TD3Config`."""
+
+    actor_learning_rate: jax.Array
+    critic_learning_rate: jax.Array
+    gamma: jax.Array
+    tau: jax.Array
+    exploration_noise: jax.Array
+    target_noise: jax.Array
+    target_noise_clip: jax.Array
+    reward_scale: jax.Array
+
+
+@dataclasses.dataclass(frozen=True)
+class TD3Config(RunConfig):
+    """TD3 / DDPG settings. Actions are in the actor's [-1, 1] units (mapped to the env's bounds on stepping).
+
+    Attributes:
+      actor_learning_rate: Adam step size of the actor.
+      critic_learning_rate: Adam step size of the critics.
+      gamma: discount factor.
+      tau: Polyak rate of the target networks (target ← (1 − tau)·target + tau·online).
+      exploration_noise: std of the Gaussian noise added to the actor's action while collecting.
+      target_noise: std of the target-policy smoothing noise (used only if `target_smoothing`).
+      target_noise_clip: the smoothing noise is clipped to ±this.
+      reward_scale: rewards are multiplied by this in the critic target.
+      hidden_sizes: hidden layer widths of the actor and of each critic.
+      activation: hidden-layer activation (a flax.linen function name).
+      num_critics: critics trained on the same target; the target takes their minimum (2: TD3, 1: DDPG).
+      policy_delay: critic steps per actor and target-network step (2: TD3, 1: DDPG).
+      target_smoothing: add clipped noise to the target action (TD3); False for DDPG.
+      batch_size: transitions per gradient step.
+      buffer_size: replay capacity in transitions.
+      learning_starts: env steps of uniform random actions before gradient steps begin.
+      rollout_length: steps of all `num_envs` envs collected per update.
+      grad_steps_per_update: gradient (critic) steps per update; a multiple of `policy_delay`.
+    """
+
+    DYNAMIC_FIELDS: ClassVar[tuple[str, ...]] = tuple(field.name for field in dataclasses.fields(TD3HParams))
+    AGENT: ClassVar[str] = "td3"
+
+    num_envs: int = 16
+    total_env_steps: int = 200_000
+    updates_per_chunk: int = 500
+    checkpoint_every_updates: int = 2_500
+
+    actor_learning_rate: float = 1e-3
+    critic_learning_rate: float = 1e-3
+    gamma: float = 0.99
+    tau: float = 0.005
+    exploration_noise: float = 0.1
+    target_noise: float = 0.2
+    target_noise_clip: float = 0.5
+    reward_scale: float = 1.0
+
+    hidden_sizes: tuple[int, ...] = (256, 256)
+    activation: str = "relu"
+    num_critics: int = 2
+    policy_delay: int = 2
+    target_smoothing: bool = True
+    batch_size: int = 256
+    buffer_size: int = 1_000_000
+    learning_starts: int = 5_000
+    rollout_length: int = 1
+    grad_steps_per_update: int = 4
+
+    def __post_init__(self):
+        for field in ("num_critics", "policy_delay", "batch_size", "buffer_size", "rollout_length",
+                      "grad_steps_per_update"):
+            if getattr(self, field) <= 0:
+                raise ValueError(f"{field} must be positive, got {getattr(self, field)}")
+        if self.grad_steps_per_update % self.policy_delay:
+            raise ValueError(f"grad_steps_per_update ({self.grad_steps_per_update}) must be a multiple of "
+                             f"policy_delay ({self.policy_delay})")
+        if self.env_steps_per_update > self.buffer_size:
+            raise ValueError(f"buffer_size ({self.buffer_size}) must hold one update's "
+                             f"{self.env_steps_per_update} env steps")
+
+    @property
+    def env_steps_per_update(self) -> int:
+        return self.num_envs * self.rollout_length
+
+    @property
+    def num_updates(self) -> int:
+        return self.whole_chunks(self.env_steps_per_update)
+
+    def hparams(self) -> TD3HParams:
+        return TD3HParams(**{field: hparams_array(self, field) for field in self.DYNAMIC_FIELDS})

@@ -1,0 +1,225 @@
+"""TD3 (and DDPG, the same learner with one critic, no smoothing, no delay) compiled end to end.
+
+One `update`: step all `num_envs` envs `rollout_length` times (uniform random actions before
+`learning_starts`, then the actor plus Gaussian noise), add the transitions to the on-device replay
+buffer, then run `grad_steps_per_update` gradient steps in blocks of `policy_delay` critic steps followed
+by one actor step and one Polyak step of both target networks. Hyper-parameters arrive as `TD3HParams`
+data, so `jax.vmap(make_train(trainer))(keys, hparams)` trains seeds × hyper-parameters at once.
+"""
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+
+from jaxarm.agents.common import replay
+from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
+from jaxarm.agents.td3.config import TD3Config, TD3HParams
+from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, polyak_update, smoothed_target_action
+from jaxarm.agents.td3.networks import Actor, Critic, apply_critics, init_critics
+from jaxarm.envs import AutoReset, EnvState, VmapEnv
+
+
+@struct.dataclass
+class Experience:
+    """One stored transition (leaves gain a leading [N] axis in batches).
+
+    Attributes:
+      obs: [O] observation the action was taken in.
+      action: [A] action in the actor's [-1, 1] units.
+      reward: [] reward of the step.
+      next_obs: [O] observation the step reached, before any auto-reset (`EnvState.final_obs`).
+      terminated: [] bool, the task ended (no bootstrap); a time-limit truncation is not termination.
+    """
+
+    obs: jax.Array
+    action: jax.Array
+    reward: jax.Array
+    next_obs: jax.Array
+    terminated: jax.Array
+
+
+@struct.dataclass
+class TD3State:
+    """The whole learner state (checkpointed as one pytree).
+
+    Attributes:
+      actor_params: online actor.
+      critic_params: online critics, every leaf [num_critics, ...].
+      target_actor_params: Polyak-averaged actor for the critic target.
+      target_critic_params: Polyak-averaged critics, [num_critics, ...].
+      actor_opt_state: Adam state of the actor.
+      critic_opt_state: Adam state of the critics.
+      replay: the replay buffer of `Experience`.
+      env_state: the [num_envs] auto-resetting envs.
+      key: PRNG key (raw uint32).
+      env_steps: [] int32, env steps collected so far.
+      updates: [] int32, updates done so far.
+    """
+
+    actor_params: dict
+    critic_params: dict
+    target_actor_params: dict
+    target_critic_params: dict
+    actor_opt_state: optax.OptState
+    critic_opt_state: optax.OptState
+    replay: replay.ReplayState
+    env_state: EnvState
+    key: jax.Array
+    env_steps: jax.Array
+    updates: jax.Array
+
+
+@struct.dataclass
+class TD3Metrics:
+    """Per-update metrics, [] each: env steps so far, finished episodes, and the update's mean losses and Q.
+
+    The losses and Q are 0 before `learning_starts` (no gradient steps yet).
+    """
+
+    env_steps: jax.Array
+    episodes: EpisodeSummary
+    critic_loss: jax.Array
+    actor_loss: jax.Array
+    q_mean: jax.Array
+
+
+def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
+    """Builds the TD3 / DDPG trainer for `config`. `env`, `env_params` replace the config's env (probe envs)."""
+    if env is None:
+        env, env_params = config.make_env()
+    batch_env = VmapEnv(AutoReset(env), config.num_envs)
+    spec = env.spec
+    action_size = spec.action_size
+    actor = Actor(config.hidden_sizes, action_size, config.activation)
+    critic = Critic(config.hidden_sizes, config.activation)
+    # optax.adam(lr) holds no state that depends on lr, so it is rebuilt per step from the traced
+    # hyper-parameter; the step size stays data and vmaps.
+    optimizer_state_init = optax.adam(0.0).init
+
+    def to_env_action(action):
+        return spec.action_low + (action + 1.0) * (0.5 * (spec.action_high - spec.action_low))
+
+    def act(state: TD3State, obs: jax.Array) -> jax.Array:
+        return to_env_action(actor.apply(state.actor_params, obs))
+
+    def init(key: jax.Array, hparams: TD3HParams) -> TD3State:
+        del hparams  # nothing in the initial state depends on them
+        actor_key, critic_key, env_key, state_key = jax.random.split(key, 4)
+        obs = jnp.zeros(spec.observation_shape, jnp.float32)
+        action = jnp.zeros((action_size,), jnp.float32)
+        actor_params = actor.init(actor_key, obs)
+        critic_params = init_critics(critic, critic_key, config.num_critics, obs, action)
+        example = Experience(obs=obs, action=action, reward=jnp.zeros((), jnp.float32), next_obs=obs,
+                             terminated=jnp.zeros((), jnp.bool_))
+        return TD3State(
+            actor_params=actor_params,
+            critic_params=critic_params,
+            target_actor_params=actor_params,
+            target_critic_params=critic_params,
+            actor_opt_state=optimizer_state_init(actor_params),
+            critic_opt_state=optimizer_state_init(critic_params),
+            replay=replay.init(example, config.buffer_size),
+            env_state=batch_env.reset(env_key, env_params),
+            key=state_key,
+            env_steps=jnp.zeros((), jnp.int32),
+            updates=jnp.zeros((), jnp.int32),
+        )
+
+    def collect(state: TD3State, hparams: TD3HParams, key: jax.Array):
+        """Steps the envs `rollout_length` times; returns (env state, env steps, experience [T*B], states [T, B])."""
+
+        def env_step(carry, step_key):
+            env_state, env_steps = carry
+            noise_key, random_key = jax.random.split(step_key)
+            shape = (config.num_envs, action_size)
+            policy = actor.apply(state.actor_params, env_state.obs)
+            noisy = jnp.clip(policy + hparams.exploration_noise * jax.random.normal(noise_key, shape), -1.0, 1.0)
+            random = jax.random.uniform(random_key, shape, minval=-1.0, maxval=1.0)
+            action = jnp.where(env_steps < config.learning_starts, random, noisy)
+            next_state = batch_env.step(env_state, to_env_action(action), env_params)
+            experience = Experience(obs=env_state.obs, action=action, reward=next_state.reward,
+                                    next_obs=next_state.final_obs, terminated=next_state.terminated)
+            return (next_state, env_steps + config.num_envs), (experience, next_state)
+
+        step_keys = jax.random.split(key, config.rollout_length)
+        (env_state, env_steps), (experience, states) = jax.lax.scan(
+            env_step, (state.env_state, state.env_steps), step_keys)
+        flat = jax.tree.map(lambda leaf: leaf.reshape(-1, *leaf.shape[2:]), experience)
+        return env_state, env_steps, flat, states
+
+    def critic_step(carry, inputs, hparams: TD3HParams, target_actor_params, target_critic_params):
+        critic_params, opt_state = carry
+        batch, noise_key = inputs
+        next_action = actor.apply(target_actor_params, batch.next_obs)
+        if config.target_smoothing:
+            noise = hparams.target_noise * jax.random.normal(noise_key, next_action.shape)
+            next_action = smoothed_target_action(next_action, noise, hparams.target_noise_clip)
+        next_q = apply_critics(critic, target_critic_params, batch.next_obs, next_action)
+        target = critic_target(next_q, batch.reward, batch.terminated, hparams.gamma, hparams.reward_scale)
+
+        def loss_fn(params):
+            q = apply_critics(critic, params, batch.obs, batch.action)
+            return critic_loss(q, target), q
+
+        (loss, q), grads = jax.value_and_grad(loss_fn, has_aux=True)(critic_params)
+        updates, opt_state = optax.adam(hparams.critic_learning_rate).update(grads, opt_state, critic_params)
+        return (optax.apply_updates(critic_params, updates), opt_state), (loss, jnp.mean(q))
+
+    def actor_step(params, opt_state, critic_params, obs, hparams: TD3HParams):
+        def loss_fn(actor_params):
+            q = apply_critics(critic, critic_params, obs, actor.apply(actor_params, obs))
+            return actor_loss(q[0])
+
+        loss, grads = jax.value_and_grad(loss_fn)(params)
+        updates, opt_state = optax.adam(hparams.actor_learning_rate).update(grads, opt_state, params)
+        return optax.apply_updates(params, updates), opt_state, loss
+
+    def delayed_block(state: TD3State, key: jax.Array, hparams: TD3HParams):
+        """`policy_delay` critic steps, then one actor step and one target step; returns (state, losses)."""
+        sample_key, noise_key = jax.random.split(key)
+        batches = replay.sample(state.replay, sample_key, config.policy_delay * config.batch_size)
+        batches = jax.tree.map(lambda leaf: leaf.reshape(config.policy_delay, config.batch_size, *leaf.shape[1:]),
+                               batches)
+        (critic_params, critic_opt_state), (critic_losses, q_means) = jax.lax.scan(
+            lambda carry, inputs: critic_step(carry, inputs, hparams, state.target_actor_params,
+                                              state.target_critic_params),
+            (state.critic_params, state.critic_opt_state),
+            (batches, jax.random.split(noise_key, config.policy_delay)),
+        )
+        actor_params, actor_opt_state, loss = actor_step(
+            state.actor_params, state.actor_opt_state, critic_params, batches.obs[-1], hparams)
+        state = state.replace(
+            actor_params=actor_params,
+            critic_params=critic_params,
+            actor_opt_state=actor_opt_state,
+            critic_opt_state=critic_opt_state,
+            target_actor_params=polyak_update(state.target_actor_params, actor_params, hparams.tau),
+            target_critic_params=polyak_update(state.target_critic_params, critic_params, hparams.tau),
+        )
+        return state, (jnp.mean(critic_losses), loss, jnp.mean(q_means))
+
+    def learn(state: TD3State, key: jax.Array, hparams: TD3HParams):
+        blocks = config.grad_steps_per_update // config.policy_delay
+        state, (critic_losses, actor_losses, q_means) = jax.lax.scan(
+            lambda carry, block_key: delayed_block(carry, block_key, hparams), state, jax.random.split(key, blocks))
+        return state, (jnp.mean(critic_losses), jnp.mean(actor_losses), jnp.mean(q_means))
+
+    def skip_learning(state: TD3State, key: jax.Array, hparams: TD3HParams):
+        del key, hparams
+        zero = jnp.zeros((), jnp.float32)
+        return state, (zero, zero, zero)
+
+    def update(state: TD3State, hparams: TD3HParams) -> tuple[TD3State, TD3Metrics]:
+        key, collect_key, learn_key = jax.random.split(state.key, 3)
+        env_state, env_steps, experience, states = collect(state, hparams, collect_key)
+        state = state.replace(env_state=env_state, env_steps=env_steps, key=key, updates=state.updates + 1,
+                              replay=replay.add(state.replay, experience))
+        state, (critic_loss_value, actor_loss_value, q_mean) = jax.lax.cond(
+            env_steps >= config.learning_starts, learn, skip_learning, state, learn_key, hparams)
+        metrics = TD3Metrics(env_steps=env_steps, episodes=summarise_episodes(states),
+                             critic_loss=critic_loss_value, actor_loss=actor_loss_value, q_mean=q_mean)
+        return state, metrics
+
+    return Trainer(init=init, update=update, act=act, num_updates=config.num_updates,
+                   env_steps_per_update=config.env_steps_per_update)

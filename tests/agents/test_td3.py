@@ -1,0 +1,180 @@
+"""TD3 / DDPG: replay buffer, losses on hand-worked numbers, truncation handling, probe envs, a CPU solve."""
+
+import dataclasses
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from experiments.configs import td3 as td3_presets
+from jaxarm.agents.common import checkpoint, replay
+from jaxarm.agents.common.evaluate import evaluate
+from jaxarm.agents.common.trainer import make_train
+from jaxarm.agents.td3 import TD3Config, make_trainer
+from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, polyak_update, smoothed_target_action
+from jaxarm.agents.td3.networks import Critic, apply_critics
+from tests.agents.probe_envs import ConstantRewardEnv, TargetActionEnv
+
+SMALL = dict(hidden_sizes=(32, 32), batch_size=64, buffer_size=4_096, updates_per_chunk=10,
+             checkpoint_every_updates=10, eval_episodes=10)
+
+
+def train(config, env=None, env_params=None, seed=0):
+    trainer = make_trainer(config, env, env_params)
+    state, metrics = jax.jit(make_train(trainer))(jax.random.PRNGKey(seed), config.hparams())
+    return trainer, state, metrics
+
+
+# Replay buffer
+
+
+def test_replay_add_sample_and_wrap_around():
+    buffer = replay.init({"x": jnp.zeros((), jnp.int32), "y": jnp.zeros((2,))}, capacity=5)
+    buffer = replay.add(buffer, {"x": jnp.arange(3), "y": jnp.zeros((3, 2))})
+    assert int(buffer.position) == 3 and int(buffer.size) == 3
+    drawn = replay.sample(buffer, jax.random.PRNGKey(0), 200)
+    assert drawn["y"].shape == (200, 2)
+    assert set(np.asarray(drawn["x"]).tolist()) == {0, 1, 2}
+
+    buffer = replay.add(buffer, {"x": jnp.arange(3, 7), "y": jnp.zeros((4, 2))})
+    np.testing.assert_array_equal(buffer.items["x"], [5, 6, 2, 3, 4])
+    assert int(buffer.position) == 2 and int(buffer.size) == 5
+    drawn = replay.sample(buffer, jax.random.PRNGKey(1), 500)
+    assert set(np.asarray(drawn["x"]).tolist()) == {2, 3, 4, 5, 6}
+
+    with pytest.raises(ValueError, match="capacity"):
+        replay.add(buffer, {"x": jnp.arange(6), "y": jnp.zeros((6, 2))})
+
+
+# Losses on hand-worked numbers
+
+
+def test_critic_target_takes_min_and_cuts_bootstrap_only_on_termination():
+    next_q = jnp.array([[1.0, 2.0, 4.0], [3.0, 0.5, 4.0]])  # [C=2, B=3]
+    reward = jnp.array([0.5, 1.0, 1.0])
+    terminated = jnp.array([False, True, False])  # the third is e.g. a truncation: it bootstraps
+    target = critic_target(next_q, reward, terminated, gamma=jnp.float32(0.9), reward_scale=jnp.float32(2.0))
+    # 2·0.5 + 0.9·min(1, 3); 2·1 (terminated); 2·1 + 0.9·4
+    np.testing.assert_allclose(target, [1.9, 2.0, 5.6], rtol=1e-6)
+
+
+def test_critic_actor_losses_and_smoothing_and_polyak():
+    q = jnp.array([[1.0, 2.0], [0.0, 2.0]])  # [C=2, B=2]
+    target = jnp.array([1.0, 1.0])
+    # critic 0: mean(0², 1²) = 0.5; critic 1: mean(1², 1²) = 1
+    np.testing.assert_allclose(critic_loss(q, target), 1.5)
+    np.testing.assert_allclose(critic_loss(q[:1], target), 0.5)  # DDPG: one critic, plain MSE
+    np.testing.assert_allclose(actor_loss(jnp.array([1.0, 3.0])), -2.0)
+
+    smoothed = smoothed_target_action(jnp.array([[0.9, -0.2]]), jnp.array([[0.8, -0.1]]), jnp.float32(0.5))
+    np.testing.assert_allclose(smoothed, [[1.0, -0.3]], rtol=1e-6)  # noise clipped to 0.5, action to 1
+
+    blended = polyak_update({"w": jnp.array([0.0, 10.0])}, {"w": jnp.array([1.0, 0.0])}, jnp.float32(0.1))
+    np.testing.assert_allclose(blended["w"], [0.1, 9.0], rtol=1e-6)
+
+
+# What gets stored
+
+
+def test_replay_stores_pre_reset_next_obs_and_truncation_is_not_termination():
+    config = TD3Config(env_params=(("max_episode_steps", 3),), num_envs=2, rollout_length=3,
+                       learning_starts=10**6, total_env_steps=6, **{**SMALL, "buffer_size": 16})
+    trainer = make_trainer(config)
+    state, metrics = jax.jit(trainer.update)(trainer.init(jax.random.PRNGKey(0), config.hparams()),
+                                             config.hparams())
+    stored = jax.tree.map(lambda leaf: leaf[:6].reshape(3, 2, *leaf.shape[1:]), state.replay.items)  # [T, B]
+    assert int(state.replay.size) == 6
+    assert not np.any(stored.terminated)
+    np.testing.assert_array_equal(stored.next_obs[:2], stored.obs[1:])
+    # The last step hit the time limit: the stored next obs is the one it reached, not the reset obs.
+    np.testing.assert_array_equal(stored.next_obs[2], state.env_state.final_obs)
+    assert not np.allclose(stored.next_obs[2], state.env_state.obs)
+    assert np.all(state.env_state.truncated)
+    assert float(metrics.episodes.episodes) == 2
+
+
+# DDPG is a configuration of the same learner
+
+
+def test_ddpg_preset_is_one_critic_no_smoothing_no_delay():
+    config = td3_presets.ddpg_arm2d()
+    assert (config.num_critics, config.policy_delay, config.target_smoothing) == (1, 1, False)
+    assert config.AGENT == "td3" and config.hidden_sizes == (100,) and config.batch_size == 32
+    state = make_trainer(config).init(jax.random.PRNGKey(0), config.hparams())
+    assert all(leaf.shape[0] == 1 for leaf in jax.tree.leaves(state.critic_params))
+
+
+def test_config_rejects_a_delay_that_does_not_divide_the_gradient_steps():
+    with pytest.raises(ValueError, match="multiple of policy_delay"):
+        TD3Config(policy_delay=2, grad_steps_per_update=3)
+
+
+# Probe envs with known answers
+
+DDPG = dict(num_critics=1, policy_delay=1, target_smoothing=False)
+
+
+@pytest.mark.parametrize("terminate, expected_q, learner", [(False, 2.0, {}), (True, 1.0, DDPG)],
+                         ids=["td3-truncation-bootstraps", "ddpg-termination-cuts"])
+def test_critic_learns_constant_reward_value(terminate, expected_q, learner):
+    """γ = 0.5, reward 1: Q = 1 / (1 − γ) = 2 when time limits truncate (bootstrap), 1 when terminating."""
+    env = ConstantRewardEnv()
+    env_params = env.default_params().replace(terminate=jnp.array(terminate))
+    config = TD3Config(gamma=0.5, num_envs=4, learning_starts=64, total_env_steps=4_000, grad_steps_per_update=2,
+                       tau=0.05, **SMALL, **learner)
+    trainer, state, metrics = train(config, env, env_params)
+    obs = jnp.ones((3, 1))
+    actions = jnp.array([[-1.0], [0.0], [1.0]])
+    q = apply_critics(Critic(config.hidden_sizes), state.critic_params, obs, actions)
+    assert q.shape == (config.num_critics, 3)
+    np.testing.assert_allclose(q, expected_q, atol=0.1)
+    # The actor trained in every update after learning_starts, with or without a policy delay.
+    assert np.all(np.asarray(metrics.actor_loss[-10:]) != 0)
+
+
+def test_actor_learns_observation_dependent_target_action():
+    env = TargetActionEnv(action_size=2)
+    config = TD3Config(num_envs=8, learning_starts=256, total_env_steps=8_000, grad_steps_per_update=4, **SMALL)
+    trainer, state, _ = train(config, env, env.default_params())
+    targets = jax.random.uniform(jax.random.PRNGKey(5), (64, 2), minval=-0.5, maxval=0.5)
+    np.testing.assert_allclose(trainer.act(state, targets), targets, atol=0.1)
+
+
+# Whole runs
+
+
+def test_vmap_over_seeds_and_learning_rates():
+    config = TD3Config(num_envs=4, learning_starts=32, total_env_steps=160, grad_steps_per_update=2, **SMALL)
+    trainer = make_trainer(config)
+    hparams = jax.tree.map(lambda leaf: jnp.stack([leaf] * 4), config.hparams())
+    hparams = hparams.replace(actor_learning_rate=jnp.array([1e-3, 1e-3, 1e-4, 1e-4]),
+                              critic_learning_rate=jnp.array([1e-3, 1e-3, 1e-4, 1e-4]))
+    keys = jnp.stack([jax.random.PRNGKey(seed) for seed in (0, 1, 0, 1)])
+    state, metrics = jax.jit(jax.vmap(make_train(trainer)))(keys, hparams)
+    assert metrics.critic_loss.shape == (4, trainer.num_updates)
+    assert np.all(np.isfinite(metrics.critic_loss)) and np.all(np.asarray(state.env_steps) == 160)
+    actor_kernels = np.asarray(jax.tree.leaves(state.actor_params)[0])
+    assert not np.allclose(actor_kernels[0], actor_kernels[1])  # seeds differ
+    assert not np.allclose(actor_kernels[0], actor_kernels[2])  # learning rates differ
+
+
+def test_learner_state_checkpoints_whole(tmp_path):
+    config = TD3Config(num_envs=2, **SMALL)
+    trainer = make_trainer(config)
+    state = trainer.init(jax.random.PRNGKey(0), config.hparams())
+    checkpoint.save(tmp_path, 4, state)
+    restored = checkpoint.restore(tmp_path, trainer.init(jax.random.PRNGKey(1), config.hparams()))
+    for saved, loaded in zip(jax.tree.leaves(state), jax.tree.leaves(restored), strict=True):
+        np.testing.assert_array_equal(saved, loaded)
+
+
+@pytest.mark.slow
+def test_ddpg_solves_fixed_goal_arm2d():
+    config = dataclasses.replace(td3_presets.ddpg_arm2d(), total_env_steps=20_000)
+    trainer, state, _ = train(config)
+    env, env_params = config.make_env()
+    result = jax.jit(lambda key: evaluate(env, env_params, partial(trainer.act, state), key, 200))(
+        jax.random.PRNGKey(42))
+    assert float(result.successes.mean()) >= 0.9
