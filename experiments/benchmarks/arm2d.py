@@ -71,7 +71,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench arm2d", description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="1,1024,65536,1048576", help="comma-separated env counts")
     parser.add_argument("--steps", type=int, default=1000, help="steps per timed scan")
-    parser.add_argument("--unroll", type=int, default=1, help="env steps per scan iteration")
+    parser.add_argument("--unroll", type=int, default=8, help="env steps per scan iteration (8: see BENCHMARKS.md)")
     args = parser.parse_args(argv)
     reference = numpy_steps_per_second(None)
     batched_numpy = numpy_steps_per_second(1024)
