@@ -14,6 +14,7 @@ import numpy as np
 from jaxarm import envs
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
 from jaxarm.envs.arm2d.numpy_reference import ClassicArm
+from experiments.benchmarks.timing import time_jitted
 
 
 def jax_steps_per_second(num_envs: int, steps: int, auto_reset: bool = True, unroll: int = 1,
@@ -39,14 +40,7 @@ def jax_steps_per_second(num_envs: int, steps: int, auto_reset: bool = True, unr
         return state
 
     state = jax.jit(batch.reset)(jax.random.PRNGKey(0), params)
-    start = time.perf_counter()
-    state = jax.block_until_ready(run(state))
-    compile_seconds = time.perf_counter() - start
-    best = np.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        state = jax.block_until_ready(run(state))
-        best = min(best, time.perf_counter() - start)
+    compile_seconds, best = time_jitted(run, state, repeats)
     return num_envs * steps / best, compile_seconds
 
 

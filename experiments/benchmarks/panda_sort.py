@@ -14,19 +14,7 @@ import numpy as np
 from mujoco import mjx
 
 from jaxarm import envs
-
-
-def _timed(run, state, repeats: int) -> tuple[float, float]:
-    """(compile + first run seconds, best of `repeats` run seconds) of a jitted `run(state)`."""
-    start = time.perf_counter()
-    state = jax.block_until_ready(run(state))
-    compile_seconds = time.perf_counter() - start
-    best = np.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        state = jax.block_until_ready(run(state))
-        best = min(best, time.perf_counter() - start)
-    return compile_seconds, best
+from experiments.benchmarks.timing import time_jitted
 
 
 def env_rates(env, num_envs: int, steps: int, repeats: int) -> tuple[float, float]:
@@ -43,7 +31,7 @@ def env_rates(env, num_envs: int, steps: int, repeats: int) -> tuple[float, floa
         return jax.lax.scan(body, state, jax.random.split(jax.random.key(1), steps))[0]
 
     state = jax.jit(batch.reset)(jax.random.key(0), params)
-    compile_seconds, best = _timed(run, state, repeats)
+    compile_seconds, best = time_jitted(run, state, repeats)
     return num_envs * steps / best, compile_seconds
 
 
@@ -60,7 +48,7 @@ def bare_mjx_rates(env, num_envs: int, physics_steps: int, repeats: int) -> tupl
     def run(state):
         return jax.lax.scan(lambda carry, _: (step(carry), None), state, None, length=physics_steps)[0]
 
-    compile_seconds, best = _timed(run, data, repeats)
+    compile_seconds, best = time_jitted(run, data, repeats)
     return num_envs * physics_steps / best, compile_seconds
 
 
