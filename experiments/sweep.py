@@ -9,7 +9,6 @@ curves.png (mean success rate and return over env steps with 95% CI bands) into 
 import argparse
 import csv
 import dataclasses
-import itertools
 import pathlib
 import sys
 import time

@@ -7,10 +7,8 @@ of the env layer around the physics.
 """
 
 import argparse
-import time
 
 import jax
-import numpy as np
 from mujoco import mjx
 
 from jaxarm import envs

@@ -6,7 +6,7 @@ Factories import their module lazily so that making arm2d never imports MuJoCo.
 import dataclasses
 import difflib
 import importlib
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import jax.numpy as jnp
