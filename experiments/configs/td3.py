@@ -23,7 +23,7 @@ def td3_arm2d() -> TD3Config:
     )
 
 
-@preset("DDPG on the 2-link arm, fixed goal, close to the classic tutorial ")
+@preset("DDPG on the 2-link arm, fixed goal, close to the classic tutorial")
 def ddpg_arm2d() -> TD3Config:
     # The tutorial ran 500 episodes of at most 200 steps, one gradient step per env step. Measured: 100% of
     # 200 eval episodes from 20k env steps, but it swings (47% to 100% between 20k and 100k), so the budget

@@ -38,6 +38,8 @@ class RunConfig:
       seed: PRNG seed of the run.
     """
 
+    HPARAMS: ClassVar[type | None] = None
+    """The learner's hyper-parameter pytree class; its field names are the config's dynamic fields."""
     DYNAMIC_FIELDS: ClassVar[tuple[str, ...]] = ()
     AGENT: ClassVar[str] = ""
 
@@ -50,6 +52,10 @@ class RunConfig:
     checkpoint_every_updates: int = 50
     eval_episodes: int = 1000
     seed: int = 0
+
+    def hparams(self):
+        """The dynamic fields as a pytree of float32 scalars (`HPARAMS`), the argument `train` vmaps over."""
+        return self.HPARAMS(**{name: jnp.asarray(getattr(self, name), jnp.float32) for name in self.DYNAMIC_FIELDS})
 
     def whole_chunks(self, env_steps_per_update: int) -> int:
         """Updates in the run: `total_env_steps` rounded up to whole chunks of `updates_per_chunk`."""
@@ -135,7 +141,3 @@ def validate(config: RunConfig) -> None:
         config.make_env()
     except (KeyError, ValueError, TypeError) as error:
         raise ValueError(str(error).strip("\"'")) from None
-
-
-def hparams_array(config: RunConfig, field: str) -> jnp.ndarray:
-    return jnp.asarray(getattr(config, field), jnp.float32)

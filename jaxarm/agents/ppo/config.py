@@ -6,7 +6,7 @@ from typing import ClassVar
 import jax.numpy as jnp
 from flax import struct
 
-from jaxarm.agents.common.config import RunConfig, hparams_array
+from jaxarm.agents.common.config import RunConfig
 
 
 @struct.dataclass
@@ -52,6 +52,7 @@ class PPOConfig(RunConfig):
       learning_rate ... reward_scale: dynamic hyper-parameters, see PPOHParams.
     """
 
+    HPARAMS: ClassVar[type] = PPOHParams
     DYNAMIC_FIELDS: ClassVar[tuple[str, ...]] = tuple(field.name for field in dataclasses.fields(PPOHParams))
     AGENT: ClassVar[str] = "ppo"
 
@@ -86,8 +87,6 @@ class PPOConfig(RunConfig):
     def minibatch_size(self) -> int:
         return self.env_steps_per_update // self.num_minibatches
 
-    def hparams(self) -> PPOHParams:
-        return PPOHParams(**{name: hparams_array(self, name) for name in self.DYNAMIC_FIELDS})
 
     def check(self) -> None:
         """Raises ValueError on sizes PPO cannot use."""

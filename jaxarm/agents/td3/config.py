@@ -7,7 +7,7 @@ from typing import ClassVar
 import jax
 from flax import struct
 
-from jaxarm.agents.common.config import RunConfig, hparams_array
+from jaxarm.agents.common.config import RunConfig
 
 
 @struct.dataclass
@@ -49,6 +49,7 @@ class TD3Config(RunConfig):
       grad_steps_per_update: gradient (critic) steps per update; a multiple of `policy_delay`.
     """
 
+    HPARAMS: ClassVar[type] = TD3HParams
     DYNAMIC_FIELDS: ClassVar[tuple[str, ...]] = tuple(field.name for field in dataclasses.fields(TD3HParams))
     AGENT: ClassVar[str] = "td3"
 
@@ -97,5 +98,3 @@ class TD3Config(RunConfig):
     def num_updates(self) -> int:
         return self.whole_chunks(self.env_steps_per_update)
 
-    def hparams(self) -> TD3HParams:
-        return TD3HParams(**{field: hparams_array(self, field) for field in self.DYNAMIC_FIELDS})
