@@ -23,7 +23,7 @@ from jaxarm.envs.panda_sort import (  # noqa: E402
     SHAPE_SPHERE,
     PandaSort,
 )
-from jaxarm.envs.panda_sort.env import HOME_QPOS  # noqa: E402
+from jaxarm.envs.panda.robot import HOME_QPOS  # noqa: E402
 
 # Craig (modified) DH parameters of the Franka Panda as published by Franka Emika.
 DH_A = [0.0, 0.0, 0.0, 0.0825, -0.0825, 0.0, 0.088]
@@ -144,14 +144,14 @@ def scripted_pick_and_place(step, state, params, bin_xy, speed=0.25, max_steps=4
 ])
 def test_hand_pose_matches_published_dh_kinematics(env, q):
     data = mujoco.MjData(env.mj_model)
-    data.qpos[env.ids.arm_qpos] = q
+    data.qpos[env.ids.robot.arm_qpos] = q
     mujoco.mj_kinematics(env.mj_model, data)
     expected = dh_hand_pose(q)
-    hand = env.ids.hand_body
+    hand = env.ids.robot.hand_body
     np.testing.assert_allclose(data.xpos[hand], expected[:3, 3], atol=1e-3)
     np.testing.assert_allclose(data.xmat[hand].reshape(3, 3), expected[:3, :3], atol=1e-3)
     tcp = expected[:3, 3] + expected[:3, 2] * TCP_OFFSET
-    np.testing.assert_allclose(data.site_xpos[env.ids.tcp_site], tcp, atol=1e-3)
+    np.testing.assert_allclose(data.site_xpos[env.ids.robot.tcp_site], tcp, atol=1e-3)
 
 
 @pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])

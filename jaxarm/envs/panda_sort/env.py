@@ -15,12 +15,12 @@ between steps (qpos, qvel, ctrl, solver warm start), not a whole mjx.Data.
 
 import jax
 import jax.numpy as jnp
-import mujoco
 import numpy as np
 from flax import struct
 from mujoco import mjx
 
 from jaxarm.envs.base import Env, EnvSpec, Transition
+from jaxarm.envs.panda.robot import FINGER_OPEN, HOME_QPOS, ik_arm_targets, tcp_jacobian, tcp_pose_at
 from jaxarm.envs.panda_sort.layout import Layout, make_layout
 from jaxarm.envs.panda_sort.model import ModelIds, build_model, resolve_ids
 from jaxarm.envs.panda_sort.params import PandaSortParams, default_params
@@ -29,9 +29,6 @@ CONTROL_DT = 0.04
 """Seconds of simulated time per env step."""
 MODE_EE = "ee"
 MODE_JOINT = "joint"
-HOME_QPOS = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], np.float32)
-"""Arm posture at reset: the Panda's "ready" pose, tool centre 0.49 m above the table, pointing down."""
-FINGER_OPEN = 0.04
 OBJECT_OBS_SIZE = 18
 """Per object: position 3, quaternion 4, linear and angular velocity 6, one-hot shape 3, size 1, in play 1."""
 FLOOR_Z = -0.05
@@ -179,24 +176,6 @@ def next_outcome(outcome: jax.Array, shape: jax.Array, position: jax.Array, layo
     return jnp.where(outcome == IN_PLAY, scored, outcome)
 
 
-def damped_least_squares(jacobian: jax.Array, error: jax.Array, damping: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """[6, J] Jacobian, [6] task error -> ([J] joint step, [J, J] null-space projector).
-
-    dq = Jᵀ(JJᵀ + λ²I)⁻¹ e; the projector I − Jᵀ(JJᵀ + λ²I)⁻¹J passes posture motions the task does not
-    see.
-    """
-    gram = jacobian @ jacobian.T + damping**2 * jnp.eye(jacobian.shape[0])
-    solved = jnp.linalg.solve(gram, jnp.concatenate([error[:, None], jacobian], axis=1))
-    step = jacobian.T @ solved[:, 0]
-    projector = jnp.eye(jacobian.shape[1]) - jacobian.T @ solved[:, 1:]
-    return step, projector
-
-
-def rotation_error(rotation: jax.Array, target: jax.Array) -> jax.Array:
-    """[3, 3] current and target rotation matrices -> [3] world-frame axis·angle error (small-angle form)."""
-    return 0.5 * jnp.sum(jnp.cross(rotation.T, target.T), axis=0)
-
-
 class PandaSort(Env[PandaSortParams, PandaSortSim]):
     """Franka Panda sorting `objects_count` objects into three shape bins.
 
@@ -222,7 +201,7 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         self.substeps = int(round(CONTROL_DT / self.mj_model.opt.timestep))
         self.mjx_model = mjx.put_model(self.mj_model)
         self._data0 = mjx.make_data(self.mj_model)
-        self._tcp_target_rotation = self._home_tcp_rotation()
+        self._tcp_target_rotation = tcp_pose_at(self.mj_model, self.ids.robot, HOME_QPOS)[1]
         action_size = 4 if control_mode == MODE_EE else 8
         self.spec = EnvSpec(observation_shape=(OBJECT_OBS_SIZE * objects_count + 21,), action_shape=(action_size,))
 
@@ -230,13 +209,6 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         from jaxarm.envs.panda_sort.render import render_frame
 
         return render_frame(self, state)
-
-    def _home_tcp_rotation(self) -> np.ndarray:
-        """[3, 3] tool orientation at HOME_QPOS (pointing down); `ee` mode holds it."""
-        data = mujoco.MjData(self.mj_model)
-        data.qpos[self.ids.arm_qpos] = HOME_QPOS
-        mujoco.mj_kinematics(self.mj_model, data)
-        return data.site_xmat[self.ids.tcp_site].reshape(3, 3).astype(np.float32)
 
     def default_params(self) -> PandaSortParams:
         return default_params()
@@ -269,28 +241,18 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         data = self._data0.replace(qpos=sim.qpos, qvel=sim.qvel, ctrl=sim.ctrl, qacc_warmstart=sim.qacc_warmstart)
         return mjx.com_pos(model, mjx.kinematics(model, data))
 
-    def _tcp_jacobian(self, model: mjx.Model, data: mjx.Data) -> jax.Array:
-        """[6, nv] Jacobian of the tool centre: linear rows, then angular rows."""
-        jacp, jacr = mjx.jac(model, data, data.site_xpos[self.ids.tcp_site], self.ids.hand_body)
-        return jnp.concatenate([jacp.T, jacr.T])
-
     # --- control ------------------------------------------------------------------------------------
 
     def _arm_targets(self, model, data, action, params) -> jax.Array:
         """[7] arm joint targets from the action: IK towards the displaced tool centre, or joint deltas."""
-        arm_q = data.qpos[self.ids.arm_qpos]
-        lower, upper = self.ids.arm_limits[:, 0], self.ids.arm_limits[:, 1]
+        robot = self.ids.robot
         if self.control_mode == MODE_JOINT:
-            return jnp.clip(arm_q + action[:7] * params.joint_step, lower, upper)
-        tcp = data.site_xpos[self.ids.tcp_site]
-        target = tcp + action[:3] * params.ee_step
+            arm_q = data.qpos[robot.arm_qpos]
+            return jnp.clip(arm_q + action[:7] * params.joint_step, robot.arm_limits[:, 0], robot.arm_limits[:, 1])
+        target = data.site_xpos[robot.tcp_site] + action[:3] * params.ee_step
         target = target.at[2].set(jnp.maximum(target[2], TCP_MIN_Z))
-        rotation = data.site_xmat[self.ids.tcp_site].reshape(3, 3)
-        error = jnp.concatenate([target - tcp, rotation_error(rotation, self._tcp_target_rotation)])
-        jacobian = self._tcp_jacobian(model, data)[:, self.ids.arm_qpos]
-        step, projector = damped_least_squares(jacobian, error, params.ik_damping)
-        posture = projector @ (params.ik_posture_gain * (HOME_QPOS - arm_q))
-        return jnp.clip(arm_q + step + posture, lower, upper)
+        return ik_arm_targets(model, data, robot, target, self._tcp_target_rotation, params.ik_damping,
+                              params.ik_posture_gain, HOME_QPOS)
 
     def _ctrl(self, model, data, action, params) -> jax.Array:
         finger = (action[-1] + 1.0) * (FINGER_OPEN / 2)
@@ -328,10 +290,10 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         objects = jnp.concatenate(
             [pose, velocity, jax.nn.one_hot(sim.shape, 3), sim.size[:, None], in_play.astype(jnp.float32)], -1
         )
-        tcp_velocity = self._tcp_jacobian(model, data) @ sim.qvel
+        tcp_velocity = tcp_jacobian(model, data, ids.robot) @ sim.qvel
         tool = [
-            data.site_xpos[ids.tcp_site], data.xquat[ids.hand_body], tcp_velocity,
-            jnp.sum(sim.qpos[ids.finger_qpos])[None], sim.qpos[ids.arm_qpos],
+            data.site_xpos[ids.robot.tcp_site], data.xquat[ids.robot.hand_body], tcp_velocity,
+            jnp.sum(sim.qpos[ids.robot.finger_qpos])[None], sim.qpos[ids.robot.arm_qpos],
         ]
         return jnp.concatenate([(objects * in_play).ravel(), *tool]).astype(jnp.float32)
 
@@ -345,10 +307,10 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
 
         in_play = sim.outcome == IN_PLAY
         position = self.object_positions(sim.qpos)
-        tcp = data.site_xpos[self.ids.tcp_site]
+        tcp = data.site_xpos[self.ids.robot.tcp_site]
         distance = jnp.linalg.norm(position - tcp, axis=-1)
         nearest = jnp.min(jnp.where(in_play, distance, jnp.inf))
-        width = jnp.sum(sim.qpos[self.ids.finger_qpos])
+        width = jnp.sum(sim.qpos[self.ids.robot.finger_qpos])
         held = (
             in_play
             & (distance < sim.size + HELD_DISTANCE)
@@ -396,7 +358,7 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         zero = jnp.zeros(n)
         pose = jnp.stack([xy[:, 0], xy[:, 1], size + 0.001, jnp.cos(yaw / 2), zero, zero, jnp.sin(yaw / 2)], -1)
         arm_q = HOME_QPOS + jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
-        qpos = self._data0.qpos.at[ids.arm_qpos].set(arm_q).at[ids.finger_qpos].set(FINGER_OPEN)
+        qpos = self._data0.qpos.at[ids.robot.arm_qpos].set(arm_q).at[ids.robot.finger_qpos].set(FINGER_OPEN)
         qpos = qpos.at[ids.object_qpos[:, None] + np.arange(7)].set(pose)
         sim = PandaSortSim(
             qpos=qpos,

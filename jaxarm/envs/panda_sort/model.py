@@ -26,6 +26,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from jaxarm.envs.panda.robot import PandaIds, resolve_panda_ids
 from jaxarm.envs.panda_sort.layout import Layout
 
 ASSETS = Path(__file__).parent / "assets"
@@ -33,8 +34,6 @@ OBJECT_GEOMS = ("box", "box45", "sphere")
 """Collision geoms of one object slot, in geom-id order."""
 MAX_OBJECT_SIZE = 0.05
 """Largest half-size/radius the XML is built with (geom_rbound for MJX's broad phase is recomputed anyway)."""
-ARM_JOINTS = tuple(f"joint{k}" for k in range(1, 8))
-FINGER_JOINTS = ("finger_left", "finger_right")
 FINGER_FRICTION = (2.5, 2.5, 0.005, 0.0001, 0.0001)
 FINGER_SOLIMP = (0.97, 0.995, 0.001, 0.5, 2.0)
 """Gripper contacts are hard (impedance 0.99..0.999, default 0.9..0.95): squeezed by the fingers, a light
@@ -47,32 +46,24 @@ class ModelIds:
     """Indices into the compiled model, resolved once (numpy ints / arrays, static under jit).
 
     Attributes:
-      arm_qpos: [7] qpos addresses of the arm joints (also their dof addresses: the arm comes first).
-      finger_qpos: [2] qpos addresses of the finger joints.
+      robot: the Panda's ids.
       object_qpos: [N] qpos address of each object's free joint (7 values: pos, quat).
       object_qvel: [N] dof address of each object's free joint (6 values: linear, angular velocity).
       object_body: [N] body ids of the objects.
       object_geom: [N, 3] geom ids of each slot's box, box45 and sphere.
       object_visual: [N] geom id of each slot's drawing-only cylinder.
-      hand_body: body id of the hand.
-      tcp_site: site id of the tool centre point.
       finger_pair: [P] ids of the finger/hand-object pairs (their friction is FINGER_FRICTION).
       object_pair: [Q] ids of the other pairs (their friction is OBJECT_FRICTION).
-      arm_limits: [7, 2] arm joint ranges.
     """
 
-    arm_qpos: np.ndarray
-    finger_qpos: np.ndarray
+    robot: PandaIds
     object_qpos: np.ndarray
     object_qvel: np.ndarray
     object_body: np.ndarray
     object_geom: np.ndarray
     object_visual: np.ndarray
-    hand_body: int
-    tcp_site: int
     finger_pair: np.ndarray
     object_pair: np.ndarray
-    arm_limits: np.ndarray
 
 
 def _add_box(body, name: str, box, rgba) -> None:
@@ -141,13 +132,11 @@ def build_model(objects_count: int, layout: Layout) -> mujoco.MjModel:
 
 def resolve_ids(model: mujoco.MjModel, objects_count: int) -> ModelIds:
     """Looks up every id the env uses, by name."""
-
     joint = model.joint
     gripper_geoms = {model.geom(name).id for name in ("left_pad", "right_pad", "hand")}
     is_finger_pair = np.array([int(model.pair_geom1[k]) in gripper_geoms for k in range(model.npair)])
     return ModelIds(
-        arm_qpos=np.array([joint(name).qposadr[0] for name in ARM_JOINTS]),
-        finger_qpos=np.array([joint(name).qposadr[0] for name in FINGER_JOINTS]),
+        robot=resolve_panda_ids(model),
         object_qpos=np.array([joint(f"object{k}").qposadr[0] for k in range(objects_count)], dtype=np.int64),
         object_qvel=np.array([joint(f"object{k}").dofadr[0] for k in range(objects_count)], dtype=np.int64),
         object_body=np.array([model.body(f"object{k}").id for k in range(objects_count)], dtype=np.int64),
@@ -156,9 +145,6 @@ def resolve_ids(model: mujoco.MjModel, objects_count: int) -> ModelIds:
             dtype=np.int64,
         ).reshape(objects_count, len(OBJECT_GEOMS)),
         object_visual=np.array([model.geom(f"object{k}_cylinder").id for k in range(objects_count)], dtype=np.int64),
-        hand_body=model.body("hand").id,
-        tcp_site=model.site("tcp").id,
         finger_pair=np.flatnonzero(is_finger_pair),
         object_pair=np.flatnonzero(~is_finger_pair),
-        arm_limits=np.stack([joint(name).range for name in ARM_JOINTS]),
     )

@@ -1,0 +1,128 @@
+"""The Franka Panda shared by the MJX arm envs: its model file, ids, and end-effector control by IK.
+
+`assets/panda.xml` is included by each env's scene. Control here is pure JAX on mjx.Data: damped
+least-squares IK of the tool centre (position and a held orientation) with a null-space pull towards the
+home posture, turned into joint position targets for the arm's servos. Nothing here knows about a task.
+"""
+
+import dataclasses
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from mujoco import mjx
+
+PANDA_XML = Path(__file__).parent / "assets" / "panda.xml"
+ARM_JOINTS = tuple(f"joint{k}" for k in range(1, 8))
+FINGER_JOINTS = ("finger_left", "finger_right")
+HOME_QPOS = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], np.float32)
+"""Arm posture of the Panda's "ready" pose: tool centre 0.49 m above the table, pointing down."""
+FINGER_OPEN = 0.04
+"""Finger joint travel when fully open (each finger; the gap is twice this)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PandaIds:
+    """Indices of the robot in a compiled scene, resolved once (numpy ints / arrays, static under jit).
+
+    Attributes:
+      arm_qpos: [7] qpos addresses of the arm joints (also their dof addresses: the arm comes first).
+      finger_qpos: [2] qpos addresses of the finger joints.
+      hand_body: body id of the hand.
+      tcp_site: site id of the tool centre point (between the finger pads).
+      arm_limits: [7, 2] arm joint ranges.
+    """
+
+    arm_qpos: np.ndarray
+    finger_qpos: np.ndarray
+    hand_body: int
+    tcp_site: int
+    arm_limits: np.ndarray
+
+
+def resolve_panda_ids(model: mujoco.MjModel) -> PandaIds:
+    """Looks up the robot's ids in `model` by name."""
+    joint = model.joint
+    return PandaIds(
+        arm_qpos=np.array([joint(name).qposadr[0] for name in ARM_JOINTS]),
+        finger_qpos=np.array([joint(name).qposadr[0] for name in FINGER_JOINTS]),
+        hand_body=model.body("hand").id,
+        tcp_site=model.site("tcp").id,
+        arm_limits=np.stack([joint(name).range for name in ARM_JOINTS]),
+    )
+
+
+def tcp_pose_at(model: mujoco.MjModel, ids: PandaIds, arm_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics outside jit: [7] arm joints -> (tool centre position [3], rotation [3, 3])."""
+    data = mujoco.MjData(model)
+    data.qpos[ids.arm_qpos] = arm_q
+    mujoco.mj_kinematics(model, data)
+    return data.site_xpos[ids.tcp_site].copy(), data.site_xmat[ids.tcp_site].reshape(3, 3).astype(np.float32)
+
+
+def solve_arm_posture(model: mujoco.MjModel, ids: PandaIds, tcp_position: np.ndarray, rotation: np.ndarray,
+                      iterations: int = 200) -> np.ndarray:
+    """Outside jit: [7] arm joints, from HOME_QPOS, putting the tool centre at `tcp_position` with `rotation`.
+
+    Raises ValueError if the IK does not reach the pose within 0.1 mm (out of reach or at a joint limit).
+    """
+    data = mujoco.MjData(model)
+    arm_q = HOME_QPOS.astype(np.float64)
+    jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    for _ in range(iterations):
+        data.qpos[ids.arm_qpos] = arm_q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        position = data.site_xpos[ids.tcp_site]
+        current = data.site_xmat[ids.tcp_site].reshape(3, 3)
+        error = np.concatenate([tcp_position - position, rotation_error(current, rotation)])
+        mujoco.mj_jacSite(model, data, jacp, jacr, ids.tcp_site)
+        jacobian = np.concatenate([jacp, jacr])[:, ids.arm_qpos]
+        step, _ = damped_least_squares(jacobian, error, 1e-3)
+        arm_q = np.clip(arm_q + np.asarray(step), ids.arm_limits[:, 0], ids.arm_limits[:, 1])
+    if np.linalg.norm(error[:3]) > 1e-4:
+        raise ValueError(f"no arm posture puts the tool centre at {tcp_position} (error {error[:3]})")
+    return arm_q.astype(np.float32)
+
+
+def damped_least_squares(jacobian: jax.Array, error: jax.Array, damping) -> tuple[jax.Array, jax.Array]:
+    """[6, J] Jacobian, [6] task error -> ([J] joint step, [J, J] null-space projector).
+
+    dq = Jᵀ(JJᵀ + λ²I)⁻¹ e; the projector I − Jᵀ(JJᵀ + λ²I)⁻¹J passes posture motions the task does not
+    see.
+    """
+    gram = jacobian @ jacobian.T + damping**2 * jnp.eye(jacobian.shape[0])
+    solved = jnp.linalg.solve(gram, jnp.concatenate([error[:, None], jacobian], axis=1))
+    step = jacobian.T @ solved[:, 0]
+    projector = jnp.eye(jacobian.shape[1]) - jacobian.T @ solved[:, 1:]
+    return step, projector
+
+
+def rotation_error(rotation: jax.Array, target: jax.Array) -> jax.Array:
+    """[3, 3] current and target rotation matrices -> [3] world-frame axis·angle error (small-angle form)."""
+    return 0.5 * jnp.sum(jnp.cross(rotation.T, target.T), axis=0)
+
+
+def tcp_jacobian(model: mjx.Model, data: mjx.Data, ids: PandaIds) -> jax.Array:
+    """[6, nv] Jacobian of the tool centre: linear rows, then angular rows. `data` needs com_pos."""
+    jacp, jacr = mjx.jac(model, data, data.site_xpos[ids.tcp_site], ids.hand_body)
+    return jnp.concatenate([jacp.T, jacr.T])
+
+
+def ik_arm_targets(model: mjx.Model, data: mjx.Data, ids: PandaIds, tcp_target: jax.Array,
+                   tcp_rotation: jax.Array, damping, posture_gain, posture: np.ndarray) -> jax.Array:
+    """[7] arm joint targets moving the tool centre towards `tcp_target` [3] with `tcp_rotation` [3, 3].
+
+    One damped least-squares step from the measured joints, plus `posture_gain` of the way to `posture` [7]
+    in the null space of the tool pose, clipped to the joint limits.
+    """
+    arm_q = data.qpos[ids.arm_qpos]
+    tcp = data.site_xpos[ids.tcp_site]
+    current = data.site_xmat[ids.tcp_site].reshape(3, 3)
+    error = jnp.concatenate([tcp_target - tcp, rotation_error(current, tcp_rotation)])
+    jacobian = tcp_jacobian(model, data, ids)[:, ids.arm_qpos]
+    step, projector = damped_least_squares(jacobian, error, damping)
+    pull = projector @ (posture_gain * (posture - arm_q))
+    return jnp.clip(arm_q + step + pull, ids.arm_limits[:, 0], ids.arm_limits[:, 1])
