@@ -74,3 +74,21 @@ def ddpg_arm2d_tuned() -> TD3Config:
         updates_per_chunk=1_250,
         checkpoint_every_updates=2_500,
     )
+
+
+@preset("TD3 inserting a peg into a hole shifted at random (one GPU; on a CPU, shrink total_env_steps)")
+def td3_peg() -> TD3Config:
+    return TD3Config(
+        env="peg_insert",
+        num_envs=64,
+        rollout_length=1,
+        grad_steps_per_update=8,
+        batch_size=256,
+        buffer_size=1_000_000,
+        learning_starts=10_000,
+        gamma=0.99,
+        exploration_noise=0.2,
+        total_env_steps=200_000,
+        updates_per_chunk=500,
+        checkpoint_every_updates=1_000,
+    )

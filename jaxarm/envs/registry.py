@@ -89,3 +89,5 @@ register("panda_sort_joint", "jaxarm.envs.panda_sort:PandaSort", "Panda sorter w
          control_mode="joint")
 register("panda_sort_tosser", "jaxarm.envs.panda_sort:PandaSort", "Panda sorter with the bins across a gap",
          tosser=True)
+register("peg_insert", "jaxarm.envs.peg_insert:PegInsert",
+         "Franka Panda (MJX) inserting a peg into a square hole shifted at random, end-effector control")

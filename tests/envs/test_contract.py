@@ -15,7 +15,7 @@ MJX_NUM_ENVS = 16
 
 
 def contract_num_envs(name: str) -> int:
-    return MJX_NUM_ENVS if name.startswith("panda") else CHEAP_NUM_ENVS
+    return MJX_NUM_ENVS if name.startswith(("panda", "peg")) else CHEAP_NUM_ENVS
 
 
 def random_actions(key, env, shape):

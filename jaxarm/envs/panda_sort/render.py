@@ -1,8 +1,4 @@
-"""Draws one Panda-sorter state with MuJoCo's own renderer (outside jit, on the CPU).
-
-Headless machines need an offscreen GL: set MUJOCO_GL=osmesa (apt package libosmesa6) or MUJOCO_GL=egl
-(libegl1 and a GPU driver) before mujoco is imported.
-"""
+"""Draws one Panda-sorter state with MuJoCo's own renderer (outside jit, on the CPU; see panda/render.py)."""
 
 import copy
 
@@ -10,6 +6,7 @@ import mujoco
 import numpy as np
 
 from jaxarm.envs.base import EnvState
+from jaxarm.envs.panda.render import render_qpos
 from jaxarm.envs.panda_sort.env import PandaSort, object_geom_sizes
 from jaxarm.envs.panda_sort.layout import SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE
 
@@ -37,10 +34,5 @@ def render_frame(env: PandaSort, state: EnvState, height: int = 240, width: int 
     sim = state.sim
     model = copy.copy(env.mj_model)  # sizes and colours change per episode; the env's model stays as built
     _dress_objects(model, env, np.asarray(sim.shape), np.asarray(sim.size), np.asarray(sim.colour))
-    data = mujoco.MjData(model)
-    data.qpos[:] = np.asarray(sim.qpos)
-    mujoco.mj_forward(model, data)
-    with mujoco.Renderer(model, height=height, width=width) as renderer:
-        renderer.update_scene(data, camera=camera)
-        return renderer.render()
+    return render_qpos(model, np.asarray(sim.qpos), height, width, camera)
 

@@ -1,0 +1,198 @@
+"""Peg-in-hole insertion in MJX: the Panda holds a peg over a block whose square hole moves every episode.
+
+One env step is `CONTROL_DT` = 0.04 s. The action [3] moves a tool-centre target by at most `ee_step` per
+axis; the target is held within `max_lead` of the measured tool centre (so a blocked peg presses with
+bounded force) and followed through damped least-squares IK with the tool pointing down. Reward:
+`progress_weight` · (previous − current tip-to-hole-bottom distance) / initial distance, plus
+`success_bonus` every step the tip is within `insert_distance` of the hole bottom (inserted, a success).
+Terminated when the peg touches the table (its explicit contact pair reports penetration in any substep)
+or its tip is further than `max_distance` from the hole bottom; truncated after `max_episode_steps`.
+
+Observation [12], in units that keep it near [-1, 1]: hole bottom − tip (÷ 0.1 m), tip velocity (÷ 0.1 m/s),
+tool target − tool centre (÷ max_lead), tip − nominal hole bottom (÷ 0.1 m).
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+from mujoco import mjx
+
+from jaxarm.envs.base import Env, EnvSpec, Transition
+from jaxarm.envs.panda.robot import HOME_QPOS, ik_arm_targets, solve_arm_posture, tcp_pose_at
+from jaxarm.envs.peg_insert.model import (
+    HOLE_FLOOR, HOLE_NOMINAL, PEG_LENGTH, PEG_RADIUS, PegIds, build_model, hole_walls, resolve_ids,
+)
+from jaxarm.envs.peg_insert.params import PegInsertParams, default_params
+
+CONTROL_DT = 0.04
+"""Seconds of simulated time per env step."""
+START_TIP_HEIGHT = 0.15
+"""The peg tip starts this high above the table (10 cm above the block), over the nominal hole."""
+POSITION_SCALE = 0.1
+"""Metres per observation unit of positions and velocities (per second)."""
+
+
+@struct.dataclass
+class PegInsertSim:
+    """Physics and task state of one env.
+
+    Attributes:
+      qpos: [nq] joint positions (arm 7, fingers 2).
+      qvel: [nv] joint velocities.
+      qacc_warmstart: [nv] the solver's warm start.
+      ctrl: [9] actuator targets (arm joints, then the fingers).
+      tcp_target: [3] where the tool centre is being driven.
+      hole: [2] (x, y) of the hole's centre this episode.
+      initial_distance: [] tip-to-hole-bottom distance at reset (metres).
+      distance: [] tip-to-hole-bottom distance after the last step.
+    """
+
+    qpos: jax.Array
+    qvel: jax.Array
+    qacc_warmstart: jax.Array
+    ctrl: jax.Array
+    tcp_target: jax.Array
+    hole: jax.Array
+    initial_distance: jax.Array
+    distance: jax.Array
+
+
+@struct.dataclass
+class PegInsertInfo:
+    """Per-step diagnostics (scalars): the two reward terms, the distance, and why an episode may end."""
+
+    progress: jax.Array
+    bonus: jax.Array
+    distance: jax.Array
+    inserted: jax.Array
+    table_contact: jax.Array
+
+
+class PegInsert(Env[PegInsertParams, PegInsertSim]):
+    """The Panda inserting a peg held in its hand into a square hole shifted at random every episode."""
+
+    def __init__(self):
+        self.mj_model = build_model()
+        self.ids: PegIds = resolve_ids(self.mj_model)
+        self.substeps = int(round(CONTROL_DT / self.mj_model.opt.timestep))
+        self.mjx_model = mjx.put_model(self.mj_model)
+        self._data0 = mjx.make_data(self.mj_model)
+        self.tcp_rotation = tcp_pose_at(self.mj_model, self.ids.robot, HOME_QPOS)[1]
+        start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
+        self.start_qpos = solve_arm_posture(self.mj_model, self.ids.robot, start_tcp, self.tcp_rotation)
+        self.spec = EnvSpec(observation_shape=(12,), action_shape=(3,))
+
+    def default_params(self) -> PegInsertParams:
+        return default_params()
+
+    def render(self, state, params: PegInsertParams) -> np.ndarray:
+        from jaxarm.envs.peg_insert.render import render_frame
+
+        return render_frame(self, state, params)
+
+    # --- physics ------------------------------------------------------------------------------------
+
+    def episode_model(self, sim: PegInsertSim, params: PegInsertParams) -> mjx.Model:
+        """The mjx.Model with this episode's hole position and the params' clearance and friction."""
+        ids, model = self.ids, self.mjx_model
+        centres, halves = hole_walls(params.clearance)
+        block_pos = jnp.concatenate([sim.hole, jnp.zeros(1)])
+        return model.replace(
+            body_pos=model.body_pos.at[ids.block_body].set(block_pos),
+            geom_pos=model.geom_pos.at[ids.wall_geoms].set(centres),
+            geom_size=model.geom_size.at[ids.wall_geoms].set(halves),
+            geom_rbound=model.geom_rbound.at[ids.wall_geoms].set(jnp.linalg.norm(halves, axis=-1)),
+            pair_friction=model.pair_friction.at[ids.block_pairs, :2].set(params.friction),
+        )
+
+    def kinematics(self, model: mjx.Model, sim: PegInsertSim) -> mjx.Data:
+        """mjx.Data at the sim's state with positions and com-frame quantities (for Jacobians)."""
+        data = self._data0.replace(qpos=sim.qpos, qvel=sim.qvel, ctrl=sim.ctrl, qacc_warmstart=sim.qacc_warmstart)
+        return mjx.com_pos(model, mjx.kinematics(model, data))
+
+    def table_contact(self, data: mjx.Data) -> jax.Array:
+        """[] bool: the peg penetrates the table top (from the contacts of the last collision pass)."""
+        geoms = data.contact.geom
+        pair = {self.ids.table_geom, self.ids.peg_geom}
+        is_table = ((geoms[:, 0] == min(pair)) & (geoms[:, 1] == max(pair))) | (
+            (geoms[:, 0] == max(pair)) & (geoms[:, 1] == min(pair)))
+        return jnp.any(is_table & (data.contact.dist < 0.0))
+
+    def peg_tip(self, data: mjx.Data) -> jax.Array:
+        return data.site_xpos[self.ids.peg_tip]
+
+    @staticmethod
+    def hole_bottom(sim: PegInsertSim) -> jax.Array:
+        return jnp.concatenate([sim.hole, jnp.full((1,), HOLE_FLOOR)])
+
+    # --- observation --------------------------------------------------------------------------------
+
+    def _observe(self, model: mjx.Model, data: mjx.Data, sim: PegInsertSim, params: PegInsertParams) -> jax.Array:
+        tip = self.peg_tip(data)
+        jacp, _ = mjx.jac(model, data, tip, self.ids.robot.hand_body)
+        tip_velocity = jacp.T @ sim.qvel
+        nominal = jnp.array([*HOLE_NOMINAL, HOLE_FLOOR])
+        lead = (sim.tcp_target - data.site_xpos[self.ids.robot.tcp_site]) / params.max_lead
+        return jnp.concatenate([
+            (self.hole_bottom(sim) - tip) / POSITION_SCALE, tip_velocity / POSITION_SCALE, lead,
+            (tip - nominal) / POSITION_SCALE,
+        ]).astype(jnp.float32)
+
+    # --- the contract -------------------------------------------------------------------------------
+
+    def _reset(self, key, params):
+        hole_key, arm_key = jax.random.split(key)
+        hole = jnp.array(HOLE_NOMINAL) + jax.random.uniform(hole_key, (2,), minval=-1.0, maxval=1.0) * params.hole_shift
+        robot = self.ids.robot
+        arm_q = self.start_qpos + jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
+        fingers = jnp.full((2,), PEG_RADIUS)
+        qpos = self._data0.qpos.at[robot.arm_qpos].set(arm_q).at[robot.finger_qpos].set(fingers)
+        zero = jnp.zeros((), jnp.float32)
+        sim = PegInsertSim(
+            qpos=qpos, qvel=jnp.zeros_like(self._data0.qvel), qacc_warmstart=jnp.zeros_like(self._data0.qacc_warmstart),
+            ctrl=jnp.concatenate([arm_q, fingers]), tcp_target=jnp.zeros(3), hole=hole, initial_distance=zero,
+            distance=zero,
+        )
+        model = self.episode_model(sim, params)
+        data = self.kinematics(model, sim)
+        distance = jnp.linalg.norm(self.peg_tip(data) - self.hole_bottom(sim))
+        sim = sim.replace(tcp_target=data.site_xpos[robot.tcp_site], initial_distance=distance, distance=distance)
+        info = PegInsertInfo(progress=zero, bonus=zero, distance=distance, inserted=jnp.zeros((), jnp.bool_),
+                             table_contact=jnp.zeros((), jnp.bool_))
+        return sim, self._observe(model, data, sim, params), info
+
+    def _transition(self, sim, action, params):
+        robot = self.ids.robot
+        model = self.episode_model(sim, params)
+        data = self.kinematics(model, sim)
+        tcp = data.site_xpos[robot.tcp_site]
+        target = jnp.clip(sim.tcp_target + action * params.ee_step, tcp - params.max_lead, tcp + params.max_lead)
+        arm_ctrl = ik_arm_targets(model, data, robot, target, self.tcp_rotation, params.ik_damping,
+                                  params.ik_posture_gain, self.start_qpos)
+        data = data.replace(ctrl=jnp.concatenate([arm_ctrl, sim.ctrl[7:]]))
+
+        def substep(_, carry):
+            data, touched = carry
+            data = mjx.step(model, data)
+            return data, touched | self.table_contact(data)
+
+        data, touched = jax.lax.fori_loop(0, self.substeps, substep, (data, jnp.zeros((), jnp.bool_)))
+        next_sim = sim.replace(qpos=data.qpos, qvel=data.qvel, qacc_warmstart=data.qacc_warmstart, ctrl=data.ctrl,
+                               tcp_target=target)
+        data = self.kinematics(model, next_sim)
+        distance = jnp.linalg.norm(self.peg_tip(data) - self.hole_bottom(next_sim))
+        next_sim = next_sim.replace(distance=distance)
+        inserted = distance < params.insert_distance
+        progress = params.progress_weight * (sim.distance - distance) / sim.initial_distance
+        bonus = params.success_bonus * inserted
+        info = PegInsertInfo(progress=progress, bonus=bonus, distance=distance, inserted=inserted,
+                             table_contact=touched)
+        return Transition(
+            sim=next_sim,
+            obs=self._observe(model, data, next_sim, params),
+            reward=progress + bonus,
+            terminated=touched | (distance > params.max_distance),
+            success=inserted,
+            info=info,
+        )

@@ -1,0 +1,69 @@
+"""Params of peg insertion: everything a user may randomise or sweep, as one pytree of arrays.
+
+The hole's clearance reshapes the block's walls per env (mjx.Model fields replaced inside the step), so
+vmap over a batch of these params trains across clearances too. Geometry that fixes shapes (peg radius,
+hole depth) is static, in model.py.
+"""
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+
+@struct.dataclass
+class PegInsertParams:
+    """Task, action and randomisation parameters (scalars, float32 unless noted).
+
+    Attributes:
+      max_episode_steps: time limit (truncation), int32, in env steps of 0.04 s.
+      ee_step: tool displacement per unit action per axis (metres per step).
+      max_lead: the tool target never leads the measured tool centre by more than this per axis (metres),
+        which bounds the force the position servos can press with when the peg is blocked.
+      ik_damping: damping λ of the damped-least-squares IK (metres-radians).
+      ik_posture_gain: null-space pull of the arm towards its start posture per step (fraction of the error).
+      clearance: gap between the peg and each wall of the square hole (metres).
+      hole_shift: the hole is moved from its nominal place by U(−hole_shift, hole_shift) in x and in y.
+      home_noise: half-width of the uniform noise on the arm's initial joint angles (radians).
+      progress_weight: reward weight of the progress term, (previous − current distance) / initial distance.
+      success_bonus: reward per step while the peg tip is within `insert_distance` of the hole bottom.
+      insert_distance: the peg counts as inserted within this distance of the hole bottom (metres).
+      max_distance: terminated when the peg tip is further than this from the hole bottom (metres).
+      friction: sliding friction between the peg and the block.
+    """
+
+    max_episode_steps: jax.Array
+    ee_step: jax.Array
+    max_lead: jax.Array
+    ik_damping: jax.Array
+    ik_posture_gain: jax.Array
+    clearance: jax.Array
+    hole_shift: jax.Array
+    home_noise: jax.Array
+    progress_weight: jax.Array
+    success_bonus: jax.Array
+    insert_distance: jax.Array
+    max_distance: jax.Array
+    friction: jax.Array
+
+
+def default_params() -> PegInsertParams:
+    """The defaults of the task description: 5 mm steps, 1 mm clearance, ±10 cm hole, 100 steps."""
+
+    def f32(value: float) -> jax.Array:
+        return jnp.array(value, jnp.float32)
+
+    return PegInsertParams(
+        max_episode_steps=jnp.array(100, jnp.int32),
+        ee_step=f32(0.005),
+        max_lead=f32(0.01),
+        ik_damping=f32(0.05),
+        ik_posture_gain=f32(0.05),
+        clearance=f32(0.001),
+        hole_shift=f32(0.1),
+        home_noise=f32(0.02),
+        progress_weight=f32(1.0),
+        success_bonus=f32(0.1),
+        insert_distance=f32(0.01),
+        max_distance=f32(0.8),
+        friction=f32(0.5),
+    )
