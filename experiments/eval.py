@@ -53,7 +53,7 @@ def main(argv=None) -> int:
     print(f"{run_dir}: success_rate {result['success_rate']:.3f} return_mean {result['return_mean']:.2f} "
           f"over {result['episodes']} episodes")
     if args.video:
-        env, env_params = config.make_env()
+        env, env_params = config.make_eval_env()
         frames = episode_frames(env, env_params, trainer, state, jax.random.PRNGKey(args.seed + 1), 3)
         imageio.mimsave(run_dir / "video.gif", frames, duration=0.04, loop=0)
         print(f"wrote {run_dir / 'video.gif'} ({len(frames)} frames)")

@@ -20,16 +20,21 @@ def _figure(width: float, height: float, columns: int = 1):
     return figure, figure.subplots(1, columns)
 
 
-def rolling_mean(values: np.ndarray, window: int) -> np.ndarray:
-    """Trailing mean over up to `window` values, same length as `values`."""
-    cumulative = np.cumsum(np.insert(np.asarray(values, float), 0, 0.0))
-    ends = np.arange(1, len(cumulative))
-    starts = np.maximum(ends - window, 0)
-    return (cumulative[ends] - cumulative[starts]) / (ends - starts)
+def rolling_mean(values: np.ndarray, window: int, weights: np.ndarray | None = None) -> np.ndarray:
+    """Trailing (weighted) mean over up to `window` values, same length as `values`."""
+    weights = np.ones(len(values)) if weights is None else np.asarray(weights, float)
+
+    def trailing_sums(series):
+        cumulative = np.cumsum(np.insert(np.asarray(series, float), 0, 0.0))
+        ends = np.arange(1, len(cumulative))
+        return cumulative[ends] - cumulative[np.maximum(ends - window, 0)]
+
+    return trailing_sums(np.asarray(values, float) * weights) / trailing_sums(weights)
 
 
 def learning_curve(rows: list[dict], path: pathlib.Path, title: str) -> None:
-    """Per-update mean episode return (scatter), its rolling mean and linear trend, and the success rate.
+    """Per-update mean episode return (scatter), its rolling mean and linear trend, and the success rate of
+    the training episodes (rolling, weighted by the episodes each update finished).
 
     Updates in which no episode finished are left out. The device is named in the title.
     """
@@ -39,13 +44,15 @@ def learning_curve(rows: list[dict], path: pathlib.Path, title: str) -> None:
         steps = np.array([row["env_steps"] for row in rows], float)
         returns = np.array([row["episodes/return_mean"] for row in rows])
         success = np.array([row["episodes/success_rate"] for row in rows])
+        episodes = np.array([row["episodes/episodes"] for row in rows])
+        window = max(1, len(rows) // 20)
         ax.scatter(steps, returns, s=6, alpha=0.4, label="episode return (mean per update)")
-        ax.plot(steps, rolling_mean(returns, max(1, len(rows) // 20)), color="C0", label="rolling mean")
+        ax.plot(steps, rolling_mean(returns, window), color="C0", label="rolling mean")
         if len(rows) > 1:
             slope, intercept = np.polyfit(steps, returns, 1)
             ax.plot(steps, slope * steps + intercept, "--", color="gray", label="linear trend")
         twin = ax.twinx()
-        twin.plot(steps, success, color="C2", label="success rate")
+        twin.plot(steps, rolling_mean(success, window, episodes), color="C2", label="success rate (rolling)")
         twin.set_ylim(-0.02, 1.02)
         twin.set_ylabel("success rate")
         twin.legend(loc="lower right")

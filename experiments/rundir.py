@@ -74,7 +74,7 @@ def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig):
 
 def evaluate_state(trainer, config: RunConfig, state, episodes: int, seed: int) -> dict:
     """Deterministic-policy results on `episodes` fresh episodes, as a JSON-ready dict."""
-    env, env_params = config.make_env()
+    env, env_params = config.make_eval_env()
     run = jax.jit(lambda learner, key: evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, episodes))
     result = run(state, jax.random.PRNGKey(seed)).summary()
     return {**result, "device": jax.devices()[0].device_kind}

@@ -70,7 +70,7 @@ def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, pr
         progress(f"  chunk {index + 1}/{trainer.num_updates // config.updates_per_chunk} "
                  f"({time.perf_counter() - start:.1f} s)")
     metrics = jax.tree.map(lambda *parts: np.concatenate(parts, axis=1), *chunks)
-    env, env_params = config.make_env()
+    env, env_params = config.make_eval_env()
     eval_keys = jax.random.split(jax.random.PRNGKey(config.seed + 1_000_003), len(members))
     results = jax.jit(jax.vmap(
         lambda learner, key: evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, config.eval_episodes)

@@ -3,7 +3,7 @@
 A config is a frozen dataclass: static choices (sizes, counts, env) are plain fields; the fields named in
 `DYNAMIC_FIELDS` become a hyper-parameter pytree (`hparams()`) that `train` takes as an argument, so
 seeds × hyper-parameters vmap. Env constructor kwargs and env params are (name, value) pairs set on the
-CLI as `env_kwargs.NAME=VALUE` and `env_params.NAME=VALUE`.
+CLI as `env_kwargs.NAME=VALUE`, `env_params.NAME=VALUE` and `eval_env_params.NAME=VALUE`.
 """
 
 import ast
@@ -29,6 +29,7 @@ class RunConfig:
       env: registered env name (see `jaxarm.envs.names()`).
       env_kwargs: static env constructor arguments as (name, value) pairs.
       env_params: overrides of the env's default params as (name, value) pairs.
+      eval_env_params: further overrides for evaluation only, e.g. switching off a training curriculum.
       num_envs: envs stepped in parallel.
       total_env_steps: training budget in env steps (rounded up to whole chunks of updates, so that every
         chunk is the same compiled program: a shorter last chunk would compile again).
@@ -46,6 +47,7 @@ class RunConfig:
     env: str = "arm2d"
     env_kwargs: Pairs = ()
     env_params: Pairs = ()
+    eval_env_params: Pairs = ()
     num_envs: int = 256
     total_env_steps: int = 1_000_000
     updates_per_chunk: int = 10
@@ -63,9 +65,14 @@ class RunConfig:
         return max(1, -(-self.total_env_steps // chunk_steps)) * self.updates_per_chunk
 
     def make_env(self):
-        """Returns (env, env_params) described by this config."""
+        """Returns (env, env_params) described by this config: what training runs on."""
         env = envs.make(self.env, **dict(self.env_kwargs))
         return env, envs.override_params(env.default_params(), dict(self.env_params))
+
+    def make_eval_env(self):
+        """Returns (env, env_params) that evaluations run on: the training env with `eval_env_params` applied."""
+        env, env_params = self.make_env()
+        return env, envs.override_params(env_params, dict(self.eval_env_params))
 
     def to_json(self) -> str:
         return json.dumps({"agent": self.AGENT, **dataclasses.asdict(self)}, indent=2, default=list)
@@ -118,7 +125,7 @@ def apply_overrides(config: RunConfig, overrides: Iterable[str]) -> RunConfig:
             raise ValueError(f"override {item!r} is not of the form key=value")
         key, text = item.split("=", 1)
         group, _, name = key.partition(".")
-        if name and group in ("env_kwargs", "env_params"):
+        if name and group in ("env_kwargs", "env_params", "eval_env_params"):
             config = dataclasses.replace(config, **{group: with_pair(getattr(config, group), name, parse_literal(text))})
             continue
         if key not in fields:
@@ -138,6 +145,6 @@ def validate(config: RunConfig) -> None:
         if getattr(config, field) <= 0:
             raise ValueError(f"{field} must be positive, got {getattr(config, field)}")
     try:
-        config.make_env()
+        config.make_eval_env()
     except (KeyError, ValueError, TypeError) as error:
         raise ValueError(str(error).strip("\"'")) from None

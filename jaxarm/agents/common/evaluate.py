@@ -1,6 +1,7 @@
 """Deterministic evaluation of a policy on fresh episodes, and episode recording for videos."""
 
 from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -11,20 +12,28 @@ from jaxarm.envs import EnvState, VmapEnv
 
 @struct.dataclass
 class EvalResult:
-    """Per-episode results, each [episodes]: return, length, success (bool)."""
+    """Per-episode results, each [episodes]: return, length, success (bool), and the env's info pytree of
+    each episode's last step (e.g. the sorter's object counts, the peg's final distance)."""
 
     returns: jax.Array
     lengths: jax.Array
     successes: jax.Array
+    final_info: Any
 
     def summary(self) -> dict:
-        """Plain-Python summary for eval.json."""
+        """Plain-Python summary for eval.json; the final info's scalar leaves as means under "final_info/..."."""
+        info = {
+            "final_info/" + jax.tree_util.keystr(path, simple=True, separator="/"): float(jnp.mean(leaf))
+            for path, leaf in jax.tree_util.tree_leaves_with_path(self.final_info)
+            if leaf.ndim == 1
+        }
         return {
             "episodes": int(self.returns.shape[0]),
             "success_rate": float(jnp.mean(self.successes)),
             "return_mean": float(jnp.mean(self.returns)),
             "return_std": float(jnp.std(self.returns)),
             "length_mean": float(jnp.mean(self.lengths)),
+            **info,
         }
 
 
@@ -55,4 +64,5 @@ def evaluate(env, env_params, policy, key, episodes: int) -> EvalResult:
     """Runs `episodes` fresh episodes with a deterministic `policy` and returns their results (jit-able)."""
     max_steps = int(env_params.max_episode_steps)
     final = jax.tree.map(lambda leaf: leaf[-1], rollout_episodes(env, env_params, policy, key, episodes, max_steps))
-    return EvalResult(returns=final.episode.return_, lengths=final.episode.length, successes=final.episode.success)
+    return EvalResult(returns=final.episode.return_, lengths=final.episode.length, successes=final.episode.success,
+                      final_info=final.info)
