@@ -7,6 +7,12 @@ below the table top is penalised (-50). Either way it leaves play and is parked 
 rest of the episode, so it can never be scored twice or touch anything again. The episode terminates when
 no object is left in play and succeeds when all of them went into their own bins.
 
+Dense shaping is potential-based: each shaping term pays the change of its potential over the step (reach:
+the tool centre near an object; grasp: an object held; lift: a held object lifted; carry: a lifted object
+near the point above its own bin), summed over objects, with an object in its own bin counting as the
+maximum of every term and one elsewhere as zero. Over an episode the shaping sums to the final potential
+minus the first, so no behaviour (hovering with an object over its bin, say) can farm it.
+
 The env holds the mjx.Model (static). Per-episode object shapes and sizes, and the randomised params
 (friction, density, mass scale), enter by replacing mjx.Model fields inside the step, so vmap over
 states and params is per-env domain randomisation. The sim state keeps only what the physics needs
@@ -20,7 +26,9 @@ from flax import struct
 from mujoco import mjx
 
 from jaxarm.envs.base import Env, EnvSpec, Transition
-from jaxarm.envs.panda.robot import FINGER_OPEN, HOME_QPOS, ik_arm_targets, tcp_jacobian, tcp_pose_at
+from jaxarm.envs.panda.robot import (
+    FINGER_OPEN, HOME_QPOS, ik_arm_targets, solve_arm_posture, tcp_jacobian, tcp_pose_at,
+)
 from jaxarm.envs.panda_sort.layout import Layout, make_layout
 from jaxarm.envs.panda_sort.model import ModelIds, build_model, resolve_ids
 from jaxarm.envs.panda_sort.params import PandaSortParams, default_params
@@ -29,8 +37,16 @@ CONTROL_DT = 0.04
 """Seconds of simulated time per env step."""
 MODE_EE = "ee"
 MODE_JOINT = "joint"
-OBJECT_OBS_SIZE = 18
-"""Per object: position 3, quaternion 4, linear and angular velocity 6, one-hot shape 3, size 1, in play 1."""
+OBJECT_OBS_SIZE = 26
+"""Per object: position 3, quaternion 4, linear and angular velocity 6, one-hot shape 3, size 1, in play 1,
+then what a policy would otherwise have to compute: object − tool centre 3, carry target − object 3, and
+the object's yaw relative to the hand as cos and sin of 4·Δyaw (a cube and the octagonal cylinder look the
+same every 90 degrees)."""
+OBJECT_RELATIVE_YAW = slice(OBJECT_OBS_SIZE - 2, OBJECT_OBS_SIZE)
+"""Where cos and sin of 4·Δyaw sit in an object's observation."""
+START_TCP = np.array([0.5, -0.05, 0.25])
+"""Tool centre at reset, pointing down: 25 cm over the middle of the spawn region (the Panda's ready pose is
+twice as high, 70 steps of descent away)."""
 FLOOR_Z = -0.05
 """An object whose centre is this far below the table top has fallen off."""
 TCP_MIN_Z = 0.01
@@ -46,10 +62,13 @@ HELD_DISTANCE = 0.01
 """An object counts as held when its centre is within its size plus this of the tool centre ..."""
 HELD_MAX_WIDTH = 2.9
 """... and the fingers are open less than this many sizes (about the cube's diagonal) ..."""
-HELD_MIN_WIDTH = 1.5
-"""... but more than this many (fully closed fingers hold nothing)."""
-CARRY_SCALE = 0.1
-"""Distance (metres) over which the carry term decays."""
+HELD_MIN_WIDTH = 1.0
+"""... but more than this many (fully closed fingers hold nothing; a cylinder is gripped at 1.4 sizes, a small
+sphere squeezed to about 1.5)."""
+GRIP_HALF_WIDTH = np.array([1.0, CYLINDER_BOX_HALF, 1.0], np.float32)
+"""Half the finger gap that holds a cube, a cylinder (across the octagon's flats) and a sphere, per unit size."""
+PAD_ABOVE_TCP = 0.003
+"""The finger pads' centre is this far above the tool centre."""
 
 IN_PLAY = 0
 IN_CORRECT_BIN = 1
@@ -71,6 +90,7 @@ class PandaSortSim:
       size: [N] half-size / radius of each object (metres).
       colour: [N, 3] RGB of each object; drawn only, never observed, unrelated to the shape.
       outcome: [N] int32 IN_PLAY, IN_CORRECT_BIN, IN_WRONG_BIN or ON_FLOOR.
+      potential: [4] weighted shaping potentials (reach, grasp, lift, carry) of the current state.
     """
 
     qpos: jax.Array
@@ -81,6 +101,7 @@ class PandaSortSim:
     size: jax.Array
     colour: jax.Array
     outcome: jax.Array
+    potential: jax.Array
 
 
 @struct.dataclass
@@ -157,6 +178,24 @@ def spawn_xy(key: jax.Array, count: int, layout: Layout, max_extent: jax.Array) 
     return centre + jax.random.uniform(jitter_key, (count, 2), minval=-room, maxval=room)
 
 
+def yaw_of_rotation(rotation: jax.Array) -> jax.Array:
+    """[..., 3, 3] rotation matrices -> [...] heading of their x axis in the horizontal plane (radians)."""
+    return jnp.arctan2(rotation[..., 1, 0], rotation[..., 0, 0])
+
+
+def yaw_of_quaternion(quat: jax.Array) -> jax.Array:
+    """[..., 4] unit quaternions (w, x, y, z) -> [...] heading of the rotated x axis (radians)."""
+    w, x, y, z = jnp.moveaxis(quat, -1, 0)
+    return jnp.arctan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))
+
+
+def rotation_about_z(angle: jax.Array) -> jax.Array:
+    """[] angle -> [3, 3] rotation about the vertical."""
+    c, s = jnp.cos(angle), jnp.sin(angle)
+    zero, one = jnp.zeros_like(angle), jnp.ones_like(angle)
+    return jnp.stack([jnp.stack([c, -s, zero]), jnp.stack([s, c, zero]), jnp.stack([zero, zero, one])])
+
+
 def bin_membership(position: jax.Array, layout: Layout) -> jax.Array:
     """[N, 3] object positions -> [N, 3] bool: centre inside bin k's walls and below its rim."""
     bins = jnp.array(layout.bin_centers)  # [3, 2]
@@ -181,8 +220,9 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
 
     Args:
       objects_count: number of object slots, 1 to 5 (static: fixes shapes and the contact set).
-      control_mode: "ee" (tool-centre delta xyz and a finger command; 4 actions) or "joint" (7 joint-target
-        deltas and a finger command; 8 actions). The finger command maps [-1, 1] to closed..open.
+      control_mode: "ee" (tool-centre delta xyz, a turn of the hand about the vertical, and a finger command;
+        5 actions; the tool keeps pointing down) or "joint" (7 joint-target deltas and a finger command; 8
+        actions). The finger command maps [-1, 1] to closed..open.
       blocker: adds a thin bar between the spawn region and the bins.
       tosser: puts the bins on a second table across a gap.
     """
@@ -201,8 +241,9 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         self.substeps = int(round(CONTROL_DT / self.mj_model.opt.timestep))
         self.mjx_model = mjx.put_model(self.mj_model)
         self._data0 = mjx.make_data(self.mj_model)
-        self._tcp_target_rotation = tcp_pose_at(self.mj_model, self.ids.robot, HOME_QPOS)[1]
-        action_size = 4 if control_mode == MODE_EE else 8
+        self._home_tcp_rotation = tcp_pose_at(self.mj_model, self.ids.robot, HOME_QPOS)[1]
+        self.start_qpos = solve_arm_posture(self.mj_model, self.ids.robot, START_TCP, self._home_tcp_rotation)
+        action_size = 5 if control_mode == MODE_EE else 8
         self.spec = EnvSpec(observation_shape=(OBJECT_OBS_SIZE * objects_count + 21,), action_shape=(action_size,))
 
     def render(self, state, params: PandaSortParams) -> np.ndarray:
@@ -244,15 +285,18 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
     # --- control ------------------------------------------------------------------------------------
 
     def _arm_targets(self, model, data, action, params) -> jax.Array:
-        """[7] arm joint targets from the action: IK towards the displaced tool centre, or joint deltas."""
+        """[7] arm joint targets from the action: IK towards the displaced and turned tool, or joint deltas."""
         robot = self.ids.robot
         if self.control_mode == MODE_JOINT:
             arm_q = data.qpos[robot.arm_qpos]
             return jnp.clip(arm_q + action[:7] * params.joint_step, robot.arm_limits[:, 0], robot.arm_limits[:, 1])
         target = data.site_xpos[robot.tcp_site] + action[:3] * params.ee_step
         target = target.at[2].set(jnp.maximum(target[2], TCP_MIN_Z))
-        return ik_arm_targets(model, data, robot, target, self._tcp_target_rotation, params.ik_damping,
-                              params.ik_posture_gain, HOME_QPOS)
+        # The home tool frame has yaw 0, so turning it about z by the target yaw gives a pointing-down target.
+        yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3)) + action[3] * params.ee_yaw_step
+        rotation = rotation_about_z(yaw) @ self._home_tcp_rotation
+        return ik_arm_targets(model, data, robot, target, rotation, params.ik_damping, params.ik_posture_gain,
+                              self.start_qpos)
 
     def _ctrl(self, model, data, action, params) -> jax.Array:
         finger = (action[-1] + 1.0) * (FINGER_OPEN / 2)
@@ -278,58 +322,73 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
 
     # --- observation, reward ------------------------------------------------------------------------
 
-    def _observe(self, model: mjx.Model, data: mjx.Data, sim: PandaSortSim) -> jax.Array:
-        """[18 N + 21]: per object (zeros when out of play) 18 values, then tool centre position 3,
-        orientation quaternion 4, linear and angular velocity 6, finger width 1, and the 7 arm joint angles
-        (the arm is redundant, so the tool pose alone does not tell its posture or nearness to joint limits).
+    def carry_targets(self, sim: PandaSortSim, params: PandaSortParams) -> jax.Array:
+        """[N, 3] the point `carry_height` above the centre of each object's own bin."""
+        own_bin = jnp.array(self.layout.bin_centers)[sim.shape]
+        return jnp.concatenate([own_bin, jnp.broadcast_to(params.carry_height, (self.objects_count, 1))], -1)
+
+    def _observe(self, model: mjx.Model, data: mjx.Data, sim: PandaSortSim, params: PandaSortParams) -> jax.Array:
+        """[OBJECT_OBS_SIZE N + 21]: per object (zeros when out of play) OBJECT_OBS_SIZE values, then tool
+        centre position 3, orientation quaternion 4, linear and angular velocity 6, finger width 1, and the 7
+        arm joint angles (the arm is redundant, so the tool pose alone does not tell its posture or nearness
+        to joint limits). Robot quantities come from `data`, object quantities from `sim`.
         """
         ids = self.ids
         in_play = (sim.outcome == IN_PLAY)[:, None]
         pose = sim.qpos[ids.object_qpos[:, None] + np.arange(7)]
         velocity = sim.qvel[ids.object_qvel[:, None] + np.arange(6)]
-        objects = jnp.concatenate(
-            [pose, velocity, jax.nn.one_hot(sim.shape, 3), sim.size[:, None], in_play.astype(jnp.float32)], -1
-        )
+        tcp = data.site_xpos[ids.robot.tcp_site]
+        relative_yaw = yaw_of_quaternion(pose[:, 3:]) - yaw_of_rotation(data.site_xmat[ids.robot.tcp_site].reshape(3, 3))
+        objects = jnp.concatenate([
+            pose, velocity, jax.nn.one_hot(sim.shape, 3), sim.size[:, None], in_play.astype(jnp.float32),
+            pose[:, :3] - tcp, self.carry_targets(sim, params) - pose[:, :3],
+            jnp.cos(4.0 * relative_yaw)[:, None], jnp.sin(4.0 * relative_yaw)[:, None],
+        ], -1)
         tcp_velocity = tcp_jacobian(model, data, ids.robot) @ sim.qvel
         tool = [
-            data.site_xpos[ids.robot.tcp_site], data.xquat[ids.robot.hand_body], tcp_velocity,
+            tcp, data.xquat[ids.robot.hand_body], tcp_velocity,
             jnp.sum(sim.qpos[ids.robot.finger_qpos])[None], sim.qpos[ids.robot.arm_qpos],
         ]
         return jnp.concatenate([(objects * in_play).ravel(), *tool]).astype(jnp.float32)
 
-    def _reward_terms(self, data: mjx.Data, sim: PandaSortSim, previous_outcome: jax.Array,
-                      params: PandaSortParams) -> RewardTerms:
-        """Sparse terms for objects scored this step, dense shaping from the state after it."""
-        newly = (previous_outcome == IN_PLAY) & (sim.outcome != IN_PLAY)
-
-        def count(outcome: int) -> jax.Array:
-            return jnp.sum(newly & (sim.outcome == outcome)).astype(jnp.float32)
-
+    def shaping_potential(self, data: mjx.Data, sim: PandaSortSim, params: PandaSortParams) -> jax.Array:
+        """[4] weighted potentials (reach, grasp, lift, carry), each summed over objects (see module docstring)."""
         in_play = sim.outcome == IN_PLAY
         position = self.object_positions(sim.qpos)
-        tcp = data.site_xpos[self.ids.robot.tcp_site]
-        distance = jnp.linalg.norm(position - tcp, axis=-1)
-        nearest = jnp.min(jnp.where(in_play, distance, jnp.inf))
+        distance = jnp.linalg.norm(position - data.site_xpos[self.ids.robot.tcp_site], axis=-1)
         width = jnp.sum(sim.qpos[self.ids.robot.finger_qpos])
         held = (
-            in_play
-            & (distance < sim.size + HELD_DISTANCE)
+            (distance < sim.size + HELD_DISTANCE)
             & (width < HELD_MAX_WIDTH * sim.size)
             & (width > HELD_MIN_WIDTH * sim.size)
         )
         lift = held * jnp.clip((position[:, 2] - sim.size) / params.lift_height, 0.0, 1.0)
-        own_bin = jnp.array(self.layout.bin_centers)[sim.shape]
-        to_bin = jnp.linalg.norm(position[:, :2] - own_bin, axis=-1)
-        carry = lift * jnp.exp(-to_bin / CARRY_SCALE)
+        to_target = jnp.linalg.norm(position - self.carry_targets(sim, params), axis=-1)
+        stages = jnp.stack([
+            1.0 - jnp.tanh(distance / params.reach_scale), held.astype(jnp.float32), lift,
+            lift * (1.0 - jnp.tanh(to_target / params.carry_scale)),
+        ])  # [4, N]
+        per_object = jnp.where(in_play, stages, (sim.outcome == IN_CORRECT_BIN).astype(jnp.float32))
+        weights = jnp.stack([params.reach_weight, params.grasp_weight, params.lift_weight, params.carry_weight])
+        return weights * jnp.sum(per_object, axis=1)
+
+    def _reward_terms(self, sim: PandaSortSim, previous: PandaSortSim, params: PandaSortParams) -> RewardTerms:
+        """Sparse terms for objects scored this step; shaping as the change of each potential."""
+        newly = (previous.outcome == IN_PLAY) & (sim.outcome != IN_PLAY)
+
+        def count(outcome: int) -> jax.Array:
+            return jnp.sum(newly & (sim.outcome == outcome)).astype(jnp.float32)
+
+        reach, grasp, lift, carry = sim.potential - previous.potential
         return RewardTerms(
             time=params.step_reward,
             floor=params.floor_reward * count(ON_FLOOR),
             wrong_bin=params.wrong_bin_reward * count(IN_WRONG_BIN),
             correct_bin=params.correct_bin_reward * count(IN_CORRECT_BIN),
-            reach=-params.reach_weight * jnp.where(jnp.any(in_play), nearest, 0.0),
-            grasp=params.grasp_weight * jnp.any(held).astype(jnp.float32),
-            lift=params.lift_weight * jnp.max(lift),
-            carry=params.carry_weight * jnp.max(carry),
+            reach=reach,
+            grasp=grasp,
+            lift=lift,
+            carry=carry,
         )
 
     def _info(self, terms: RewardTerms, outcome: jax.Array) -> PandaSortInfo:
@@ -347,7 +406,7 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
     # --- the contract -------------------------------------------------------------------------------
 
     def _reset(self, key, params):
-        shape_key, size_key, colour_key, spawn_key, yaw_key, arm_key = jax.random.split(key, 6)
+        shape_key, size_key, colour_key, spawn_key, yaw_key, arm_key, held_key = jax.random.split(key, 7)
         n, ids = self.objects_count, self.ids
         shape = jax.random.randint(shape_key, (n,), 0, 3).astype(jnp.int32)
         scale = jax.random.uniform(size_key, (n,), minval=params.size_scale_low, maxval=params.size_scale_high)
@@ -357,7 +416,7 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         # Resting on the table, 1 mm above it, turned about z.
         zero = jnp.zeros(n)
         pose = jnp.stack([xy[:, 0], xy[:, 1], size + 0.001, jnp.cos(yaw / 2), zero, zero, jnp.sin(yaw / 2)], -1)
-        arm_q = HOME_QPOS + jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
+        arm_q = self.start_qpos + jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
         qpos = self._data0.qpos.at[ids.robot.arm_qpos].set(arm_q).at[ids.robot.finger_qpos].set(FINGER_OPEN)
         qpos = qpos.at[ids.object_qpos[:, None] + np.arange(7)].set(pose)
         sim = PandaSortSim(
@@ -369,10 +428,26 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
             size=size,
             colour=jax.random.uniform(colour_key, (n, 3), minval=0.15, maxval=0.95),
             outcome=jnp.full((n,), IN_PLAY, jnp.int32),
+            potential=jnp.zeros(4, jnp.float32),
         )
         model = self.episode_model(sim, params)
+        data = self.kinematics(model, sim)
+        sim = self._maybe_held(sim, data, jax.random.bernoulli(held_key, params.held_start_prob))
+        sim = sim.replace(potential=self.shaping_potential(data, sim, params))
         zero_terms = RewardTerms(*(jnp.zeros((), jnp.float32) for _ in range(8)))
-        return sim, self._observe(model, self.kinematics(model, sim), sim), self._info(zero_terms, sim.outcome)
+        # Moving object 0 into the hand changes no robot quantity, so `data` still serves the observation.
+        return sim, self._observe(model, data, sim, params), self._info(zero_terms, sim.outcome)
+
+    def _maybe_held(self, sim: PandaSortSim, data: mjx.Data, held: jax.Array) -> PandaSortSim:
+        """Where `held`: object 0 between the closed fingers at the tool centre, faces towards the pads."""
+        robot, ids = self.ids.robot, self.ids
+        yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
+        centre = data.site_xpos[robot.tcp_site] + jnp.array([0.0, 0.0, PAD_ABOVE_TCP])
+        pose = jnp.concatenate([centre, jnp.stack([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])])
+        grip = jnp.asarray(GRIP_HALF_WIDTH)[sim.shape[0]] * sim.size[0]
+        qpos = sim.qpos.at[ids.object_qpos[0] + np.arange(7)].set(pose).at[robot.finger_qpos].set(grip)
+        ctrl = sim.ctrl.at[7:].set(0.0)
+        return sim.replace(qpos=jnp.where(held, qpos, sim.qpos), ctrl=jnp.where(held, ctrl, sim.ctrl))
 
     def _transition(self, sim, action, params):
         model = self.episode_model(sim, params)
@@ -384,11 +459,12 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         next_sim = sim.replace(qpos=qpos, qvel=qvel, qacc_warmstart=data.qacc_warmstart, ctrl=data.ctrl,
                                outcome=outcome)
         data = self.kinematics(model, next_sim)
-        terms = self._reward_terms(data, next_sim, sim.outcome, params)
+        next_sim = next_sim.replace(potential=self.shaping_potential(data, next_sim, params))
+        terms = self._reward_terms(next_sim, sim, params)
         info = self._info(terms, outcome)
         return Transition(
             sim=next_sim,
-            obs=self._observe(model, data, next_sim),
+            obs=self._observe(model, data, next_sim, params),
             reward=terms.total(),
             terminated=info.in_play_count == 0,
             success=info.correct_count == self.objects_count,
