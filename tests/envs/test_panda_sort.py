@@ -202,18 +202,46 @@ def test_scripted_placement_in_another_bin_scores_200_once(env, params, reset, s
     np.testing.assert_allclose(shaping.sum(), -float(first.sim.potential.sum()), atol=1e-3)
 
 
+def curriculum_start(env, state, params, shape: int, held: bool):
+    """`state` re-placed for a held (or grasp-ready) start of object 0 as `shape` (the arm as reset left it)."""
+    sim = state.sim.replace(shape=jnp.array([shape], jnp.int32))
+    data = env.kinematics(env.episode_model(sim, params), sim)
+    sim = env._place_in_hand(sim, data, jnp.bool_(held), jnp.bool_(not held))
+    return state.replace(sim=sim.replace(potential=env.shaping_potential(data, sim, params)))
+
+
 @pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])
 def test_a_held_start_puts_the_object_between_the_fingers_and_it_stays_there(env, params, reset, step, shape):
     held = params.replace(held_start_prob=jnp.float32(1.0))
-    state = reset(jax.random.key(int(shape)), held)
-    sim = state.sim.replace(shape=jnp.array([shape], jnp.int32))
-    state = state.replace(sim=env._maybe_held(sim, env.kinematics(env.episode_model(sim, held), sim), jnp.bool_(True)))
+    state = curriculum_start(env, reset(jax.random.key(int(shape)), held), held, shape, held=True)
     start = object_position(state) - tcp_position(state)
     state, _ = run_steps(step, state, held, [np.r_[0.5, 0.5, 0.5 * (k < 10), 0.0, -1.0] for k in range(30)])
     assert int(state.info.in_play_count) == 1 and float(object_position(state)[2]) > 0.2
     np.testing.assert_allclose(object_position(state) - tcp_position(state), start, atol=0.015)
     resting = reset(jax.random.key(int(shape)), params)
     assert float(object_position(resting)[2]) < 0.05, "without a held start the object rests on the table"
+
+
+@pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])
+def test_a_grasp_ready_start_closes_on_the_object_and_lifts_it(env, params, reset, step, shape):
+    ready = params.replace(ready_start_prob=jnp.float32(1.0), size_scale_low=jnp.float32(1.5))  # the largest
+    state = reset(jax.random.key(10 + int(shape)), ready)
+    assert float(tcp_position(state)[2]) < 0.03, "the arm starts low"
+    state = curriculum_start(env, state, ready, shape, held=False)
+    np.testing.assert_allclose(object_position(state)[:2], tcp_position(state)[:2], atol=1e-6)
+    state, terms = run_steps(step, state, ready, [np.r_[0.0, 0.0, 0.0, 0.0, -1.0]] * 8
+                             + [np.r_[0.0, 0.0, 0.5, 0.0, -1.0]] * 30)
+    assert float(object_position(state)[2]) > 0.1, "the object did not come up with the hand"
+    assert terms.grasp.sum() == pytest.approx(float(ready.grasp_weight)) and terms.lift.sum() > 0
+
+
+def test_grasp_ready_starts_keep_other_objects_clear_of_the_hand():
+    env = envs.make("panda_sort3")
+    params = env.default_params().replace(ready_start_prob=jnp.float32(1.0))
+    states = jax.jit(jax.vmap(lambda key: env.reset(key, params)))(jax.random.split(jax.random.key(11), 64))
+    positions = np.asarray(states.sim.qpos[:, env.ids.object_qpos[:, None] + np.arange(3)])  # [64, 3, 3]
+    gaps = np.linalg.norm(positions[:, 1:, :2] - positions[:, :1, :2], axis=-1)
+    assert gaps.min() > 0.1
 
 
 @pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])

@@ -44,9 +44,11 @@ the object's yaw relative to the hand as cos and sin of 4·Δyaw (a cube and the
 same every 90 degrees)."""
 OBJECT_RELATIVE_YAW = slice(OBJECT_OBS_SIZE - 2, OBJECT_OBS_SIZE)
 """Where cos and sin of 4·Δyaw sit in an object's observation."""
-START_TCP = np.array([0.5, -0.05, 0.25])
-"""Tool centre at reset, pointing down: 25 cm over the middle of the spawn region (the Panda's ready pose is
+START_HEIGHT = 0.25
+"""Tool-centre height at reset, pointing down over the middle of the spawn region (the Panda's ready pose is
 twice as high, 70 steps of descent away)."""
+GRASP_HEIGHT = 0.02
+"""Tool-centre height of a grasp-ready start: the pads (24 mm tall) span every object's centre height."""
 FLOOR_Z = -0.05
 """An object whose centre is this far below the table top has fallen off."""
 TCP_MIN_Z = 0.01
@@ -60,11 +62,12 @@ PARK_SPACING = 1.0
 """Out-of-play object k is held at PARK_ORIGIN + k·PARK_SPACING·x, far from everything and from each other."""
 HELD_DISTANCE = 0.01
 """An object counts as held when its centre is within its size plus this of the tool centre ..."""
-HELD_MAX_WIDTH = 2.9
-"""... and the fingers are open less than this many sizes (about the cube's diagonal) ..."""
+HELD_MIN_SQUEEZE = 0.002
+"""... and the fingers are commanded at least this much (metres) closer than they are: they press on something
+(open fingers straddling a large object do not hold it) ..."""
 HELD_MIN_WIDTH = 1.0
-"""... but more than this many (fully closed fingers hold nothing; a cylinder is gripped at 1.4 sizes, a small
-sphere squeezed to about 1.5)."""
+"""... but are open more than this many sizes (fully closed fingers hold nothing; a cylinder is gripped at
+1.4 sizes, a small sphere squeezed to about 1.5)."""
 GRIP_HALF_WIDTH = np.array([1.0, CYLINDER_BOX_HALF, 1.0], np.float32)
 """Half the finger gap that holds a cube, a cylinder (across the octagon's flats) and a sphere, per unit size."""
 PAD_ABOVE_TCP = 0.003
@@ -163,16 +166,22 @@ def object_mass_inertia(shape: jax.Array, size: jax.Array, density: jax.Array) -
     return mass, ms2 * factors
 
 
-def spawn_xy(key: jax.Array, count: int, layout: Layout, max_extent: jax.Array) -> jax.Array:
+def spawn_xy(key: jax.Array, count: int, layout: Layout, max_extent: jax.Array,
+             centre_first: jax.Array = False) -> jax.Array:
     """[count, 2] object positions in distinct cells of the spawn grid, jittered as far as the cell allows.
 
-    `max_extent` bounds every object's horizontal reach from its centre, so objects never overlap.
+    `max_extent` bounds every object's horizontal reach from its centre, so objects never overlap. Where
+    `centre_first`, object 0 gets the grid's middle cell (the spawn region's centre lies in it).
     """
     cell_key, jitter_key = jax.random.split(key)
     nx, ny = layout.spawn_cells
     low, high = jnp.array(layout.spawn_low), jnp.array(layout.spawn_high)
     cell = (high - low) / jnp.array([nx, ny])
-    chosen = jax.random.permutation(cell_key, nx * ny)[:count]
+    order = jax.random.permutation(cell_key, nx * ny)
+    middle = (ny // 2) * nx + nx // 2
+    at_middle = jnp.argmax(order == middle)
+    swapped = order.at[at_middle].set(order[0]).at[0].set(middle)
+    chosen = jnp.where(centre_first, swapped, order)[:count]
     centre = low + (jnp.stack([chosen % nx, chosen // nx], -1) + 0.5) * cell
     room = jnp.maximum(cell / 2 - max_extent, 0.0)
     return centre + jax.random.uniform(jitter_key, (count, 2), minval=-room, maxval=room)
@@ -242,7 +251,11 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         self.mjx_model = mjx.put_model(self.mj_model)
         self._data0 = mjx.make_data(self.mj_model)
         self._home_tcp_rotation = tcp_pose_at(self.mj_model, self.ids.robot, HOME_QPOS)[1]
-        self.start_qpos = solve_arm_posture(self.mj_model, self.ids.robot, START_TCP, self._home_tcp_rotation)
+        spawn_centre = (np.array(self.layout.spawn_low) + np.array(self.layout.spawn_high)) / 2
+        self.start_qpos, self.grasp_qpos = (
+            solve_arm_posture(self.mj_model, self.ids.robot, np.r_[spawn_centre, height], self._home_tcp_rotation)
+            for height in (START_HEIGHT, GRASP_HEIGHT)
+        )
         action_size = 5 if control_mode == MODE_EE else 8
         self.spec = EnvSpec(observation_shape=(OBJECT_OBS_SIZE * objects_count + 21,), action_shape=(action_size,))
 
@@ -356,11 +369,12 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         in_play = sim.outcome == IN_PLAY
         position = self.object_positions(sim.qpos)
         distance = jnp.linalg.norm(position - data.site_xpos[self.ids.robot.tcp_site], axis=-1)
-        width = jnp.sum(sim.qpos[self.ids.robot.finger_qpos])
+        fingers = sim.qpos[self.ids.robot.finger_qpos]
+        squeeze = jnp.mean(fingers - sim.ctrl[7:])
         held = (
             (distance < sim.size + HELD_DISTANCE)
-            & (width < HELD_MAX_WIDTH * sim.size)
-            & (width > HELD_MIN_WIDTH * sim.size)
+            & (squeeze > HELD_MIN_SQUEEZE)
+            & (jnp.sum(fingers) > HELD_MIN_WIDTH * sim.size)
         )
         lift = held * jnp.clip((position[:, 2] - sim.size) / params.lift_height, 0.0, 1.0)
         to_target = jnp.linalg.norm(position - self.carry_targets(sim, params), axis=-1)
@@ -406,17 +420,21 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
     # --- the contract -------------------------------------------------------------------------------
 
     def _reset(self, key, params):
-        shape_key, size_key, colour_key, spawn_key, yaw_key, arm_key, held_key = jax.random.split(key, 7)
+        shape_key, size_key, colour_key, spawn_key, yaw_key, arm_key, start_key = jax.random.split(key, 7)
         n, ids = self.objects_count, self.ids
+        draw = jax.random.uniform(start_key)
+        held = draw < params.held_start_prob
+        ready = ~held & (draw < params.held_start_prob + params.ready_start_prob)
         shape = jax.random.randint(shape_key, (n,), 0, 3).astype(jnp.int32)
         scale = jax.random.uniform(size_key, (n,), minval=params.size_scale_low, maxval=params.size_scale_high)
         size = params.object_size * scale
-        xy = spawn_xy(spawn_key, n, self.layout, params.object_size * params.size_scale_high * np.sqrt(2.0))
+        xy = spawn_xy(spawn_key, n, self.layout, params.object_size * params.size_scale_high * np.sqrt(2.0), ready)
         yaw = jax.random.uniform(yaw_key, (n,), maxval=2 * jnp.pi)
         # Resting on the table, 1 mm above it, turned about z.
         zero = jnp.zeros(n)
         pose = jnp.stack([xy[:, 0], xy[:, 1], size + 0.001, jnp.cos(yaw / 2), zero, zero, jnp.sin(yaw / 2)], -1)
-        arm_q = self.start_qpos + jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
+        noise = jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
+        arm_q = jnp.where(ready, self.grasp_qpos, self.start_qpos) + noise
         qpos = self._data0.qpos.at[ids.robot.arm_qpos].set(arm_q).at[ids.robot.finger_qpos].set(FINGER_OPEN)
         qpos = qpos.at[ids.object_qpos[:, None] + np.arange(7)].set(pose)
         sim = PandaSortSim(
@@ -432,22 +450,27 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
-        sim = self._maybe_held(sim, data, jax.random.bernoulli(held_key, params.held_start_prob))
+        sim = self._place_in_hand(sim, data, held, ready)
         sim = sim.replace(potential=self.shaping_potential(data, sim, params))
         zero_terms = RewardTerms(*(jnp.zeros((), jnp.float32) for _ in range(8)))
-        # Moving object 0 into the hand changes no robot quantity, so `data` still serves the observation.
+        # Moving object 0 to the hand changes no robot quantity, so `data` still serves the observation.
         return sim, self._observe(model, data, sim, params), self._info(zero_terms, sim.outcome)
 
-    def _maybe_held(self, sim: PandaSortSim, data: mjx.Data, held: jax.Array) -> PandaSortSim:
-        """Where `held`: object 0 between the closed fingers at the tool centre, faces towards the pads."""
+    def _place_in_hand(self, sim: PandaSortSim, data: mjx.Data, held: jax.Array, ready: jax.Array) -> PandaSortSim:
+        """Curriculum starts for object 0, its faces towards the pads. Where `held`: between the closed fingers
+        at the tool centre. Where `ready` (the arm is then in its low grasp posture): on the table between the
+        open fingers. Elsewhere `sim` is returned unchanged."""
         robot, ids = self.ids.robot, self.ids
         yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
-        centre = data.site_xpos[robot.tcp_site] + jnp.array([0.0, 0.0, PAD_ABOVE_TCP])
-        pose = jnp.concatenate([centre, jnp.stack([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])])
+        tcp = data.site_xpos[robot.tcp_site]
+        height = jnp.where(held, tcp[2] + PAD_ABOVE_TCP, sim.size[0] + 0.001)
+        pose = jnp.concatenate([tcp[:2], height[None], jnp.stack([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])])
         grip = jnp.asarray(GRIP_HALF_WIDTH)[sim.shape[0]] * sim.size[0]
-        qpos = sim.qpos.at[ids.object_qpos[0] + np.arange(7)].set(pose).at[robot.finger_qpos].set(grip)
-        ctrl = sim.ctrl.at[7:].set(0.0)
-        return sim.replace(qpos=jnp.where(held, qpos, sim.qpos), ctrl=jnp.where(held, ctrl, sim.ctrl))
+        fingers = jnp.where(held, grip, FINGER_OPEN)
+        qpos = sim.qpos.at[ids.object_qpos[0] + np.arange(7)].set(pose).at[robot.finger_qpos].set(fingers)
+        ctrl = sim.ctrl.at[7:].set(jnp.where(held, 0.0, FINGER_OPEN))
+        moved = held | ready
+        return sim.replace(qpos=jnp.where(moved, qpos, sim.qpos), ctrl=jnp.where(moved, ctrl, sim.ctrl))
 
     def _transition(self, sim, action, params):
         model = self.episode_model(sim, params)

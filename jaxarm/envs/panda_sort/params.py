@@ -44,6 +44,8 @@ class PandaSortParams:
       held_start_prob: chance that an episode starts with object 0 already between the closed fingers, at the
         arm's start pose (a curriculum: the policy sees carrying and releasing before it can grasp; evaluate
         with 0).
+      ready_start_prob: chance that an episode starts grasp-ready: the arm low, object 0 on the table between
+        the open fingers (the next stage of that curriculum; evaluate with 0).
       object_size: nominal half-size / radius of an object (metres).
       size_scale_low: lower bound of the uniform size factor.
       size_scale_high: upper bound of the uniform size factor.
@@ -73,6 +75,7 @@ class PandaSortParams:
     carry_scale: jax.Array
     carry_height: jax.Array
     held_start_prob: jax.Array
+    ready_start_prob: jax.Array
     object_size: jax.Array
     size_scale_low: jax.Array
     size_scale_high: jax.Array
@@ -109,6 +112,7 @@ def default_params() -> PandaSortParams:
         carry_scale=f32(0.2),
         carry_height=f32(0.15),
         held_start_prob=f32(0.0),
+        ready_start_prob=f32(0.0),
         object_size=f32(0.025),
         size_scale_low=f32(0.5),
         size_scale_high=f32(1.5),
