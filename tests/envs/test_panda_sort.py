@@ -206,7 +206,7 @@ def curriculum_start(env, state, params, shape: int, held: bool):
     """`state` re-placed for a held (or grasp-ready) start of object 0 as `shape` (the arm as reset left it)."""
     sim = state.sim.replace(shape=jnp.array([shape], jnp.int32))
     data = env.kinematics(env.episode_model(sim, params), sim)
-    sim = env._place_in_hand(sim, data, jnp.bool_(held), jnp.bool_(not held))
+    sim = env._place_in_hand(sim, data, jnp.bool_(held), jnp.bool_(not held), jnp.bool_(False))
     return state.replace(sim=sim.replace(potential=env.shaping_potential(data, sim, params)))
 
 
@@ -225,9 +225,7 @@ def test_a_held_start_puts_the_object_between_the_fingers_and_it_stays_there(env
 @pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])
 def test_a_grasp_ready_start_closes_on_the_object_and_lifts_it(env, params, reset, step, shape):
     ready = params.replace(ready_start_prob=jnp.float32(1.0), size_scale_low=jnp.float32(1.5))  # the largest
-    state = reset(jax.random.key(10 + int(shape)), ready)
-    assert float(tcp_position(state)[2]) < 0.03, "the arm starts low"
-    state = curriculum_start(env, state, ready, shape, held=False)
+    state = curriculum_start(env, reset(jax.random.key(10 + int(shape)), ready), ready, shape, held=False)
     np.testing.assert_allclose(object_position(state)[:2], tcp_position(state)[:2], atol=1e-6)
     state, terms = run_steps(step, state, ready, [np.r_[0.0, 0.0, 0.0, 0.0, -1.0]] * 8
                              + [np.r_[0.0, 0.0, 0.5, 0.0, -1.0]] * 30)
@@ -242,6 +240,11 @@ def test_grasp_ready_starts_keep_other_objects_clear_of_the_hand():
     positions = np.asarray(states.sim.qpos[:, env.ids.object_qpos[:, None] + np.arange(3)])  # [64, 3, 3]
     gaps = np.linalg.norm(positions[:, 1:, :2] - positions[:, :1, :2], axis=-1)
     assert gaps.min() > 0.1
+    tcp = np.asarray(states.obs[:, 3 * OBJECT_OBS_SIZE:3 * OBJECT_OBS_SIZE + 3])
+    np.testing.assert_allclose(positions[:, 0, :2], tcp[:, :2], atol=1e-5)
+    low = tcp[:, 2] < 0.045
+    assert 0.3 < low.mean() < 0.7, "about half start with the fingers around the object"
+    assert np.all(tcp[~low, 2] > 0.085) and tcp[~low, 2].max() > 0.2, "the others hover over it"
 
 
 @pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])

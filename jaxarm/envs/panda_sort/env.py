@@ -422,9 +422,14 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
     def _reset(self, key, params):
         shape_key, size_key, colour_key, spawn_key, yaw_key, arm_key, start_key = jax.random.split(key, 7)
         n, ids = self.objects_count, self.ids
-        draw = jax.random.uniform(start_key)
+        draw, height_draw = jax.random.uniform(start_key, (2,))
         held = draw < params.held_start_prob
         ready = ~held & (draw < params.held_start_prob + params.ready_start_prob)
+        # Half the grasp-ready starts hover over the object instead, at a random height: the posture halfway
+        # (in joint space) between the low and the start one keeps the tool pointing down within 1.5 cm of the
+        # same vertical; from 0.4 of the way up (11 cm, ±1.5 cm of posture noise) the pads clear the tallest object.
+        hover = ready & (height_draw >= 0.5)
+        blend = jnp.where(hover, 0.4 + 1.2 * (height_draw - 0.5), jnp.where(ready, 0.0, 1.0))
         shape = jax.random.randint(shape_key, (n,), 0, 3).astype(jnp.int32)
         scale = jax.random.uniform(size_key, (n,), minval=params.size_scale_low, maxval=params.size_scale_high)
         size = params.object_size * scale
@@ -434,7 +439,7 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         zero = jnp.zeros(n)
         pose = jnp.stack([xy[:, 0], xy[:, 1], size + 0.001, jnp.cos(yaw / 2), zero, zero, jnp.sin(yaw / 2)], -1)
         noise = jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
-        arm_q = jnp.where(ready, self.grasp_qpos, self.start_qpos) + noise
+        arm_q = (1.0 - blend) * self.grasp_qpos + blend * self.start_qpos + noise
         qpos = self._data0.qpos.at[ids.robot.arm_qpos].set(arm_q).at[ids.robot.finger_qpos].set(FINGER_OPEN)
         qpos = qpos.at[ids.object_qpos[:, None] + np.arange(7)].set(pose)
         sim = PandaSortSim(
@@ -450,18 +455,21 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
-        sim = self._place_in_hand(sim, data, held, ready)
+        sim = self._place_in_hand(sim, data, held, ready, hover)
         sim = sim.replace(potential=self.shaping_potential(data, sim, params))
         zero_terms = RewardTerms(*(jnp.zeros((), jnp.float32) for _ in range(8)))
         # Moving object 0 to the hand changes no robot quantity, so `data` still serves the observation.
         return sim, self._observe(model, data, sim, params), self._info(zero_terms, sim.outcome)
 
-    def _place_in_hand(self, sim: PandaSortSim, data: mjx.Data, held: jax.Array, ready: jax.Array) -> PandaSortSim:
-        """Curriculum starts for object 0, its faces towards the pads. Where `held`: between the closed fingers
-        at the tool centre. Where `ready` (the arm is then in its low grasp posture): on the table between the
-        open fingers. Elsewhere `sim` is returned unchanged."""
+    def _place_in_hand(self, sim: PandaSortSim, data: mjx.Data, held: jax.Array, ready: jax.Array,
+                       hover: jax.Array) -> PandaSortSim:
+        """Curriculum starts for object 0. Where `held`: between the closed fingers at the tool centre, faces
+        towards the pads. Where `ready`: on the table under the tool centre, between the open fingers (faces
+        towards the pads) or, where also `hover`, below them at the yaw it was drawn with. Elsewhere `sim` is
+        returned unchanged."""
         robot, ids = self.ids.robot, self.ids
-        yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
+        own_quat = sim.qpos[ids.object_qpos[0] + 3:ids.object_qpos[0] + 7]
+        yaw = jnp.where(hover, yaw_of_quaternion(own_quat), yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3)))
         tcp = data.site_xpos[robot.tcp_site]
         height = jnp.where(held, tcp[2] + PAD_ABOVE_TCP, sim.size[0] + 0.001)
         pose = jnp.concatenate([tcp[:2], height[None], jnp.stack([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])])

@@ -44,8 +44,9 @@ class PandaSortParams:
       held_start_prob: chance that an episode starts with object 0 already between the closed fingers, at the
         arm's start pose (a curriculum: the policy sees carrying and releasing before it can grasp; evaluate
         with 0).
-      ready_start_prob: chance that an episode starts grasp-ready: the arm low, object 0 on the table between
-        the open fingers (the next stage of that curriculum; evaluate with 0).
+      ready_start_prob: chance that an episode starts grasp-ready: object 0 on the table right under the tool,
+        between the open fingers of the lowered arm, or (half of these) below them at a random height and yaw
+        (the next stages of that curriculum; evaluate with 0).
       object_size: nominal half-size / radius of an object (metres).
       size_scale_low: lower bound of the uniform size factor.
       size_scale_high: upper bound of the uniform size factor.
