@@ -38,7 +38,6 @@ FINGER_FRICTION = (2.5, 2.5, 0.005, 0.0001, 0.0001)
 FINGER_SOLIMP = (0.97, 0.995, 0.001, 0.5, 2.0)
 """Gripper contacts are hard (impedance 0.99..0.999, default 0.9..0.95): squeezed by the fingers, a light
 sphere is penetrated by about a millimetre, not by a third of its radius."""
-FINGER_CONDIM = 3
 OBJECT_FRICTION = (0.8, 0.8, 0.005, 0.0001, 0.0001)
 
 
@@ -107,14 +106,14 @@ def build_spec(objects_count: int, layout: Layout) -> mujoco.MjSpec:
     for slot in range(objects_count):
         _add_object(world, slot)
 
-    def pair(name1: str, name2: str, friction, condim=3, **kwargs) -> None:
-        spec.add_pair(geomname1=name1, geomname2=name2, condim=condim, friction=friction, **kwargs)
+    def pair(name1: str, name2: str, friction, **kwargs) -> None:
+        spec.add_pair(geomname1=name1, geomname2=name2, condim=3, friction=friction, **kwargs)
 
     slot_geoms = [[f"object{slot}_{kind}" for kind in OBJECT_GEOMS] for slot in range(objects_count)]
     for geoms in slot_geoms:
         for geom in geoms:
             for gripper in ("left_pad", "right_pad", "hand"):
-                pair(gripper, geom, FINGER_FRICTION, condim=FINGER_CONDIM, solimp=FINGER_SOLIMP)
+                pair(gripper, geom, FINGER_FRICTION, solimp=FINGER_SOLIMP)
     for slot, geoms in enumerate(slot_geoms):
         for geom in geoms:
             for other in static:
