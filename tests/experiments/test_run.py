@@ -50,6 +50,17 @@ def test_a_run_writes_config_metrics_checkpoints_curve_and_eval(finished_run):
     assert result["episodes"] == 20 and 0.0 <= result["success_rate"] <= 1.0 and "return_mean" in result
 
 
+def test_evaluation_runs_on_the_eval_env_params_and_reports_the_final_info(tmp_path):
+    run_dir = tmp_path / "eval_params"
+    assert run_cli(*SMALL, "eval_env_params.max_episode_steps=7", "--out", str(run_dir)) == 0
+    config, _ = rundir.read_config(run_dir)
+    assert dict(config.eval_env_params) == {"max_episode_steps": 7}
+    assert int(config.make_env()[1].max_episode_steps) == 200, "training keeps its own params"
+    result = json.loads((run_dir / "eval.json").read_text())
+    assert result["length_mean"] <= 7
+    assert any(name.startswith("final_info/") for name in result)
+
+
 def test_eval_cli_rewrites_eval_json_and_draws_a_video(finished_run):
     assert eval_cli.main([str(finished_run), "--episodes", "7", "--video"]) == 0
     assert json.loads((finished_run / "eval.json").read_text())["episodes"] == 7
