@@ -106,6 +106,8 @@ def ppo_sorter_blocker() -> PPOConfig:
 
 @preset("PPO inserting a peg into a hole shifted at random (one GPU; on a CPU, num_envs=128)")
 def ppo_peg() -> PPOConfig:
+    # Measured on the 2-core CPU with num_envs=128: 100% of training episodes inserted from 120k env steps
+    # (~100 s with compilation). The GPU default batches 16x the envs over a budget that ends in minutes.
     return PPOConfig(
         env="peg_insert",
         num_envs=2048,
@@ -117,7 +119,7 @@ def ppo_peg() -> PPOConfig:
         learning_rate=1e-3,
         gamma=0.99,
         entropy_coef=1e-3,
-        total_env_steps=20_000_000,
+        total_env_steps=10_000_000,
         updates_per_chunk=20,
         checkpoint_every_updates=100,
     )
