@@ -1,6 +1,7 @@
 """TD3 and DDPG presets (DDPG is TD3Config with one critic, no target smoothing, no policy delay)."""
 
 from experiments.configs import preset
+from experiments.configs.ppo import SORTER_PPO
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
 
@@ -91,4 +92,29 @@ def td3_peg() -> TD3Config:
         total_env_steps=200_000,
         updates_per_chunk=500,
         checkpoint_every_updates=1_000,
+    )
+
+
+@preset("TD3 on the Panda sorter, 1 object (one GPU; not yet trained to a result, see BENCHMARKS.md)")
+def td3_sorter() -> TD3Config:
+    # The env settings and training-only curricula of ppo_sorter (experiments/configs/ppo.py says why);
+    # rewards scaled as there. Off-policy learning reuses each transition: 256 envs and 16 gradient steps
+    # of 512 per update replay every transition ~32 times.
+    return TD3Config(
+        env="panda_sort",
+        env_params=SORTER_PPO.env_params,
+        eval_env_params=SORTER_PPO.eval_env_params,
+        num_envs=256,
+        rollout_length=1,
+        grad_steps_per_update=16,
+        batch_size=512,
+        buffer_size=2_000_000,
+        learning_starts=50_000,
+        gamma=0.97,
+        reward_scale=0.01,
+        exploration_noise=0.2,
+        total_env_steps=20_000_000,
+        updates_per_chunk=1_000,
+        checkpoint_every_updates=5_000,
+        eval_episodes=1000,
     )
