@@ -60,10 +60,12 @@ SORTER_ENV_PARAMS = (
     # grasp-ready starts (arm low, open fingers around the object) bridge that gap.
     ("held_start_prob", 0.2), ("ready_start_prob", 0.3),
 )
+SORTER_EVAL_ENV_PARAMS = (("held_start_prob", 0.0), ("ready_start_prob", 0.0))
+"""Every evaluation runs the real task: the curricula's starts switched off."""
 SORTER_PPO = PPOConfig(
     env="panda_sort",
     env_params=SORTER_ENV_PARAMS,
-    eval_env_params=(("held_start_prob", 0.0), ("ready_start_prob", 0.0)),
+    eval_env_params=SORTER_EVAL_ENV_PARAMS,
     num_envs=4096,
     rollout_length=16,
     num_minibatches=16,

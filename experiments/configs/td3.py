@@ -1,7 +1,7 @@
 """TD3 and DDPG presets (DDPG is TD3Config with one critic, no target smoothing, no policy delay)."""
 
 from experiments.configs import preset
-from experiments.configs.ppo import SORTER_PPO
+from experiments.configs.ppo import SORTER_ENV_PARAMS, SORTER_EVAL_ENV_PARAMS
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
 
@@ -102,8 +102,8 @@ def td3_sorter() -> TD3Config:
     # of 512 per update replay every transition ~32 times.
     return TD3Config(
         env="panda_sort",
-        env_params=SORTER_PPO.env_params,
-        eval_env_params=SORTER_PPO.eval_env_params,
+        env_params=SORTER_ENV_PARAMS,
+        eval_env_params=SORTER_EVAL_ENV_PARAMS,
         num_envs=256,
         rollout_length=1,
         grad_steps_per_update=16,
