@@ -206,7 +206,7 @@ def curriculum_start(env, state, params, shape: int, held: bool):
     """`state` re-placed for a held (or grasp-ready) start of object 0 as `shape` (the arm as reset left it)."""
     sim = state.sim.replace(shape=jnp.array([shape], jnp.int32))
     data = env.kinematics(env.episode_model(sim, params), sim)
-    sim = env._place_in_hand(sim, data, jnp.bool_(held), jnp.bool_(not held), jnp.bool_(False))
+    sim = env._place_in_hand(sim, data, jnp.int32(0), jnp.bool_(held), jnp.bool_(not held), jnp.bool_(False))
     return state.replace(sim=sim.replace(potential=env.shaping_potential(data, sim, params)))
 
 
@@ -233,18 +233,62 @@ def test_a_grasp_ready_start_closes_on_the_object_and_lifts_it(env, params, rese
     assert terms.grasp.sum() == pytest.approx(float(ready.grasp_weight)) and terms.lift.sum() > 0
 
 
-def test_grasp_ready_starts_keep_other_objects_clear_of_the_hand():
-    env = envs.make("panda_sort3")
-    params = env.default_params().replace(ready_start_prob=jnp.float32(1.0))
-    states = jax.jit(jax.vmap(lambda key: env.reset(key, params)))(jax.random.split(jax.random.key(11), 64))
-    positions = np.asarray(states.sim.qpos[:, env.ids.object_qpos[:, None] + np.arange(3)])  # [64, 3, 3]
-    gaps = np.linalg.norm(positions[:, 1:, :2] - positions[:, :1, :2], axis=-1)
-    assert gaps.min() > 0.1
-    tcp = np.asarray(states.obs[:, 3 * OBJECT_OBS_SIZE:3 * OBJECT_OBS_SIZE + 3])
-    np.testing.assert_allclose(positions[:, 0, :2], tcp[:, :2], atol=1e-5)
+@pytest.fixture(scope="module")
+def env3():
+    return envs.make("panda_sort3")
+
+
+def batched_resets(env, params, seed: int, count: int = 64):
+    """`count` jitted resets -> (states, [count, N, 3] object positions, [count, 3] tool centres)."""
+    states = jax.jit(jax.vmap(lambda key: env.reset(key, params)))(jax.random.split(jax.random.key(seed), count))
+    positions = np.asarray(states.sim.qpos[:, env.ids.object_qpos[:, None] + np.arange(3)])
+    at = env.objects_count * OBJECT_OBS_SIZE
+    return states, positions, np.asarray(states.obs[:, at:at + 3])
+
+
+def test_grasp_ready_starts_keep_other_objects_clear_of_the_hand(env3):
+    params = env3.default_params().replace(ready_start_prob=jnp.float32(1.0))
+    _, positions, tcp = batched_resets(env3, params, seed=11)
+    offsets = np.linalg.norm(positions[:, :, :2] - tcp[:, None, :2], axis=-1)  # [64, 3]
+    focus = offsets.argmin(axis=1)
+    assert offsets.min(axis=1).max() < 1e-5, "one object sits right under the tool"
+    assert set(focus) == {0, 1, 2}, "every slot is the curriculum's object in some episodes"
+    others = np.sort(offsets, axis=1)[:, 1:]
+    assert others.min() > 0.1
     low = tcp[:, 2] < 0.045
     assert 0.3 < low.mean() < 0.7, "about half start with the fingers around the object"
     assert np.all(tcp[~low, 2] > 0.085) and tcp[~low, 2].max() > 0.2, "the others hover over it"
+
+
+def test_presorted_starts_leave_one_object_in_play_worth_its_own_placement(env3):
+    params = env3.default_params()
+    weights = np.array([params.reach_weight, params.grasp_weight, params.lift_weight, params.carry_weight])
+    presorted = params.replace(presorted_prob=jnp.float32(1.0))
+    full, _, _ = batched_resets(env3, params, seed=12, count=16)
+    states, positions, _ = batched_resets(env3, presorted, seed=12, count=16)
+    assert np.all(np.asarray(full.info.in_play_count) == 3), "by default every object starts in play"
+    assert np.all(np.asarray(states.info.in_play_count) == 1) and np.all(np.asarray(states.info.correct_count) == 2)
+    out = np.asarray(states.sim.outcome) == IN_CORRECT_BIN  # [16, 3]
+    assert set(np.argmin(out, axis=1)) == {0, 1, 2}, "the object left in play is any slot"
+    assert np.all(positions[out][:, 0] > 2.0), "the presorted objects are parked, away from everything"
+    obs = np.asarray(states.obs[:, :3 * OBJECT_OBS_SIZE]).reshape(16, 3, OBJECT_OBS_SIZE)
+    assert np.all(obs[out] == 0.0) and np.all(np.abs(obs[~out]).sum(-1) > 0)
+    # A presorted object holds every potential at its maximum: 2 x the weights above the in-play object's.
+    assert np.all(np.asarray(states.sim.potential) >= 2 * weights - 1e-5)
+    assert not np.any(np.asarray(states.episode.success)) and not np.any(np.asarray(states.terminated))
+
+
+@pytest.mark.slow
+def test_a_presorted_episode_succeeds_when_its_last_object_lands_in_its_bin(env3):
+    params = env3.default_params().replace(presorted_prob=jnp.float32(1.0))
+    state = jax.jit(env3.reset)(jax.random.key(13), params)
+    focus = int(np.argmin(np.asarray(state.sim.outcome) == IN_CORRECT_BIN))
+    own_bin = env3.layout.bin_centers[int(state.sim.shape[focus])]
+    pose_idx = env3.ids.object_qpos[focus] + np.arange(7)
+    state = state.replace(sim=state.sim.replace(qpos=state.sim.qpos.at[pose_idx].set(jnp.array([*own_bin, 0.12, 1, 0, 0, 0]))))
+    state, terms = run_steps(jax.jit(env3.step), state, params, [np.zeros(5)] * 20)
+    assert list(terms.correct_bin[terms.correct_bin != 0]) == [500.0], "only the in-play object earns a placement"
+    assert int(state.info.correct_count) == 3 and bool(state.episode.success) and bool(state.terminated)
 
 
 @pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])

@@ -187,6 +187,12 @@ def spawn_xy(key: jax.Array, count: int, layout: Layout, max_extent: jax.Array,
     return centre + jax.random.uniform(jitter_key, (count, 2), minval=-room, maxval=room)
 
 
+def swap_first(count: int, slot: jax.Array) -> jax.Array:
+    """[count] int32 permutation exchanging index 0 and `slot` (the identity where `slot` is 0)."""
+    index = jnp.arange(count)
+    return jnp.where(index == 0, slot, jnp.where(index == slot, 0, index))
+
+
 def yaw_of_rotation(rotation: jax.Array) -> jax.Array:
     """[..., 3, 3] rotation matrices -> [...] heading of their x axis in the horizontal plane (radians)."""
     return jnp.arctan2(rotation[..., 1, 0], rotation[..., 0, 0])
@@ -421,7 +427,12 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
 
     def _reset(self, key, params):
         shape_key, size_key, colour_key, spawn_key, yaw_key, arm_key, start_key = jax.random.split(key, 7)
+        # A separate stream for the multi-object curricula, so one-object episodes draw as they always did.
+        focus_key, presort_key = jax.random.split(jax.random.fold_in(key, 1))
         n, ids = self.objects_count, self.ids
+        # The curricula's object: any slot, so the policy meets held and grasp-ready starts in every input slot.
+        focus = jax.random.randint(focus_key, (), 0, n)
+        presorted = (jax.random.uniform(presort_key, (n,)) < params.presorted_prob) & (jnp.arange(n) != focus)
         draw, height_draw = jax.random.uniform(start_key, (2,))
         held = draw < params.held_start_prob
         ready = ~held & (draw < params.held_start_prob + params.ready_start_prob)
@@ -434,6 +445,7 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         scale = jax.random.uniform(size_key, (n,), minval=params.size_scale_low, maxval=params.size_scale_high)
         size = params.object_size * scale
         xy = spawn_xy(spawn_key, n, self.layout, params.object_size * params.size_scale_high * np.sqrt(2.0), ready)
+        xy = xy[swap_first(n, focus)]  # the focus gets the cell that spawn_xy reserved for slot 0
         yaw = jax.random.uniform(yaw_key, (n,), maxval=2 * jnp.pi)
         # Resting on the table, 1 mm above it, turned about z.
         zero = jnp.zeros(n)
@@ -442,40 +454,43 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         arm_q = (1.0 - blend) * self.grasp_qpos + blend * self.start_qpos + noise
         qpos = self._data0.qpos.at[ids.robot.arm_qpos].set(arm_q).at[ids.robot.finger_qpos].set(FINGER_OPEN)
         qpos = qpos.at[ids.object_qpos[:, None] + np.arange(7)].set(pose)
+        outcome = jnp.where(presorted, IN_CORRECT_BIN, IN_PLAY).astype(jnp.int32)
+        qpos, qvel = self._park(qpos, jnp.zeros_like(self._data0.qvel), outcome)
         sim = PandaSortSim(
             qpos=qpos,
-            qvel=jnp.zeros_like(self._data0.qvel),
+            qvel=qvel,
             qacc_warmstart=jnp.zeros_like(self._data0.qacc_warmstart),
             ctrl=jnp.concatenate([arm_q, jnp.full((2,), FINGER_OPEN)]),
             shape=shape,
             size=size,
             colour=jax.random.uniform(colour_key, (n, 3), minval=0.15, maxval=0.95),
-            outcome=jnp.full((n,), IN_PLAY, jnp.int32),
+            outcome=outcome,
             potential=jnp.zeros(4, jnp.float32),
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
-        sim = self._place_in_hand(sim, data, held, ready, hover)
+        sim = self._place_in_hand(sim, data, focus, held, ready, hover)
         sim = sim.replace(potential=self.shaping_potential(data, sim, params))
         zero_terms = RewardTerms(*(jnp.zeros((), jnp.float32) for _ in range(8)))
-        # Moving object 0 to the hand changes no robot quantity, so `data` still serves the observation.
+        # Moving the focus object to the hand changes no robot quantity, so `data` still serves the observation.
         return sim, self._observe(model, data, sim, params), self._info(zero_terms, sim.outcome)
 
-    def _place_in_hand(self, sim: PandaSortSim, data: mjx.Data, held: jax.Array, ready: jax.Array,
-                       hover: jax.Array) -> PandaSortSim:
-        """Curriculum starts for object 0. Where `held`: between the closed fingers at the tool centre, faces
-        towards the pads. Where `ready`: on the table under the tool centre, between the open fingers (faces
-        towards the pads) or, where also `hover`, below them at the yaw it was drawn with. Elsewhere `sim` is
-        returned unchanged."""
-        robot, ids = self.ids.robot, self.ids
-        own_quat = sim.qpos[ids.object_qpos[0] + 3:ids.object_qpos[0] + 7]
+    def _place_in_hand(self, sim: PandaSortSim, data: mjx.Data, focus: jax.Array, held: jax.Array,
+                       ready: jax.Array, hover: jax.Array) -> PandaSortSim:
+        """Curriculum starts for object `focus` (an int32 slot). Where `held`: between the closed fingers at the
+        tool centre, faces towards the pads. Where `ready`: on the table under the tool centre, between the
+        open fingers (faces towards the pads) or, where also `hover`, below them at the yaw it was drawn with.
+        Elsewhere `sim` is returned unchanged."""
+        robot = self.ids.robot
+        pose_idx = jnp.asarray(self.ids.object_qpos)[focus] + jnp.arange(7)
+        own_quat = sim.qpos[pose_idx[3:]]
         yaw = jnp.where(hover, yaw_of_quaternion(own_quat), yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3)))
         tcp = data.site_xpos[robot.tcp_site]
-        height = jnp.where(held, tcp[2] + PAD_ABOVE_TCP, sim.size[0] + 0.001)
+        height = jnp.where(held, tcp[2] + PAD_ABOVE_TCP, sim.size[focus] + 0.001)
         pose = jnp.concatenate([tcp[:2], height[None], jnp.stack([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])])
-        grip = jnp.asarray(GRIP_HALF_WIDTH)[sim.shape[0]] * sim.size[0]
+        grip = jnp.asarray(GRIP_HALF_WIDTH)[sim.shape[focus]] * sim.size[focus]
         fingers = jnp.where(held, grip, FINGER_OPEN)
-        qpos = sim.qpos.at[ids.object_qpos[0] + np.arange(7)].set(pose).at[robot.finger_qpos].set(fingers)
+        qpos = sim.qpos.at[pose_idx].set(pose).at[robot.finger_qpos].set(fingers)
         ctrl = sim.ctrl.at[7:].set(jnp.where(held, 0.0, FINGER_OPEN))
         moved = held | ready
         return sim.replace(qpos=jnp.where(moved, qpos, sim.qpos), ctrl=jnp.where(moved, ctrl, sim.ctrl))

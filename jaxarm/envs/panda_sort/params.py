@@ -41,12 +41,15 @@ class PandaSortParams:
       carry_scale: distance over which the carry term rises (metres).
       carry_height: height above the table of the carry target (metres): over the bin walls, and in a straight
         line from anywhere in the spawn region without touching them.
-      held_start_prob: chance that an episode starts with object 0 already between the closed fingers, at the
-        arm's start pose (a curriculum: the policy sees carrying and releasing before it can grasp; evaluate
-        with 0).
-      ready_start_prob: chance that an episode starts grasp-ready: object 0 on the table right under the tool,
-        between the open fingers of the lowered arm, or (half of these) below them at a random height and yaw
-        (the next stages of that curriculum; evaluate with 0).
+      held_start_prob: chance that an episode starts with the focus object (a slot drawn uniformly per
+        episode) already between the closed fingers, at the arm's start pose (a curriculum: the policy sees
+        carrying and releasing before it can grasp; evaluate with 0).
+      ready_start_prob: chance that an episode starts grasp-ready: the focus object on the table right under
+        the tool, between the open fingers of the lowered arm, or (half of these) below them at a random height
+        and yaw (the next stages of that curriculum; evaluate with 0).
+      presorted_prob: chance that each object other than the focus starts already in its own bin, out of play
+        (a curriculum over object count: with several objects, episodes with fewer left to sort; it earns no
+        placement reward; evaluate with 0).
       object_size: nominal half-size / radius of an object (metres).
       size_scale_low: lower bound of the uniform size factor.
       size_scale_high: upper bound of the uniform size factor.
@@ -77,6 +80,7 @@ class PandaSortParams:
     carry_height: jax.Array
     held_start_prob: jax.Array
     ready_start_prob: jax.Array
+    presorted_prob: jax.Array
     object_size: jax.Array
     size_scale_low: jax.Array
     size_scale_high: jax.Array
@@ -114,6 +118,7 @@ def default_params() -> PandaSortParams:
         carry_height=f32(0.15),
         held_start_prob=f32(0.0),
         ready_start_prob=f32(0.0),
+        presorted_prob=f32(0.0),
         object_size=f32(0.025),
         size_scale_low=f32(0.5),
         size_scale_high=f32(1.5),
