@@ -93,7 +93,7 @@ def ppo_sorter() -> PPOConfig:
     return SORTER_PPO
 
 
-@preset("PPO on the Panda sorter, 3 objects (one GPU, resumable segments)")
+@preset("PPO on the Panda sorter, 3 objects (one GPU, resumable segments; not yet solved, see BENCHMARKS.md)")
 def ppo_sorter3() -> PPOConfig:
     # Three objects take three pick-and-places: episodes three times as long. A curriculum over object count
     # (training only): each object but the curricula's focus starts already sorted with chance 0.5, so a

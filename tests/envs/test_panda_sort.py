@@ -170,6 +170,17 @@ def test_dropped_object_comes_to_rest_on_the_table(env, params, reset, step, sha
     assert int(state.info.in_play_count) == 1
 
 
+def test_frictionless_bin_walls_still_stop_an_object_thrown_at_them(env, params, reset, step):
+    size = 0.025
+    wall_outside = env.layout.bin_centers[0][1] - env.layout.bin_half - 2 * env.layout.bin_wall_half_thickness
+    x = env.layout.bin_centers[0][0]
+    state = with_object(env, reset(jax.random.key(2), params), SHAPE_CUBE, size,
+                        [x, wall_outside - size - 0.03, size + 0.001, 1, 0, 0, 0], velocity=[0.0, 1.0, 0, 0, 0, 0])
+    state, terms = run_steps(step, state, params, [np.zeros(5)] * 15)
+    assert int(state.info.in_play_count) == 1 and not np.any(terms.correct_bin) and not np.any(terms.wrong_bin)
+    assert float(object_position(state)[1]) < wall_outside - size + 0.005, "the cube went through the wall"
+
+
 # The largest cube turned 45 degrees is wider across its corners than the open fingers: the hand must turn.
 @pytest.mark.parametrize("shape, size, yaw", [
     (SHAPE_CUBE, 0.0375, np.pi / 4), (SHAPE_CYLINDER, 0.025, 0.5), (SHAPE_SPHERE, 0.025, 0.0),
