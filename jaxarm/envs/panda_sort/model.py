@@ -15,8 +15,8 @@ faces when one of the octagon's faces is turned towards them (a flat pad on a co
 contype-0 `cylinder` geom is added for drawing only.
 
 Contacts come only from the explicit <pair>s made here: finger pads and hand vs objects; objects vs tables,
-bin walls (frictionless, see BIN_WALL_CONDIM), blocker and each other. There is no floor contact: an object is taken out of play as soon as it
-drops below the table top, long before it could reach the floor.
+bin walls (frictionless, see BIN_WALL_CONDIM), blocker and each other. There is no floor contact: an object
+is taken out of play as soon as it drops below the table top, long before it could reach the floor.
 """
 
 import dataclasses
