@@ -61,7 +61,10 @@ def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, pr
     ])
     keys = jnp.stack([jax.random.PRNGKey(config.seed + seed) for _, seed in members])
     start = time.perf_counter()
-    state = jax.jit(jax.vmap(trainer.init))(keys, hparams)
+    # One member at a time: vmapped, the orthogonal initialisers become batched QR factorisations, and
+    # jaxlib 0.10's CPU runtime deadlocks when two of those fan out over a two-worker pool at once (gdb:
+    # both workers in ParallelBatchMap's BlockingCounter::Wait inside lapack_sgeqrf, 64 seeds, 2 cores).
+    state = jax.jit(lambda k, h: jax.lax.map(lambda member: trainer.init(*member), (k, h)))(keys, hparams)
     chunk = jax.jit(jax.vmap(lambda s, h: run_updates(trainer, s, h, config.updates_per_chunk)))
     chunks = []
     for index in range(trainer.num_updates // config.updates_per_chunk):
