@@ -167,11 +167,11 @@ def object_mass_inertia(shape: jax.Array, size: jax.Array, density: jax.Array) -
 
 
 def spawn_xy(key: jax.Array, count: int, layout: Layout, max_extent: jax.Array,
-             centre_first: jax.Array = False) -> jax.Array:
+             centre_slot: jax.Array = -1) -> jax.Array:
     """[count, 2] object positions in distinct cells of the spawn grid, jittered as far as the cell allows.
 
-    `max_extent` bounds every object's horizontal reach from its centre, so objects never overlap. Where
-    `centre_first`, object 0 gets the grid's middle cell (the spawn region's centre lies in it).
+    `max_extent` bounds every object's horizontal reach from its centre, so objects never overlap. Object
+    `centre_slot` (an int, or -1 for none) gets the grid's middle cell (the spawn region's centre lies in it).
     """
     cell_key, jitter_key = jax.random.split(key)
     nx, ny = layout.spawn_cells
@@ -180,17 +180,12 @@ def spawn_xy(key: jax.Array, count: int, layout: Layout, max_extent: jax.Array,
     order = jax.random.permutation(cell_key, nx * ny)
     middle = (ny // 2) * nx + nx // 2
     at_middle = jnp.argmax(order == middle)
-    swapped = order.at[at_middle].set(order[0]).at[0].set(middle)
-    chosen = jnp.where(centre_first, swapped, order)[:count]
+    slot = jnp.maximum(centre_slot, 0)
+    swapped = order.at[at_middle].set(order[slot]).at[slot].set(middle)
+    chosen = jnp.where(centre_slot >= 0, swapped, order)[:count]
     centre = low + (jnp.stack([chosen % nx, chosen // nx], -1) + 0.5) * cell
     room = jnp.maximum(cell / 2 - max_extent, 0.0)
     return centre + jax.random.uniform(jitter_key, (count, 2), minval=-room, maxval=room)
-
-
-def swap_first(count: int, slot: jax.Array) -> jax.Array:
-    """[count] int32 permutation exchanging index 0 and `slot` (the identity where `slot` is 0)."""
-    index = jnp.arange(count)
-    return jnp.where(index == 0, slot, jnp.where(index == slot, 0, index))
 
 
 def yaw_of_rotation(rotation: jax.Array) -> jax.Array:
@@ -444,8 +439,8 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         shape = jax.random.randint(shape_key, (n,), 0, 3).astype(jnp.int32)
         scale = jax.random.uniform(size_key, (n,), minval=params.size_scale_low, maxval=params.size_scale_high)
         size = params.object_size * scale
-        xy = spawn_xy(spawn_key, n, self.layout, params.object_size * params.size_scale_high * np.sqrt(2.0), ready)
-        xy = xy[swap_first(n, focus)]  # the focus gets the cell that spawn_xy reserved for slot 0
+        xy = spawn_xy(spawn_key, n, self.layout, params.object_size * params.size_scale_high * np.sqrt(2.0),
+                      jnp.where(ready, focus, -1))
         yaw = jax.random.uniform(yaw_key, (n,), maxval=2 * jnp.pi)
         # Resting on the table, 1 mm above it, turned about z.
         zero = jnp.zeros(n)
