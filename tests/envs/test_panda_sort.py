@@ -18,6 +18,7 @@ import pytest  # noqa: E402
 from jaxarm import envs  # noqa: E402
 from jaxarm.envs.panda_sort import (  # noqa: E402
     IN_CORRECT_BIN,
+    IN_PLAY,
     SHAPE_CUBE,
     SHAPE_CYLINDER,
     SHAPE_SPHERE,
@@ -249,6 +250,16 @@ def env3():
     return envs.make("panda_sort3")
 
 
+@pytest.fixture(scope="module")
+def step3(env3):
+    return jax.jit(env3.step)
+
+
+def listed_objects(env, obs: np.ndarray) -> np.ndarray:
+    """[..., O] observations -> [..., N, OBJECT_OBS_SIZE] the object rows in the order they are listed."""
+    return obs[..., :env.objects_count * OBJECT_OBS_SIZE].reshape(*obs.shape[:-1], env.objects_count, OBJECT_OBS_SIZE)
+
+
 def batched_resets(env, params, seed: int, count: int = 64):
     """`count` jitted resets -> (states, [count, N, 3] object positions, [count, 3] tool centres)."""
     states = jax.jit(jax.vmap(lambda key: env.reset(key, params)))(jax.random.split(jax.random.key(seed), count))
@@ -282,24 +293,58 @@ def test_presorted_starts_leave_one_object_in_play_worth_its_own_placement(env3)
     out = np.asarray(states.sim.outcome) == IN_CORRECT_BIN  # [16, 3]
     assert set(np.argmin(out, axis=1)) == {0, 1, 2}, "the object left in play is any slot"
     assert np.all(positions[out][:, 0] > 2.0), "the presorted objects are parked, away from everything"
-    obs = np.asarray(states.obs[:, :3 * OBJECT_OBS_SIZE]).reshape(16, 3, OBJECT_OBS_SIZE)
-    assert np.all(obs[out] == 0.0) and np.all(np.abs(obs[~out]).sum(-1) > 0)
+    obs = listed_objects(env3, np.asarray(states.obs))
+    assert np.all(obs[:, 1:] == 0.0), "the object in play is the target, listed first; the others are zeroed"
+    assert np.all(np.asarray(states.sim.target) == np.argmin(out, axis=1)) and np.all(np.abs(obs[:, 0]).sum(-1) > 0)
     # A presorted object holds every potential at its maximum: 2 x the weights above the in-play object's.
     assert np.all(np.asarray(states.sim.potential) >= 2 * weights - 1e-5)
     assert not np.any(np.asarray(states.episode.success)) and not np.any(np.asarray(states.terminated))
 
 
+def drop_into_own_bin(env, state, slot: int):
+    """`state` with object `slot` held 12 cm above the centre of its own bin."""
+    own_bin = env.layout.bin_centers[int(state.sim.shape[slot])]
+    pose_idx = env.ids.object_qpos[slot] + np.arange(7)
+    return state.replace(sim=state.sim.replace(qpos=state.sim.qpos.at[pose_idx].set(jnp.array([*own_bin, 0.12, 1, 0, 0, 0]))))
+
+
 @pytest.mark.slow
-def test_a_presorted_episode_succeeds_when_its_last_object_lands_in_its_bin(env3):
+def test_a_presorted_episode_succeeds_when_its_last_object_lands_in_its_bin(env3, step3):
     params = env3.default_params().replace(presorted_prob=jnp.float32(1.0))
     state = jax.jit(env3.reset)(jax.random.key(13), params)
     focus = int(np.argmin(np.asarray(state.sim.outcome) == IN_CORRECT_BIN))
-    own_bin = env3.layout.bin_centers[int(state.sim.shape[focus])]
-    pose_idx = env3.ids.object_qpos[focus] + np.arange(7)
-    state = state.replace(sim=state.sim.replace(qpos=state.sim.qpos.at[pose_idx].set(jnp.array([*own_bin, 0.12, 1, 0, 0, 0]))))
-    state, terms = run_steps(jax.jit(env3.step), state, params, [np.zeros(5)] * 20)
+    state, terms = run_steps(step3, drop_into_own_bin(env3, state, focus), params, [np.zeros(5)] * 20)
     assert list(terms.correct_bin[terms.correct_bin != 0]) == [500.0], "only the in-play object earns a placement"
     assert int(state.info.correct_count) == 3 and bool(state.episode.success) and bool(state.terminated)
+
+
+@pytest.mark.slow
+def test_the_target_is_listed_first_shaped_alone_and_handed_on_to_the_nearest_object(env3, step3):
+    params = env3.default_params()
+    state = jax.jit(env3.reset)(jax.random.key(14), params)
+
+    def check_target_listed_and_shaped(state) -> int:
+        target = int(state.sim.target)
+        positions = np.asarray(state.sim.qpos[env3.ids.object_qpos[:, None] + np.arange(3)])
+        listed = listed_objects(env3, np.asarray(state.obs))
+        np.testing.assert_allclose(listed[0, :3], positions[target], atol=1e-6)
+        order = (target + np.arange(3)) % 3
+        in_play = np.asarray(state.sim.outcome)[order] == IN_PLAY
+        np.testing.assert_allclose(listed[:, :3], positions[order] * in_play[:, None], atol=1e-6)
+        tcp = np.asarray(state.obs[3 * OBJECT_OBS_SIZE:3 * OBJECT_OBS_SIZE + 3])
+        reach = float(params.reach_weight) * (1 - np.tanh(np.linalg.norm(positions[target] - tcp) / float(params.reach_scale)))
+        placed = int(state.info.correct_count)
+        np.testing.assert_allclose(float(state.sim.potential[0]), reach + placed * float(params.reach_weight), rtol=1e-4)
+        return target
+
+    first = check_target_listed_and_shaped(state)
+    state, terms = run_steps(step3, drop_into_own_bin(env3, state, first), params, [np.zeros(5)] * 20)
+    assert list(terms.correct_bin[terms.correct_bin != 0]) == [500.0] and int(state.info.in_play_count) == 2
+    second = check_target_listed_and_shaped(state)
+    positions = np.asarray(state.sim.qpos[env3.ids.object_qpos[:, None] + np.arange(3)])
+    tcp = np.asarray(state.obs[3 * OBJECT_OBS_SIZE:3 * OBJECT_OBS_SIZE + 3])
+    in_play = np.flatnonzero(np.asarray(state.sim.outcome) == IN_PLAY)
+    assert second == in_play[np.argmin(np.linalg.norm(positions[in_play] - tcp, axis=-1))], "not the nearest"
 
 
 @pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])

@@ -93,6 +93,8 @@ class PandaSortSim:
       size: [N] half-size / radius of each object (metres).
       colour: [N, 3] RGB of each object; drawn only, never observed, unrelated to the shape.
       outcome: [N] int32 IN_PLAY, IN_CORRECT_BIN, IN_WRONG_BIN or ON_FLOOR.
+      target: [] int32 the slot being worked on: the curricula's object at reset; when it leaves play, the
+        in-play object nearest the tool centre. Used only by envs built with `target_first`.
       potential: [4] weighted shaping potentials (reach, grasp, lift, carry) of the current state.
     """
 
@@ -104,6 +106,7 @@ class PandaSortSim:
     size: jax.Array
     colour: jax.Array
     outcome: jax.Array
+    target: jax.Array
     potential: jax.Array
 
 
@@ -235,16 +238,21 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         actions). The finger command maps [-1, 1] to closed..open.
       blocker: adds a thin bar between the spawn region and the bins.
       tosser: puts the bins on a second table across a gap.
+      target_first: one object at a time is the target (`PandaSortSim.target`): the observation lists the
+        objects starting from it (slots in cyclic order), and the shaping terms follow it alone, so a policy
+        always finds the object to work on in the first slot and several objects become the one-object task
+        repeated. With one object nothing changes.
     """
 
     def __init__(self, objects_count: int = 1, control_mode: str = MODE_EE, blocker: bool = False,
-                 tosser: bool = False):
+                 tosser: bool = False, target_first: bool = False):
         if not 1 <= objects_count <= 5:
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
         if control_mode not in (MODE_EE, MODE_JOINT):
             raise ValueError(f"control_mode must be {MODE_EE!r} or {MODE_JOINT!r}, got {control_mode!r}")
         self.objects_count = objects_count
         self.control_mode = control_mode
+        self.target_first = target_first
         self.layout = make_layout(blocker=blocker, tosser=tosser)
         self.mj_model = build_model(objects_count, self.layout)
         self.ids: ModelIds = resolve_ids(self.mj_model, objects_count)
@@ -363,13 +371,30 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
             tcp, data.xquat[ids.robot.hand_body], tcp_velocity,
             jnp.sum(sim.qpos[ids.robot.finger_qpos])[None], sim.qpos[ids.robot.arm_qpos],
         ]
-        return jnp.concatenate([(objects * in_play).ravel(), *tool]).astype(jnp.float32)
+        return jnp.concatenate([(objects * in_play)[self.slot_order(sim)].ravel(), *tool]).astype(jnp.float32)
+
+    def slot_order(self, sim: PandaSortSim) -> jax.Array:
+        """[N] the object slots in the order the observation lists them: from the target on with
+        `target_first`, else as they are."""
+        slots = jnp.arange(self.objects_count)
+        return (sim.target + slots) % self.objects_count if self.target_first else slots
+
+    def tcp_distances(self, data: mjx.Data, sim: PandaSortSim) -> jax.Array:
+        """[N] distance of each object's centre from the tool centre."""
+        return jnp.linalg.norm(self.object_positions(sim.qpos) - data.site_xpos[self.ids.robot.tcp_site], axis=-1)
+
+    def next_target(self, data: mjx.Data, sim: PandaSortSim) -> jax.Array:
+        """[] int32 the target slot after a step: kept while in play, else the in-play object nearest the tool."""
+        in_play = sim.outcome == IN_PLAY
+        nearest = jnp.argmin(jnp.where(in_play, self.tcp_distances(data, sim), jnp.inf))
+        return jnp.where(in_play[sim.target], sim.target, nearest).astype(jnp.int32)
 
     def shaping_potential(self, data: mjx.Data, sim: PandaSortSim, params: PandaSortParams) -> jax.Array:
-        """[4] weighted potentials (reach, grasp, lift, carry), each summed over objects (see module docstring)."""
+        """[4] weighted potentials (reach, grasp, lift, carry), each summed over objects (see module docstring);
+        with `target_first`, in-play objects other than the target count zero."""
         in_play = sim.outcome == IN_PLAY
         position = self.object_positions(sim.qpos)
-        distance = jnp.linalg.norm(position - data.site_xpos[self.ids.robot.tcp_site], axis=-1)
+        distance = self.tcp_distances(data, sim)
         fingers = sim.qpos[self.ids.robot.finger_qpos]
         squeeze = jnp.mean(fingers - sim.ctrl[7:])
         held = (
@@ -383,7 +408,8 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
             1.0 - jnp.tanh(distance / params.reach_scale), held.astype(jnp.float32), lift,
             lift * (1.0 - jnp.tanh(to_target / params.carry_scale)),
         ])  # [4, N]
-        per_object = jnp.where(in_play, stages, (sim.outcome == IN_CORRECT_BIN).astype(jnp.float32))
+        shaped = in_play & (jnp.arange(self.objects_count) == sim.target) if self.target_first else in_play
+        per_object = jnp.where(shaped, stages, (sim.outcome == IN_CORRECT_BIN).astype(jnp.float32))
         weights = jnp.stack([params.reach_weight, params.grasp_weight, params.lift_weight, params.carry_weight])
         return weights * jnp.sum(per_object, axis=1)
 
@@ -460,6 +486,7 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
             size=size,
             colour=jax.random.uniform(colour_key, (n, 3), minval=0.15, maxval=0.95),
             outcome=outcome,
+            target=focus.astype(jnp.int32),
             potential=jnp.zeros(4, jnp.float32),
         )
         model = self.episode_model(sim, params)
@@ -500,6 +527,7 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         next_sim = sim.replace(qpos=qpos, qvel=qvel, qacc_warmstart=data.qacc_warmstart, ctrl=data.ctrl,
                                outcome=outcome)
         data = self.kinematics(model, next_sim)
+        next_sim = next_sim.replace(target=self.next_target(data, next_sim))
         next_sim = next_sim.replace(potential=self.shaping_potential(data, next_sim, params))
         terms = self._reward_terms(next_sim, sim, params)
         info = self._info(terms, outcome)
