@@ -85,6 +85,8 @@ def train(config, preset: str, run_dir: pathlib.Path, resume: bool, stop_after_s
     else:
         rundir.write_config(run_dir, config, preset)
         state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams)
+        if config.init_from:
+            state = rundir.warm_starter(config)(state)
         done_updates, wall_offset = 0, 0.0
     if jax.device_count() > 1:
         state = data_parallel(state, data_mesh())

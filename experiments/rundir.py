@@ -21,6 +21,7 @@ import numpy as np
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.evaluate import evaluate
+from jaxarm.agents.ppo.warm_start import warm_start
 from experiments import configs
 
 
@@ -70,6 +71,20 @@ def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig):
     """The latest checkpointed learner state of `run_dir` (CheckpointError if none or mismatched)."""
     like = jax.eval_shape(trainer.init, jax.random.PRNGKey(config.seed), config.hparams())
     return checkpoint.restore(run_dir / "checkpoints", like)
+
+
+def warm_starter(config: RunConfig):
+    """fresh learner state -> the same with the networks and observation statistics of the latest checkpoint of
+    the run in `config.init_from` (see `jaxarm.agents.ppo.warm_start`). ValueError or CheckpointError when that
+    run cannot serve."""
+    source_dir = pathlib.Path(config.init_from)
+    source, _ = read_config(source_dir)
+    if (source.AGENT, config.AGENT) != ("ppo", "ppo"):
+        raise ValueError(f"init_from: warm starts exist for PPO only ({source_dir} is {source.AGENT}, "
+                         f"this run {config.AGENT})")
+    trained = restore_state(source_dir, configs.make_trainer(source), source)
+    index = config.make_env()[0].observation_source_index(source.make_env()[0])
+    return lambda state: warm_start(state, trained, index)
 
 
 def evaluate_state(trainer, config: RunConfig, state, episodes: int, seed: int) -> dict:

@@ -20,7 +20,7 @@ import numpy as np
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import run_updates
-from experiments import configs, plots
+from experiments import configs, plots, rundir
 from experiments.stats import confidence_halfwidth
 
 @dataclasses.dataclass(frozen=True)
@@ -65,6 +65,8 @@ def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, pr
     # jaxlib 0.10's CPU runtime deadlocks when two of those fan out over a two-worker pool at once (gdb:
     # both workers in ParallelBatchMap's BlockingCounter::Wait inside lapack_sgeqrf, 64 seeds, 2 cores).
     state = jax.jit(lambda k, h: jax.lax.map(lambda member: trainer.init(*member), (k, h)))(keys, hparams)
+    if config.init_from:
+        state = jax.vmap(rundir.warm_starter(config))(state)
     chunk = jax.jit(jax.vmap(lambda s, h: run_updates(trainer, s, h, config.updates_per_chunk)))
     chunks = []
     for index in range(trainer.num_updates // config.updates_per_chunk):

@@ -162,6 +162,15 @@ class Env(abc.ABC, Generic[Params, Sim]):
     def _transition(self, sim: Sim, action: jax.Array, params: Params) -> Transition[Sim]:
         """Advances the task by one step with an already clipped, finite action."""
 
+    def observation_source_index(self, source: "Env") -> np.ndarray:
+        """[observation_size] int: per input of this env's observation, the index of the same quantity in
+        `source`'s observation, or −1 where `source` has none (a learner trained on `source` can then be
+        warm-started here). Here: the identity, for observations of the same shape; ValueError otherwise."""
+        if source.spec.observation_shape != self.spec.observation_shape:
+            raise ValueError(f"{type(self).__name__}'s observation {self.spec.observation_shape} has no mapping "
+                             f"from {type(source).__name__}'s {source.spec.observation_shape}")
+        return np.arange(self.spec.observation_size)
+
     def render(self, state: EnvState[Sim], params: Params) -> np.ndarray:
         """One (non-batched) state as an RGB frame, uint8 [H, W, 3], drawn without a window."""
         raise NotImplementedError(f"{type(self).__name__} has no renderer")

@@ -308,6 +308,17 @@ def drop_into_own_bin(env, state, slot: int):
     return state.replace(sim=state.sim.replace(qpos=state.sim.qpos.at[pose_idx].set(jnp.array([*own_bin, 0.12, 1, 0, 0, 0]))))
 
 
+def test_a_one_object_observation_maps_onto_the_target_of_three(env, env3):
+    index = env3.observation_source_index(env)
+    size = OBJECT_OBS_SIZE
+    assert index.shape == env3.spec.observation_shape
+    np.testing.assert_array_equal(index[:size], np.arange(size))
+    np.testing.assert_array_equal(index[size:3 * size], -1)
+    np.testing.assert_array_equal(index[3 * size:], size + np.arange(env.spec.observation_size - size))
+    with pytest.raises(ValueError, match="no mapping"):
+        env3.observation_source_index(envs.make("arm2d"))
+
+
 @pytest.mark.slow
 def test_a_presorted_episode_succeeds_when_its_last_object_lands_in_its_bin(env3, step3):
     params = env3.default_params().replace(presorted_prob=jnp.float32(1.0))

@@ -124,3 +124,32 @@ def test_corrupt_or_mismatched_checkpoint_gives_a_clear_error(finished_run, tmp_
     assert eval_cli.main([str(corrupt), "--episodes", "2"]) == 2
     assert "error:" in capsys.readouterr().err
     assert not (corrupt / "eval.json").exists()
+
+
+def test_a_warm_start_begins_from_the_trained_networks_and_statistics(finished_run, tmp_path, capsys):
+    config, _ = rundir.read_config(finished_run)
+    trained = final_params(finished_run)
+    warm = dataclasses.replace(config, init_from=str(finished_run))
+    trainer = configs.make_trainer(warm)
+    fresh = jax.jit(trainer.init)(jax.random.PRNGKey(5), warm.hparams())
+    started = rundir.warm_starter(warm)(fresh)
+    for copied, source in zip(jax.tree.leaves((started.params, started.normalizer)),
+                              jax.tree.leaves((trained.params, trained.normalizer))):
+        np.testing.assert_array_equal(copied, source)
+    assert int(started.env_steps) == 0 and int(started.updates) == 0
+    for kept, new in zip(jax.tree.leaves(started.opt_state), jax.tree.leaves(fresh.opt_state)):
+        np.testing.assert_array_equal(kept, new)
+
+    # An input the trained learner never saw gets zero weight: at its (normalised) mean the policy is unchanged.
+    from jaxarm.agents.ppo.warm_start import warm_start
+
+    index = np.arange(9)
+    index[4] = -1
+    partial = warm_start(fresh, trained, index)
+    obs = jax.random.normal(jax.random.PRNGKey(6), (32, 9))
+    obs = obs.at[:, 4].set(trained.normalizer.mean[4])
+    np.testing.assert_allclose(trainer.act(partial, obs), trainer.act(trained, obs), atol=1e-5)
+
+    assert run_cli(*SMALL, f"init_from={finished_run}", "--out", str(tmp_path / "warm")) == 0
+    assert run_cli(*SMALL, f"init_from={tmp_path / 'nowhere'}", "--out", str(tmp_path / "cold")) == 2
+    assert "not a run directory" in capsys.readouterr().err

@@ -37,6 +37,8 @@ class RunConfig:
       checkpoint_every_updates: save the learner state at the first chunk end after this many updates.
       eval_episodes: fresh episodes for the final deterministic evaluation.
       seed: PRNG seed of the run.
+      init_from: run directory whose latest checkpoint initialises the networks (a warm start, PPO only;
+        the env maps the old observation onto its own: `Env.observation_source_index`); "" for none.
     """
 
     HPARAMS: ClassVar[type | None] = None
@@ -54,6 +56,7 @@ class RunConfig:
     checkpoint_every_updates: int = 50
     eval_episodes: int = 1000
     seed: int = 0
+    init_from: str = ""
 
     def hparams(self):
         """The dynamic fields as a pytree of float32 scalars (`HPARAMS`), the argument `train` vmaps over."""

@@ -276,6 +276,18 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
     def default_params(self) -> PandaSortParams:
         return default_params()
 
+    def observation_source_index(self, source) -> np.ndarray:
+        """As `Env.observation_source_index`; from a sorter with another object count (same control mode), the
+        object rows they share map row to row (with `target_first`, a one-object learner's object becomes the
+        target) and the tool's inputs map onto each other; the extra objects' inputs are new (−1)."""
+        if not isinstance(source, PandaSort) or source.control_mode != self.control_mode:
+            return super().observation_source_index(source)
+        shared = min(source.objects_count, self.objects_count)
+        objects = np.full((self.objects_count, OBJECT_OBS_SIZE), -1)
+        objects[:shared] = np.arange(shared * OBJECT_OBS_SIZE).reshape(shared, OBJECT_OBS_SIZE)
+        tool_size = self.spec.observation_size - self.objects_count * OBJECT_OBS_SIZE
+        return np.concatenate([objects.ravel(), source.objects_count * OBJECT_OBS_SIZE + np.arange(tool_size)])
+
     # --- the physics model of one env -------------------------------------------------------------
 
     def episode_model(self, sim: PandaSortSim, params: PandaSortParams) -> mjx.Model:

@@ -1,0 +1,63 @@
+"""Warm starts: a new PPO learner given the networks and observation statistics of one trained elsewhere.
+
+The trained learner may have seen a different observation (three objects instead of one, say): the new env
+says, per input, which input of the old observation holds the same quantity (`Env.observation_source_index`).
+Inputs without a counterpart get zero weight in each network's first layer, so the new policy starts by acting
+exactly as the trained one does on the shared inputs, and neutral statistics (mean 0, std 1). The optimiser
+state, env state and counters stay those of the fresh learner.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from brax.training.types import UInt64
+
+from jaxarm.agents.ppo.train import NetworkParams, PPOState
+
+FIRST_LAYER = "Dense_0"
+"""Flax's name for an MLP's input layer."""
+
+
+def map_inputs(values: jax.Array, index: np.ndarray, missing: float | jax.Array) -> jax.Array:
+    """[S, ...] values per source input -> [O, ...] per new input (`index` [O], −1 where there is none)."""
+    known = jnp.asarray(index >= 0).reshape((-1,) + (1,) * (values.ndim - 1))
+    return jnp.where(known, values[np.maximum(index, 0)], missing)
+
+
+def sample_count(count) -> jax.Array:
+    """brax's running-statistics count (an int, or two uint32 words without x64) as float32."""
+    if isinstance(count, UInt64):
+        return jnp.float32(count.hi) * jnp.float32(2.0**32) + jnp.float32(count.lo)
+    return jnp.float32(count)
+
+
+def transfer_network(trained: dict, fresh: dict, index: np.ndarray) -> dict:
+    """A flax MLP's params: `trained`'s with the input layer's rows mapped to the new inputs.
+
+    Raises ValueError where any other layer differs in shape from `fresh` (different hidden sizes).
+    """
+    layers = dict(trained["params"])
+    first = layers[FIRST_LAYER]
+    layers[FIRST_LAYER] = {**first, "kernel": map_inputs(first["kernel"], index, 0.0)}
+    mapped = {"params": layers}
+    shapes, expected = jax.tree.map(jnp.shape, mapped), jax.tree.map(jnp.shape, fresh)
+    if shapes != expected:
+        raise ValueError(f"cannot warm start: the trained network's layers {shapes} differ from this run's {expected}")
+    return mapped
+
+
+def warm_start(fresh: PPOState, trained: PPOState, index: np.ndarray) -> PPOState:
+    """`fresh` with `trained`'s policy, value and observation statistics, inputs mapped through `index`."""
+    index = np.asarray(index)
+    stats = trained.normalizer
+    normalizer = fresh.normalizer.replace(
+        count=stats.count,
+        mean=map_inputs(stats.mean, index, 0.0),
+        std=map_inputs(stats.std, index, 1.0),
+        summed_variance=map_inputs(stats.summed_variance, index, sample_count(stats.count)),
+    )
+    params = NetworkParams(
+        policy=transfer_network(trained.params.policy, fresh.params.policy, index),
+        value=transfer_network(trained.params.value, fresh.params.value, index),
+    )
+    return fresh.replace(params=params, normalizer=normalizer)
