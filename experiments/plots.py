@@ -32,11 +32,12 @@ def rolling_mean(values: np.ndarray, window: int, weights: np.ndarray | None = N
     return trailing_sums(np.asarray(values, float) * weights) / trailing_sums(weights)
 
 
-def learning_curve(rows: list[dict], path: pathlib.Path, title: str) -> None:
+def learning_curve(rows: list[dict], path: pathlib.Path, title: str, device: str | None = None) -> None:
     """Per-update mean episode return (scatter), its rolling mean and linear trend, and the success rate of
     the training episodes (rolling, weighted by the episodes each update finished).
 
-    Updates in which no episode finished are left out. The device is named in the title.
+    Updates in which no episode finished are left out. The device (by default this process's) is named in
+    the title.
     """
     rows = [row for row in rows if row.get("episodes/episodes", 0) > 0]
     fig, ax = _figure(8, 4.5)
@@ -59,7 +60,7 @@ def learning_curve(rows: list[dict], path: pathlib.Path, title: str) -> None:
         ax.legend(loc="upper left")
     ax.set_xlabel("env steps")
     ax.set_ylabel("episode return")
-    ax.set_title(f"{title} ({jax.devices()[0].device_kind})")
+    ax.set_title(f"{title} ({device or jax.devices()[0].device_kind})")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
 
