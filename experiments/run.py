@@ -83,10 +83,11 @@ def train(config, preset: str, run_dir: pathlib.Path, resume: bool, stop_after_s
         rundir.truncate_metrics(run_dir, done_updates)
         wall_offset = max([row["wall_time"] for row in rundir.read_metrics(run_dir)], default=0.0)
     else:
-        rundir.write_config(run_dir, config, preset)
         state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams)
         if config.init_from:
             state = rundir.warm_starter(config)(state)
+        # Written once the start state exists: a warm start that fails leaves no half-made run directory.
+        rundir.write_config(run_dir, config, preset)
         done_updates, wall_offset = 0, 0.0
     if jax.device_count() > 1:
         state = data_parallel(state, data_mesh())

@@ -102,8 +102,8 @@ def ppo_sorter3() -> PPOConfig:
     # (training only): each object but the curricula's focus starts already sorted with chance 0.5, so a
     # quarter of the episodes are the one-object task ppo_sorter solves in minutes, half have two objects
     # and a quarter all three; the held and grasp-ready starts pick their object from any slot. The env
-    # (panda_sort3) lists the current target object first and shapes toward it alone: with the objects in
-    # fixed slots and shaping summed over all three, 56M env steps placed nothing (H100, 2026-11-23).
+    # (panda_sort3) lists the current target object first and shapes toward it alone, so the one-object
+    # policy's inputs map onto the target's.
     env_params = with_pair(with_pair(SORTER_ENV_PARAMS, "max_episode_steps", 750), "presorted_prob", 0.5)
     return dataclasses.replace(SORTER_PPO, env="panda_sort3", env_params=env_params, total_env_steps=200_000_000)
 

@@ -334,7 +334,9 @@ def test_the_target_is_listed_first_shaped_alone_and_handed_on_to_the_nearest_ob
     params = env3.default_params()
     state = jax.jit(env3.reset)(jax.random.key(14), params)
 
-    def check_target_listed_and_shaped(state) -> int:
+    def check_target_listed_and_shaped(state) -> tuple[int, np.ndarray, np.ndarray]:
+        """Asserts the target's row comes first and its reach alone is shaped; (target, [3, 3] object
+        positions, [3] tool centre)."""
         target = int(state.sim.target)
         positions = np.asarray(state.sim.qpos[env3.ids.object_qpos[:, None] + np.arange(3)])
         listed = listed_objects(env3, np.asarray(state.obs))
@@ -346,14 +348,12 @@ def test_the_target_is_listed_first_shaped_alone_and_handed_on_to_the_nearest_ob
         reach = float(params.reach_weight) * (1 - np.tanh(np.linalg.norm(positions[target] - tcp) / float(params.reach_scale)))
         placed = int(state.info.correct_count)
         np.testing.assert_allclose(float(state.sim.potential[0]), reach + placed * float(params.reach_weight), rtol=1e-4)
-        return target
+        return target, positions, tcp
 
-    first = check_target_listed_and_shaped(state)
+    first, _, _ = check_target_listed_and_shaped(state)
     state, terms = run_steps(step3, drop_into_own_bin(env3, state, first), params, [np.zeros(5)] * 20)
     assert list(terms.correct_bin[terms.correct_bin != 0]) == [500.0] and int(state.info.in_play_count) == 2
-    second = check_target_listed_and_shaped(state)
-    positions = np.asarray(state.sim.qpos[env3.ids.object_qpos[:, None] + np.arange(3)])
-    tcp = np.asarray(state.obs[3 * OBJECT_OBS_SIZE:3 * OBJECT_OBS_SIZE + 3])
+    second, positions, tcp = check_target_listed_and_shaped(state)
     in_play = np.flatnonzero(np.asarray(state.sim.outcome) == IN_PLAY)
     assert second == in_play[np.argmin(np.linalg.norm(positions[in_play] - tcp, axis=-1))], "not the nearest"
 

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from jaxarm.agents.common import checkpoint
+from jaxarm.agents.ppo.warm_start import warm_start
 from experiments import configs, eval as eval_cli, rundir, run
 
 SMALL = ["num_envs=64", "rollout_length=16", "num_minibatches=2", "total_env_steps=24576",
@@ -141,8 +142,6 @@ def test_a_warm_start_begins_from_the_trained_networks_and_statistics(finished_r
         np.testing.assert_array_equal(kept, new)
 
     # An input the trained learner never saw gets zero weight: at its (normalised) mean the policy is unchanged.
-    from jaxarm.agents.ppo.warm_start import warm_start
-
     index = np.arange(9)
     index[4] = -1
     partial = warm_start(fresh, trained, index)
@@ -153,3 +152,4 @@ def test_a_warm_start_begins_from_the_trained_networks_and_statistics(finished_r
     assert run_cli(*SMALL, f"init_from={finished_run}", "--out", str(tmp_path / "warm")) == 0
     assert run_cli(*SMALL, f"init_from={tmp_path / 'nowhere'}", "--out", str(tmp_path / "cold")) == 2
     assert "not a run directory" in capsys.readouterr().err
+    assert not (tmp_path / "cold" / "config.json").exists(), "a failed warm start left a run behind"
