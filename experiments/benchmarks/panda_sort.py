@@ -54,7 +54,8 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench panda_sort",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="panda_sort", help="registered panda_sort variant")
-    parser.add_argument("--sizes", default="1,256", help="comma-separated env counts (e.g. 1,1024,4096,16384)")
+    parser.add_argument("--sizes", default="1,64",
+                        help="comma-separated env counts (e.g. 1,1024,4096,16384 on a GPU; at most 64 on a CPU)")
     parser.add_argument("--steps", type=int, default=20, help="env steps per timed scan")
     parser.add_argument("--repeats", type=int, default=2, help="timed repeats; the best is reported")
     args = parser.parse_args(argv)

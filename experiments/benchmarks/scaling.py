@@ -45,6 +45,18 @@ def timed(function, *args) -> float:
     return time.perf_counter() - start
 
 
+def safe_sizes(env_name: str, sizes: list[int]) -> list[int]:
+    """`sizes` without those above the env's `cpu_max_envs` when running on a CPU (they can hang there)."""
+    limit = envs.make(env_name).cpu_max_envs
+    if limit is None or jax.default_backend() != "cpu":
+        return sizes
+    dropped = [size for size in sizes if size > limit]
+    if dropped:
+        print(f"  {env_name}: skipping {', '.join(f'{size:,}' for size in dropped)} envs on the CPU "
+              f"(above {limit} the CPU runtime can deadlock on this env; see the README)", flush=True)
+    return [size for size in sizes if size <= limit]
+
+
 def env_seconds(env_name: str, num_envs: int, steps: int) -> tuple[float, float]:
     """(seconds of `steps` steps of `num_envs` auto-reset envs, compile seconds) under the preset's params."""
     env, params = base_ppo_config(env_name).make_env()
@@ -185,15 +197,12 @@ def main(argv=None) -> None:
 
     curves = {}
     for name in env_names:
+        env_sizes, ppo_sizes = (safe_sizes(name, parse_sizes(text)) for text in (args.env_sizes, args.ppo_sizes))
         print(f"{name}: env stepping", flush=True)
-        curves[f"{name}: env stepping"] = sweep(
-            parse_sizes(args.env_sizes), env_measure(name), target_steps, max_seconds
-        )
+        curves[f"{name}: env stepping"] = sweep(env_sizes, env_measure(name), target_steps, max_seconds)
         print(f"{name}: PPO training", flush=True)
         # An update is ~50x dearer per env step than stepping alone: a quarter of the work keeps large sizes in.
-        curves[f"{name}: PPO training"] = sweep(
-            parse_sizes(args.ppo_sizes), ppo_measure(name), target_steps // 4, max_seconds
-        )
+        curves[f"{name}: PPO training"] = sweep(ppo_sizes, ppo_measure(name), target_steps // 4, max_seconds)
 
     print("\n| env | measurement | parallel envs | env steps/s | compile s |")
     print("|---|---|---:|---:|---:|")

@@ -146,9 +146,16 @@ def check_action(action: np.ndarray, spec: EnvSpec) -> np.ndarray:
 
 
 class Env(abc.ABC, Generic[Params, Sim]):
-    """Base class of jaxarm envs. Params must have an int field `max_episode_steps`."""
+    """Base class of jaxarm envs. Params must have an int field `max_episode_steps`.
+
+    Attributes:
+      spec: observation and action shapes and bounds.
+      cpu_max_envs: the largest batch known to step safely on a CPU, or None for no known limit; `VmapEnv`
+        warns above it there.
+    """
 
     spec: EnvSpec
+    cpu_max_envs: int | None = None
 
     @abc.abstractmethod
     def default_params(self) -> Params:

@@ -4,6 +4,8 @@ Episode statistics are kept by `Env.step` itself (`state.episode`, `state.last_e
 wrapped or not, reports the same numbers.
 """
 
+import warnings
+
 import jax
 import jax.numpy as jnp
 
@@ -76,6 +78,12 @@ class VmapEnv(Wrapper):
         super().__init__(env)
         self.num_envs = num_envs
         self.params_axis = 0 if batched_params else None
+        limit = getattr(self.unwrapped, "cpu_max_envs", None)
+        if limit is not None and num_envs > limit and jax.default_backend() == "cpu":
+            warnings.warn(
+                f"{type(self.unwrapped).__name__} with {num_envs} envs on the CPU: above {limit} envs jaxlib's CPU "
+                f"runtime has deadlocked on it (see the README); the run may hang", stacklevel=2,
+            )
 
     def reset(self, key: jax.Array, params) -> EnvState:
         keys = jax.random.split(key, self.num_envs)

@@ -1,5 +1,7 @@
 """The contract every registered env must keep (jit, vmap, spec, purity, time limit, auto-reset)."""
 
+import warnings
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -129,3 +131,14 @@ def test_a_diverged_step_terminates_with_zero_observation_and_reward():
     assert float(broken.reward) == 0.0 and np.all(np.asarray(broken.obs) == 0.0)
     healthy = jax.jit(env.step)(state, jnp.zeros(2), params)
     assert not bool(healthy.episode.diverged)
+
+
+def test_vmap_warns_above_an_envs_cpu_limit():
+    env = envs.make("arm2d")
+    env.cpu_max_envs = 4  # this instance only: arm2d itself has no limit
+    with pytest.warns(UserWarning, match="8 envs on the CPU: above 4 envs"):
+        envs.VmapEnv(envs.AutoReset(env), 8)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        envs.VmapEnv(envs.AutoReset(env), 4)
+        envs.VmapEnv(envs.make("arm2d"), 1024)
