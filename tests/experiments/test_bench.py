@@ -1,0 +1,22 @@
+"""The training benchmark's arithmetic: equal parts and the steady rate (the runs themselves are benchmarks)."""
+
+import pytest
+
+from experiments.benchmarks.training import PARTS, Result, ppo_config
+
+
+def test_steady_rate_skips_the_first_part_and_books_the_rest_as_one_off_costs():
+    # brax's pattern: the first two epochs compile, the later ones run at the steady rate.
+    result = Result(env_steps=4_000, total_seconds=20.0, part_seconds=(7.0, 6.0, 1.0, 2.0),
+                    success_rate=1.0, return_mean=0.0)
+    assert result.train_seconds == pytest.approx(4.0)
+    assert result.compile_seconds == pytest.approx(16.0)
+    assert result.steps_per_second == pytest.approx(1_000.0)
+
+
+def test_budget_rounds_up_to_equal_parts():
+    config = ppo_config("arm2d", num_envs=64, env_steps=10_000)
+    assert config.num_updates % PARTS == 0
+    assert config.updates_per_chunk * PARTS == config.num_updates
+    assert config.total_env_steps >= 10_000
+    assert config.total_env_steps - 10_000 < PARTS * config.env_steps_per_update
