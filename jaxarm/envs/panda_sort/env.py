@@ -244,6 +244,10 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         repeated. With one object nothing changes.
     """
 
+    # jaxlib 0.10.2's CPU runtime deadlocked on this env at 256 envs (one object) and 128 (three): two batched
+    # Cholesky factorisations of MJX waited on each other in its two-worker pool (gdb, 2026-11-23).
+    cpu_max_envs = 64
+
     def __init__(self, objects_count: int = 1, control_mode: str = MODE_EE, blocker: bool = False,
                  tosser: bool = False, target_first: bool = False):
         if not 1 <= objects_count <= 5:
@@ -265,9 +269,6 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
             solve_arm_posture(self.mj_model, self.ids.robot, np.r_[spawn_centre, height], self._home_tcp_rotation)
             for height in (START_HEIGHT, GRASP_HEIGHT)
         )
-        # jaxlib 0.10.2's CPU runtime deadlocked on this env at 256 envs (one object) and 128 (three): two
-        # batched Cholesky factorisations of MJX waited on each other in its two-worker pool (gdb, 2026-11-23).
-        self.cpu_max_envs = 64
         action_size = 5 if control_mode == MODE_EE else 8
         self.spec = EnvSpec(observation_shape=(OBJECT_OBS_SIZE * objects_count + 21,), action_shape=(action_size,))
 
