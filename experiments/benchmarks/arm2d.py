@@ -44,6 +44,17 @@ def jax_steps_per_second(num_envs: int, steps: int, auto_reset: bool = True, unr
     return num_envs * steps / best, compile_seconds
 
 
+def scan_length(num_envs: int, steps: int, max_env_steps: int) -> int:
+    """Steps per timed scan: `steps`, fewer where `num_envs` x `steps` would pass `max_env_steps`, at least 10."""
+    return max(10, min(steps, max_env_steps // num_envs))
+
+
+def default_max_env_steps(backend: str) -> int:
+    """Env steps one timed call may take: 2e7 on a CPU (seconds there); 2e9 on an accelerator, where a call
+    must run long enough to hide its fixed dispatch cost (under the CPU's cap, 1M envs ran 19 steps, ~2 ms)."""
+    return 2 * 10**7 if backend == "cpu" else 2 * 10**9
+
+
 def numpy_steps_per_second(num_envs: int | None, seconds: float = 1.0) -> float:
     """Env steps/s of the numpy reference: one env in a Python loop (None) or a numpy batch of `num_envs`."""
     rng = np.random.default_rng(0)
@@ -65,18 +76,22 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench arm2d", description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="1,1024,65536,1048576", help="comma-separated env counts")
     parser.add_argument("--steps", type=int, default=1000, help="steps per timed scan")
+    parser.add_argument("--max-env-steps", type=int,
+                        help="env steps per timed call, at most (default: 2e7 on a CPU, 2e9 on an accelerator)")
     parser.add_argument("--unroll", type=int, default=8, help="env steps per scan iteration (8: see BENCHMARKS.md)")
     args = parser.parse_args(argv)
+    max_env_steps = args.max_env_steps or default_max_env_steps(jax.default_backend())
     reference = numpy_steps_per_second(None)
     batched_numpy = numpy_steps_per_second(1024)
     device = jax.devices()[0].device_kind
-    print(f"device: {device}; jax {jax.__version__}; scan unroll {args.unroll}")
+    print(f"device: {device}; jax {jax.__version__}; scan unroll {args.unroll}; "
+          f"at most {max_env_steps:,} env steps per timed call")
     print(f"numpy reference, single env loop: {reference:,.0f} steps/s")
     print(f"numpy reference, batch of 1024:   {batched_numpy:,.0f} steps/s ({batched_numpy / reference:,.0f}x single)")
     print("| envs | env steps/s (auto-reset, statistics) | vs numpy single env | without auto-reset | compile s |")
     print("|---:|---:|---:|---:|---:|")
     for size in (int(text) for text in args.sizes.split(",")):
-        steps = max(10, min(args.steps, 2 * 10**9 // (size * 100)))
+        steps = scan_length(size, args.steps, max_env_steps)
         rate, compile_seconds = jax_steps_per_second(size, steps, unroll=args.unroll)
         bare, _ = jax_steps_per_second(size, steps, auto_reset=False, unroll=args.unroll)
         print(f"| {size:,} | {rate:,.3g} | {rate / reference:,.0f}x | {bare:,.3g} | {compile_seconds:.1f} |", flush=True)

@@ -2,6 +2,7 @@
 
 import pytest
 
+from experiments.benchmarks.arm2d import default_max_env_steps, scan_length
 from experiments.benchmarks.training import PARTS, Result, ppo_config
 
 
@@ -20,3 +21,11 @@ def test_budget_rounds_up_to_equal_parts():
     assert config.updates_per_chunk * PARTS == config.num_updates
     assert config.total_env_steps >= 10_000
     assert config.total_env_steps - 10_000 < PARTS * config.env_steps_per_update
+
+
+def test_arm2d_scan_length_keeps_cpu_calls_short_and_gpu_calls_long():
+    cpu, gpu = default_max_env_steps("cpu"), default_max_env_steps("gpu")
+    assert scan_length(1 << 20, 1000, cpu) == 19
+    assert scan_length(1 << 20, 1000, gpu) == 1000
+    assert scan_length(1, 1000, cpu) == 1000
+    assert scan_length(1 << 30, 1000, cpu) == 10
