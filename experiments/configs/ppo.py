@@ -97,8 +97,8 @@ def ppo_sorter() -> PPOConfig:
 def ppo_sorter3() -> PPOConfig:
     # From scratch it learns too slowly (H100, 2026-11-23: objects in fixed slots, 0% after 56M env steps;
     # target first, ≤ 3% of training episodes after 23M). Warm-started from a 7-minute ppo_sorter run
-    # (`init_from`), 12 more minutes sorted all three objects in 89.9% of fresh episodes (seed 0), 6.7 more
-    # minutes in 91.5% (seed 1).
+    # (`init_from`), 12 more minutes sorted all three objects in 89.9% of fresh episodes (seed 0), 6.6-6.7 more
+    # minutes in 91.5% and 93.0% (seeds 1 and 2).
     # Three objects take three pick-and-places: episodes three times as long. A curriculum over object count
     # (training only): each object but the curricula's focus starts already sorted with chance 0.5, so a
     # quarter of the episodes are the one-object task ppo_sorter solves in minutes, half have two objects
