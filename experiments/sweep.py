@@ -67,7 +67,8 @@ def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, pr
     state = jax.jit(lambda k, h: jax.lax.map(lambda member: trainer.init(*member), (k, h)))(keys, hparams)
     if config.init_from:
         state = jax.vmap(rundir.warm_starter(config))(state)
-    chunk = jax.jit(jax.vmap(lambda s, h: run_updates(trainer, s, h, config.updates_per_chunk)))
+    chunk = jax.jit(jax.vmap(lambda s, h: run_updates(trainer, s, h, config.updates_per_chunk)),
+                    compiler_options=trainer.compiler_options)
     chunks = []
     for index in range(trainer.num_updates // config.updates_per_chunk):
         state, metrics = chunk(state, hparams)

@@ -85,7 +85,8 @@ def ppo_seconds(env_name: str, num_envs: int, num_updates: int, **overrides) -> 
     hparams = config.hparams()
     state = jax.jit(trainer.init)(jax.random.PRNGKey(0), hparams)
     start = time.perf_counter()
-    compiled = jax.jit(functools.partial(run_updates, trainer, num_updates=num_updates)).lower(state, hparams).compile()
+    compiled = jax.jit(functools.partial(run_updates, trainer, num_updates=num_updates),
+                       compiler_options=trainer.compiler_options).lower(state, hparams).compile()
     compile_seconds = time.perf_counter() - start
     timed(compiled, state, hparams)  # warm-up
     seconds = min(timed(compiled, state, hparams) for _ in range(2))

@@ -18,6 +18,11 @@ compiles its training epoch again on the second call (the state it gets back has
 the CPU, jax 0.10.2, brax 0.14.2: 3.97 s of compilation in epoch two of arm2d, epochs three and four ~2 s).
 Evaluation is jaxarm's `evaluate` on the same fresh episodes for both,
 with deterministic policies (tanh of the Gaussian's mean), outside the timings.
+
+Both learners compile with the same XLA settings: the process's. Our runner would compile an env without MJX
+with XLA:CPU's fusion emitters on (`Trainer.compiler_options`), which brax's own programs cannot be given here;
+with jaxlib 0.10 on a CPU, run this suite with `JAXARM_KEEP_XLA_FLAGS=1` for such an env, so that both compile
+the way our runner does (and as brax does without jaxarm imported).
 """
 
 import argparse
@@ -118,6 +123,8 @@ def run_ours(config: PPOConfig, eval_episodes: int) -> Result:
     hparams = config.hparams()
     start = time.perf_counter()
     state = jax.block_until_ready(jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams))
+    # Compiled with the process's XLA settings, as brax's programs are (not `trainer.compiler_options`): see the
+    # module docstring.
     runner = jax.jit(
         functools.partial(run_updates, trainer, num_updates=config.num_updates // PARTS), donate_argnums=0
     )

@@ -152,10 +152,13 @@ class Env(abc.ABC, Generic[Params, Sim]):
       spec: observation and action shapes and bounds.
       cpu_max_envs: the largest batch known to step safely on a CPU, or None for no known limit; `VmapEnv`
         warns above it there.
+      uses_mjx: the env steps MJX physics; learners then compile their programs with jaxarm's process-wide
+        XLA:CPU setting for MJX rather than for everything else (`jaxarm._runtime.compiler_options`).
     """
 
     spec: EnvSpec
     cpu_max_envs: int | None = None
+    uses_mjx: bool = False
 
     @abc.abstractmethod
     def default_params(self) -> Params:

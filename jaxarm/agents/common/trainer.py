@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxarm._runtime import compiler_options
 from jaxarm.envs import EnvState
 
 
@@ -27,6 +28,8 @@ class Trainer:
       act: (learner state, obs [B, O]) -> deterministic actions [B, A] (for evaluation).
       num_updates: updates in the whole run.
       env_steps_per_update: env steps each update consumes.
+      compiler_options: XLA options for the programs that run `update` (`jax.jit(..., compiler_options=...)`),
+        chosen for the env by `jaxarm._runtime.compiler_options`.
     """
 
     init: Callable[[jax.Array, Any], Any]
@@ -34,6 +37,12 @@ class Trainer:
     act: Callable[[Any, jax.Array], jax.Array]
     num_updates: int
     env_steps_per_update: int
+    compiler_options: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+
+def env_compiler_options(env) -> dict[str, Any]:
+    """`Trainer.compiler_options` for a learner on `env` (an env or a wrapped one)."""
+    return compiler_options(getattr(env, "unwrapped", env).uses_mjx)
 
 
 def run_updates(trainer: Trainer, state, hparams, num_updates: int):
@@ -52,7 +61,8 @@ def make_train(trainer: Trainer) -> Callable[[jax.Array, Any], tuple[Any, Any]]:
 
 def make_chunk_runner(trainer: Trainer, updates_per_chunk: int):
     """A jitted `(state, hparams) -> (state, metrics [updates_per_chunk])`; compiled once, reused."""
-    return jax.jit(partial(run_updates, trainer, num_updates=updates_per_chunk), donate_argnums=0)
+    return jax.jit(partial(run_updates, trainer, num_updates=updates_per_chunk), donate_argnums=0,
+                   compiler_options=trainer.compiler_options)
 
 
 @struct.dataclass

@@ -247,6 +247,7 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
     # jaxlib 0.10.2's CPU runtime deadlocked on this env at 256 envs (one object) and 128 (three): two batched
     # Cholesky factorisations of MJX waited on each other in its two-worker pool (gdb, 2026-11-23).
     cpu_max_envs = 64
+    uses_mjx = True
 
     def __init__(self, objects_count: int = 1, control_mode: str = MODE_EE, blocker: bool = False,
                  tosser: bool = False, target_first: bool = False):

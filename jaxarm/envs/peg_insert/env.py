@@ -72,6 +72,8 @@ class PegInsertInfo:
 class PegInsert(Env[PegInsertParams, PegInsertSim]):
     """The Panda inserting a peg held in its hand into a square hole shifted at random every episode."""
 
+    uses_mjx = True
+
     def __init__(self):
         self.mj_model = build_model()
         self.ids: PegIds = resolve_ids(self.mj_model)
