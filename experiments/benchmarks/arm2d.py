@@ -5,6 +5,7 @@ reference stepping one env in a Python loop (the classic tutorial's way) and the
 """
 
 import argparse
+import functools
 import time
 
 import jax
@@ -31,7 +32,7 @@ def jax_steps_per_second(num_envs: int, steps: int, auto_reset: bool = True, unr
     # A fixed bang-bang action pattern: cheap to make, and it visits goals, resets and time limits.
     pattern = jnp.sign(jax.random.normal(jax.random.PRNGKey(1), (num_envs, env.spec.action_size)))
 
-    @jax.jit
+    @functools.partial(jax.jit, compiler_options=envs.compiler_options(env))
     def run(state):
         def body(carry, step):
             return batch.step(carry, pattern * jnp.cos(step * 0.05), params), None

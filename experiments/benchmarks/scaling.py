@@ -72,7 +72,7 @@ def env_seconds(env_name: str, num_envs: int, steps: int) -> tuple[float, float]
 
     state = jax.jit(batch.reset)(jax.random.PRNGKey(0), params)
     start = time.perf_counter()
-    compiled = jax.jit(run).lower(state).compile()
+    compiled = jax.jit(run, compiler_options=envs.compiler_options(env)).lower(state).compile()
     compile_seconds = time.perf_counter() - start
     timed(compiled, state)  # warm-up: first-call allocations
     return min(timed(compiled, state) for _ in range(2)), compile_seconds

@@ -1,10 +1,11 @@
 """Pure-functional JAX environments: `make(name)`, `names()`, and the contract in `base`."""
 
+from jaxarm._runtime import compiler_options
 from jaxarm.envs.base import Env, EnvSpec, EnvState, EpisodeStats, Transition, check_action
 from jaxarm.envs.registry import describe, make, names, override_params, register
 from jaxarm.envs.wrappers import AutoReset, VmapEnv, Wrapper
 
 __all__ = [
     "AutoReset", "Env", "EnvSpec", "EnvState", "EpisodeStats", "Transition", "VmapEnv", "Wrapper",
-    "check_action", "describe", "make", "names", "override_params", "register",
+    "check_action", "compiler_options", "describe", "make", "names", "override_params", "register",
 ]

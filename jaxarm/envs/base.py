@@ -153,7 +153,7 @@ class Env(abc.ABC, Generic[Params, Sim]):
       cpu_max_envs: the largest batch known to step safely on a CPU, or None for no known limit; `VmapEnv`
         warns above it there.
       uses_mjx: the env steps MJX physics; learners then compile their programs with jaxarm's process-wide
-        XLA:CPU setting for MJX rather than for everything else (`jaxarm._runtime.compiler_options`).
+        XLA:CPU setting for MJX rather than for everything else (`jaxarm.envs.compiler_options`).
     """
 
     spec: EnvSpec

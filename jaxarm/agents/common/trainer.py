@@ -14,7 +14,6 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxarm._runtime import compiler_options
 from jaxarm.envs import EnvState
 
 
@@ -29,7 +28,7 @@ class Trainer:
       num_updates: updates in the whole run.
       env_steps_per_update: env steps each update consumes.
       compiler_options: XLA options for the programs that run `update` (`jax.jit(..., compiler_options=...)`),
-        chosen for the env by `jaxarm._runtime.compiler_options`.
+        chosen for the env by `jaxarm.envs.compiler_options`.
     """
 
     init: Callable[[jax.Array, Any], Any]
@@ -38,11 +37,6 @@ class Trainer:
     num_updates: int
     env_steps_per_update: int
     compiler_options: dict[str, Any] = dataclasses.field(default_factory=dict)
-
-
-def env_compiler_options(env) -> dict[str, Any]:
-    """`Trainer.compiler_options` for a learner on `env` (an env or a wrapped one)."""
-    return compiler_options(getattr(env, "unwrapped", env).uses_mjx)
 
 
 def run_updates(trainer: Trainer, state, hparams, num_updates: int):

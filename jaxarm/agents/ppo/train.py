@@ -14,10 +14,10 @@ from brax.training.acme import running_statistics, specs
 from flax import struct
 
 from jaxarm.agents.common.networks import MLP
-from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, env_compiler_options, summarise_episodes
+from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig, PPOHParams
-from jaxarm.envs import AutoReset, EnvState, VmapEnv
+from jaxarm.envs import AutoReset, EnvState, VmapEnv, compiler_options
 
 
 @struct.dataclass
@@ -230,5 +230,5 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
 
     return Trainer(
         init=init, update=update, act=act, num_updates=config.num_updates,
-        env_steps_per_update=config.env_steps_per_update, compiler_options=env_compiler_options(env),
+        env_steps_per_update=config.env_steps_per_update, compiler_options=compiler_options(env),
     )

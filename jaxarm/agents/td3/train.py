@@ -13,11 +13,11 @@ import optax
 from flax import struct
 
 from jaxarm.agents.common import replay
-from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, env_compiler_options, summarise_episodes
+from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.td3.config import TD3Config, TD3HParams
 from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, polyak_update, smoothed_target_action
 from jaxarm.agents.td3.networks import Actor, Critic, apply_critics, init_critics
-from jaxarm.envs import AutoReset, EnvState, VmapEnv
+from jaxarm.envs import AutoReset, EnvState, VmapEnv, compiler_options
 
 
 @struct.dataclass
@@ -222,4 +222,4 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         return state, metrics
 
     return Trainer(init=init, update=update, act=act, num_updates=config.num_updates,
-                   env_steps_per_update=config.env_steps_per_update, compiler_options=env_compiler_options(env))
+                   env_steps_per_update=config.env_steps_per_update, compiler_options=compiler_options(env))
