@@ -14,6 +14,7 @@ from brax.training.acme import running_statistics, specs
 from flax import struct
 
 from jaxarm.agents.common.networks import MLP
+from jaxarm.agents.common.permutation import random_permutation
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig, PPOHParams
@@ -201,7 +202,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
 
         def epoch(carry, key):
             permute_key, step_key = jax.random.split(key)
-            order = jax.random.permutation(permute_key, config.env_steps_per_update)
+            order = random_permutation(permute_key, config.env_steps_per_update)
             minibatches = jax.tree.map(
                 lambda x: x[order].reshape((config.num_minibatches, config.minibatch_size) + x.shape[1:]), samples
             )
