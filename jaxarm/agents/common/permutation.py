@@ -17,21 +17,24 @@ MAX_PACKED_INDEX_BITS = 24
 """Up to 2^24 elements the key keeps ≥ 8 random bits; larger sizes use `jax.random.permutation`."""
 
 
+def index_bits(n: int) -> int:
+    """Low bits of each 32-bit key that hold an index below `n`."""
+    return max(1, (n - 1).bit_length())
+
+
 def rounds_needed(n: int) -> int:
     """Sorting rounds for `n` elements, the index in the low bits of each 32-bit key."""
-    index_bits = max(1, (n - 1).bit_length())
-    return max(1, math.ceil(3 * index_bits / (32 - index_bits)))
+    return max(1, math.ceil(3 * index_bits(n) / (32 - index_bits(n))))
 
 
 def random_permutation(key: jax.Array, n: int) -> jax.Array:
     """[n] int32: a uniformly random permutation of 0 … n−1 (`n` static)."""
-    index_bits = max(1, (n - 1).bit_length())
-    if index_bits > MAX_PACKED_INDEX_BITS:
+    if index_bits(n) > MAX_PACKED_INDEX_BITS:
         return jax.random.permutation(key, n)
     positions = jnp.arange(n, dtype=jnp.uint32)
-    random_mask = ~jnp.uint32((1 << index_bits) - 1)
+    index_mask = jnp.uint32((1 << index_bits(n)) - 1)
     order = positions
     for round_key in jax.random.split(key, rounds_needed(n)):
-        packed = (jax.random.bits(round_key, (n,), jnp.uint32) & random_mask) | positions
-        order = order[jnp.sort(packed) & ~random_mask]
+        packed = (jax.random.bits(round_key, (n,), jnp.uint32) & ~index_mask) | positions
+        order = order[jnp.sort(packed) & index_mask]
     return order.astype(jnp.int32)
