@@ -16,7 +16,7 @@ training epochs). The fastest part after the first gives the steady rate; everyt
 counts as compilation, set-up and one-off costs. Comparing only the first two parts is not enough: brax
 compiles its training epoch again on the second call (the state it gets back has another sharding; seen on
 the CPU, jax 0.10.2, brax 0.14.2: 3.97 s of compilation in epoch two of arm2d, epochs three and four ~2 s).
-Evaluation is jaxarm's `evaluate` on the same fresh episodes for both,
+Evaluation is jaxarm's `evaluate` on the same fresh episodes of the preset's evaluation env for both,
 with deterministic policies (tanh of the Gaussian's mean), outside the timings.
 
 Both learners compile with the same XLA settings: the process's. Our runner would compile an env without MJX
@@ -109,8 +109,10 @@ def ppo_config(env_name: str, num_envs: int | None, env_steps: int | None) -> PP
     return config
 
 
-def evaluate_policy(env, env_params, policy, episodes: int, seed: int) -> tuple[float, float]:
-    """(success rate, mean return) of a deterministic `policy: obs [B, O] -> action [B, A]` on fresh episodes."""
+def evaluate_policy(config: PPOConfig, policy, episodes: int, seed: int) -> tuple[float, float]:
+    """(success rate, mean return) of a deterministic `policy: obs [B, O] -> action [B, A]` on fresh episodes of
+    `config`'s evaluation env (training-only curricula off, as in every evaluation)."""
+    env, env_params = config.make_eval_env()
     result = jax.jit(lambda key: evaluate(env, env_params, policy, key, episodes))(jax.random.PRNGKey(seed + 1))
     summary = result.summary()
     return summary["success_rate"], summary["return_mean"]
@@ -118,7 +120,6 @@ def evaluate_policy(env, env_params, policy, episodes: int, seed: int) -> tuple[
 
 def run_ours(config: PPOConfig, eval_episodes: int) -> Result:
     """Trains our PPO (`PARTS` calls of one AOT-compiled program) and evaluates it."""
-    env, env_params = config.make_env()
     trainer = make_trainer(config)
     hparams = config.hparams()
     start = time.perf_counter()
@@ -136,7 +137,7 @@ def run_ours(config: PPOConfig, eval_episodes: int) -> Result:
         part_seconds.append(time.perf_counter() - part_start)
     total_seconds = time.perf_counter() - start
     success, return_mean = evaluate_policy(
-        env, env_params, lambda obs: trainer.act(state, obs), eval_episodes, config.seed
+        config, lambda obs: trainer.act(state, obs), eval_episodes, config.seed
     )
     return Result(int(state.env_steps), total_seconds, tuple(part_seconds), success, return_mean)
 
@@ -194,7 +195,8 @@ def run_brax(config: PPOConfig, learning_rate: float, eval_episodes: int) -> Res
     make_policy, params, _ = brax_ppo.train(
         environment=BraxEnv(env, env_params),
         episode_length=int(env_params.max_episode_steps),
-        progress_fn=lambda step, metrics: epochs.append((step, float(metrics["training/walltime"]))),
+        progress_fn=lambda step, metrics: epochs.append((step, float(metrics["training/walltime"])))
+        or print(f"  brax: {step:,} env steps, {time.perf_counter() - start:.1f} s", flush=True),
         **brax_ppo_kwargs(config, learning_rate),
     )
     total_seconds = time.perf_counter() - start
@@ -204,7 +206,7 @@ def run_brax(config: PPOConfig, learning_rate: float, eval_episodes: int) -> Res
     inference = make_policy(params, deterministic=True)
     unused_key = jax.random.PRNGKey(0)
     success, return_mean = evaluate_policy(
-        env, env_params, lambda obs: inference(obs, unused_key)[0], eval_episodes, config.seed
+        config, lambda obs: inference(obs, unused_key)[0], eval_episodes, config.seed
     )
     return Result(int(steps), total_seconds, part_seconds, success, return_mean)
 
@@ -243,6 +245,8 @@ def main(argv=None) -> None:
     parser.add_argument("--brax-learning-rate", type=float, default=1e-3, help="brax's constant learning rate")
     parser.add_argument("--eval-episodes", type=int, default=1000, help="fresh deterministic episodes per learner")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--learners", choices=("both", "jaxarm", "brax"), default="both",
+                        help="run one learner alone (its line, no table): for budgets one call cannot hold both")
     args = parser.parse_args(argv)
     if args.env not in envs.names():
         parser.error(f"unknown env {args.env!r}; registered: {', '.join(envs.names())}")
@@ -259,10 +263,13 @@ def main(argv=None) -> None:
           f"epochs, MLPs {config.policy_hidden_sizes}/{config.value_hidden_sizes} {config.activation}, "
           f"γ {config.gamma}; "
           f"lr ours {config.learning_rate:g} (linear decay), brax {args.brax_learning_rate:g} (constant)", flush=True)
-    ours = run_ours(config, args.eval_episodes)
-    print(f"jaxarm PPO done: {ours.total_seconds:.1f} s, parts {format_parts(ours)}, success {ours.success_rate:.1%}",
-          flush=True)
-    brax_result = run_brax(config, args.brax_learning_rate, args.eval_episodes)
-    print(f"brax PPO done: {brax_result.total_seconds:.1f} s, parts {format_parts(brax_result)}, "
-          f"success {brax_result.success_rate:.1%}", flush=True)
-    print(format_table(ours, brax_result))
+    learners = {"jaxarm": lambda: run_ours(config, args.eval_episodes),
+                "brax": lambda: run_brax(config, args.brax_learning_rate, args.eval_episodes)}
+    results = {}
+    for name in learners if args.learners == "both" else [args.learners]:
+        result = results[name] = learners[name]()
+        print(f"{name} PPO: {result.total_seconds:.1f} s, parts {format_parts(result)}, "
+              f"{result.steps_per_second:,.0f} env steps/s at the steady rate, success {result.success_rate:.1%}, "
+              f"return {result.return_mean:.1f}", flush=True)
+    if len(results) == 2:
+        print(format_table(results["jaxarm"], results["brax"]))
