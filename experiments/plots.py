@@ -14,10 +14,10 @@ from matplotlib.figure import Figure
 from experiments.stats import confidence_halfwidth
 
 
-def _figure(width: float, height: float, columns: int = 1):
+def _figure(width: float, height: float, columns: int = 1, rows: int = 1):
     figure = Figure(figsize=(width, height))
     FigureCanvasAgg(figure)
-    return figure, figure.subplots(1, columns)
+    return figure, figure.subplots(rows, columns)
 
 
 def rolling_mean(values: np.ndarray, window: int, weights: np.ndarray | None = None) -> np.ndarray:
@@ -85,5 +85,27 @@ def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
         ax.set_xlabel("env steps")
     success_ax.legend(fontsize=7)
     fig.suptitle(f"{title} ({jax.devices()[0].device_kind}); bands: 95% CI over seeds")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+
+
+def run_comparison(curves: dict, path: pathlib.Path, title: str) -> None:
+    """Training success rate and return over env steps (left) and over wall clock (right), runs overlaid.
+
+    `curves` maps a run's label to (env_steps, wall_seconds, success, returns), each [updates]. The title
+    names the device.
+    """
+    fig, axes = _figure(12, 8, columns=2, rows=2)
+    for index, (label, (steps, wall, success, returns)) in enumerate(curves.items()):
+        for row, values in enumerate((success, returns)):
+            for column, x in enumerate((steps, wall)):
+                axes[row][column].plot(x, values, color=f"C{index}", label=label)
+    for column, xlabel in enumerate(("env steps", "wall clock since the first jit (s)")):
+        axes[0][column].set_ylabel("success rate (training episodes, rolling)")
+        axes[0][column].set_ylim(-0.02, 1.02)
+        axes[1][column].set_ylabel("episode return (training, rolling)")
+        axes[1][column].set_xlabel(xlabel)
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

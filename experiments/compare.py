@@ -1,0 +1,133 @@
+"""Compare finished or stopped runs: `python -m experiments.compare RUN_DIR ... [--out compare.png]`.
+
+For studies whose points are separate runs (a batch-size study stopped at equal wall clock with
+`run.py --stop-after-minutes`, or runs from several sessions): reads each run's config.json, metrics.jsonl and,
+where present, eval.json; prints a markdown table (batch, steady env steps/s, env steps, wall clock, training
+success and return at the end and at the wall clock all runs reached, deterministic evaluation) and draws the
+training success rate and return over env steps and over wall clock, runs overlaid. Training success counts
+every training episode, curricula starts included, so it compares runs of one preset, not with evaluations.
+"""
+
+import argparse
+import dataclasses
+import json
+import pathlib
+import sys
+
+import numpy as np
+
+from experiments import plots, rundir
+
+ROLLING_FRACTION = 20
+"""Rolling means span 1/ROLLING_FRACTION of a run's updates, as in the run's own curve."""
+
+
+@dataclasses.dataclass(frozen=True)
+class RunCurves:
+    """One run's training curves, over updates in which at least one episode finished.
+
+    Attributes:
+      label: the run directory's name, or the label given.
+      batch: env steps per update (num_envs × rollout_length; None where the config has no rollout).
+      env_steps, wall_seconds: [U] env steps and seconds since the first jit at each update.
+      success, returns: [U] rolling means (weighted by finished episodes) of the training success rate and
+        episode return.
+      steps_per_second: the median env-steps rate after the first logged chunk (compile excluded).
+      evaluation: eval.json's contents, or None.
+    """
+
+    label: str
+    batch: int | None
+    env_steps: np.ndarray
+    wall_seconds: np.ndarray
+    success: np.ndarray
+    returns: np.ndarray
+    steps_per_second: float
+    evaluation: dict | None
+
+
+def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
+    """Reads a run directory; ValueError if it holds no finished episodes."""
+    config, _ = rundir.read_config(run_dir)
+    rows = [row for row in rundir.read_metrics(run_dir) if row.get("episodes/episodes", 0) > 0]
+    if not rows:
+        raise ValueError(f"{run_dir} has no metrics with finished episodes")
+    column = lambda name: np.array([row[name] for row in rows], float)  # noqa: E731
+    episodes = column("episodes/episodes")
+    window = max(1, len(rows) // ROLLING_FRACTION)
+    wall = column("wall_time")
+    rates = column("steps_per_second")[wall > wall[0]]
+    rollout = getattr(config, "rollout_length", None)
+    eval_path = run_dir / "eval.json"
+    return RunCurves(
+        label=label or run_dir.name,
+        batch=config.num_envs * rollout if rollout else None,
+        env_steps=column("env_steps"),
+        wall_seconds=wall,
+        success=plots.rolling_mean(column("episodes/success_rate"), window, episodes),
+        returns=plots.rolling_mean(column("episodes/return_mean"), window, episodes),
+        steps_per_second=float(np.median(rates)) if len(rates) else float("nan"),
+        evaluation=json.loads(eval_path.read_text()) if eval_path.exists() else None,
+    )
+
+
+def value_at(run: RunCurves, values: np.ndarray, seconds: float) -> float:
+    """`values` [U] at the last update logged by `seconds` of wall clock (NaN before the first)."""
+    reached = np.flatnonzero(run.wall_seconds <= seconds)
+    return float(values[reached[-1]]) if len(reached) else float("nan")
+
+
+def table(runs: list[RunCurves]) -> str:
+    """Markdown: one row per run, with training success and return also at the wall clock every run reached."""
+    common = min(run.wall_seconds[-1] for run in runs)
+    lines = [f"| run | env steps per update | env steps/s | env steps | wall s | training success | return | "
+             f"success at {common:.0f} s | return at {common:.0f} s | eval success |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for run in runs:
+        evaluated = (f"{run.evaluation['success_rate']:.1%} ({run.evaluation['episodes']:,})"
+                     if run.evaluation else "—")
+        lines.append(
+            f"| {run.label} | {run.batch or 0:,} | {run.steps_per_second:,.0f} | {run.env_steps[-1]:,.0f} | "
+            f"{run.wall_seconds[-1]:.0f} | {run.success[-1]:.1%} | {run.returns[-1]:.1f} | "
+            f"{value_at(run, run.success, common):.1%} | {value_at(run, run.returns, common):.1f} | {evaluated} |")
+    return "\n".join(lines)
+
+
+def device_name(runs: list[RunCurves], given: str | None) -> str:
+    """The device for the figure's title: `given`, else the one every evaluated run names; ValueError if none."""
+    if given:
+        return given
+    named = {run.evaluation["device"] for run in runs if run.evaluation and "device" in run.evaluation}
+    if len(named) != 1:
+        raise ValueError("name the device for the figure with --device (the runs' eval.json files "
+                         f"name {sorted(named) or 'none'})")
+    return named.pop()
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m experiments.compare", description=__doc__.splitlines()[0])
+    parser.add_argument("run_dirs", nargs="+")
+    parser.add_argument("--label", action="append", dest="labels",
+                        help="a run's label; give one per run, in order (default: directory names)")
+    parser.add_argument("--title", default="runs compared")
+    parser.add_argument("--device", help="device named in the figure (default: the runs' eval.json)")
+    parser.add_argument("--out", default="compare.png", help="where the PNG goes")
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    labels = args.labels or [None] * len(args.run_dirs)
+    try:
+        if len(labels) != len(args.run_dirs):
+            raise ValueError(f"{len(labels)} --label for {len(args.run_dirs)} runs")
+        runs = [load_run(pathlib.Path(path), label) for path, label in zip(args.run_dirs, labels)]
+        device = device_name(runs, args.device)
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    print(table(runs))
+    curves = {run.label: (run.env_steps, run.wall_seconds, run.success, run.returns) for run in runs}
+    plots.run_comparison(curves, pathlib.Path(args.out), f"{args.title} ({device})")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,72 @@
+"""Comparing run directories: curves read back, values at a common wall clock, table, figure, errors."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from experiments import compare, configs, rundir
+
+
+def write_run(run_dir, num_envs: int, rows: list[tuple[float, float, float, float, float]], device=None):
+    """A run directory with `ppo_arm2d` at `num_envs` and metric rows of
+    (wall_time, steps_per_second, episodes, success_rate, return_mean)."""
+    config = dataclasses.replace(configs.get("ppo_arm2d"), num_envs=num_envs)
+    rundir.write_config(run_dir, config, "ppo_arm2d")
+    lines = []
+    for update, (wall, rate, episodes, success, returns) in enumerate(rows, start=1):
+        lines.append(json.dumps({"updates": update, "wall_time": wall, "steps_per_second": rate,
+                                 "env_steps": update * num_envs * config.rollout_length,
+                                 "episodes/episodes": episodes, "episodes/success_rate": success,
+                                 "episodes/return_mean": returns}))
+    (run_dir / "metrics.jsonl").write_text("\n".join(lines) + "\n")
+    if device:
+        (run_dir / "eval.json").write_text(json.dumps({"episodes": 100, "success_rate": 0.5, "device": device}))
+    return run_dir
+
+
+def test_a_run_reads_back_with_its_batch_rate_and_episode_weighted_curves(tmp_path):
+    rows = [(10.0, 100.0, 1, 0.0, -1.0), (10.0, 100.0, 0, 0.9, 9.0), (12.0, 300.0, 3, 1.0, 3.0),
+            (14.0, 500.0, 1, 1.0, 5.0)]
+    run = compare.load_run(write_run(tmp_path / "a", 64, rows))
+    assert run.label == "a" and run.batch == 64 * 16
+    # The update with no finished episode is left out; with 3 rows the rolling window is 1 update.
+    np.testing.assert_allclose(run.wall_seconds, [10.0, 12.0, 14.0])
+    np.testing.assert_allclose(run.success, [0.0, 1.0, 1.0])
+    np.testing.assert_allclose(run.returns, [-1.0, 3.0, 5.0])
+    assert run.steps_per_second == 400.0  # median after the first chunk (wall 10 s holds the compilation)
+    assert run.evaluation is None
+    assert np.isnan(compare.value_at(run, run.success, 9.0))
+    assert compare.value_at(run, run.returns, 13.0) == 3.0
+
+
+def test_the_table_compares_runs_at_the_wall_clock_all_of_them_reached(tmp_path):
+    short = write_run(tmp_path / "short", 64, [(10.0, 100.0, 2, 0.2, 1.0), (20.0, 100.0, 2, 0.4, 2.0)], "GPU X")
+    long = write_run(tmp_path / "long", 128, [(10.0, 100.0, 2, 0.1, 0.5), (20.0, 100.0, 2, 0.3, 1.5),
+                                               (30.0, 100.0, 2, 0.9, 9.5)], "GPU X")
+    runs = [compare.load_run(short), compare.load_run(long, "big batch")]
+    lines = compare.table(runs).splitlines()
+    assert "success at 20 s" in lines[0]
+    assert lines[3].startswith("| big batch | 2,048 |")
+    assert "| 90.0% | 9.5 | 30.0% | 1.5 | 50.0% (100) |" in lines[3]
+    assert compare.device_name(runs, None) == "GPU X"
+
+
+def test_the_cli_draws_the_figure_and_names_the_device_or_refuses(tmp_path, capsys):
+    first = write_run(tmp_path / "first", 64, [(10.0, 100.0, 2, 0.2, 1.0), (20.0, 100.0, 2, 0.4, 2.0)])
+    second = write_run(tmp_path / "second", 64, [(10.0, 100.0, 2, 0.2, 1.0)])
+    out = tmp_path / "compare.png"
+    assert compare.main([str(first), str(second), "--out", str(out)]) == 2
+    assert "--device" in capsys.readouterr().err
+    assert compare.main([str(first), str(second), "--label", "only one", "--device", "CPU"]) == 2
+    assert "1 --label for 2 runs" in capsys.readouterr().err
+    assert compare.main([str(first), str(second), "--device", "CPU", "--out", str(out)]) == 0
+    assert out.stat().st_size > 0
+    assert compare.main([str(tmp_path)]) == 2
+    assert "not a run directory" in capsys.readouterr().err
+
+
+def test_a_run_without_finished_episodes_is_an_error(tmp_path):
+    with pytest.raises(ValueError, match="no metrics with finished episodes"):
+        compare.load_run(write_run(tmp_path / "empty", 64, [(10.0, 100.0, 0, 0.0, 0.0)]))
