@@ -1,8 +1,10 @@
-"""The training benchmark's arithmetic: equal parts and the steady rate (the runs themselves are benchmarks)."""
+"""The benchmarks' arithmetic and options: equal parts, the steady rate, scan lengths, one learner alone (the
+runs themselves are benchmarks)."""
 
 import pytest
 
 from experiments.benchmarks.arm2d import default_max_env_steps, scan_length
+from experiments.benchmarks import training
 from experiments.benchmarks.training import PARTS, Result, ppo_config
 
 
@@ -29,3 +31,11 @@ def test_arm2d_scan_length_keeps_cpu_calls_short_and_gpu_calls_long():
     assert scan_length(1 << 20, 1000, gpu) == 1000
     assert scan_length(1, 1000, cpu) == 1000
     assert scan_length(1 << 30, 1000, cpu) == 10
+
+
+def test_one_learner_alone_prints_its_line_and_no_table(capsys):
+    training.main(["--env", "arm2d", "--num-envs", "64", "--env-steps", "8192", "--eval-episodes", "4",
+                   "--learners", "jaxarm"])
+    out = capsys.readouterr().out
+    assert "jaxarm PPO:" in out and "env steps/s at the steady rate" in out
+    assert "brax PPO" not in out and "| jaxarm PPO | brax PPO |" not in out
