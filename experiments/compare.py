@@ -52,7 +52,10 @@ def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
     rows = [row for row in rundir.read_metrics(run_dir) if row.get("episodes/episodes", 0) > 0]
     if not rows:
         raise ValueError(f"{run_dir} has no metrics with finished episodes")
-    column = lambda name: np.array([row[name] for row in rows], float)  # noqa: E731
+
+    def column(name: str) -> np.ndarray:
+        return np.array([row[name] for row in rows], float)
+
     episodes = column("episodes/episodes")
     window = max(1, len(rows) // ROLLING_FRACTION)
     wall = column("wall_time")
@@ -87,7 +90,7 @@ def table(runs: list[RunCurves]) -> str:
         evaluated = (f"{run.evaluation['success_rate']:.1%} ({run.evaluation['episodes']:,})"
                      if run.evaluation else "—")
         lines.append(
-            f"| {run.label} | {run.batch or 0:,} | {run.steps_per_second:,.0f} | {run.env_steps[-1]:,.0f} | "
+            f"| {run.label} | {f'{run.batch:,}' if run.batch else '—'} | {run.steps_per_second:,.0f} | {run.env_steps[-1]:,.0f} | "
             f"{run.wall_seconds[-1]:.0f} | {run.success[-1]:.1%} | {run.returns[-1]:.1f} | "
             f"{value_at(run, run.success, common):.1%} | {value_at(run, run.returns, common):.1f} | {evaluated} |")
     return "\n".join(lines)

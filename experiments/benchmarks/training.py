@@ -192,11 +192,15 @@ def run_brax(config: PPOConfig, learning_rate: float, eval_episodes: int) -> Res
     env, env_params = config.make_env()
     epochs = []
     start = time.perf_counter()
+
+    def record_epoch(step, metrics):
+        epochs.append((step, float(metrics["training/walltime"])))
+        print(f"  brax: {step:,} env steps, {time.perf_counter() - start:.1f} s", flush=True)
+
     make_policy, params, _ = brax_ppo.train(
         environment=BraxEnv(env, env_params),
         episode_length=int(env_params.max_episode_steps),
-        progress_fn=lambda step, metrics: epochs.append((step, float(metrics["training/walltime"])))
-        or print(f"  brax: {step:,} env steps, {time.perf_counter() - start:.1f} s", flush=True),
+        progress_fn=record_epoch,
         **brax_ppo_kwargs(config, learning_rate),
     )
     total_seconds = time.perf_counter() - start
