@@ -18,10 +18,6 @@ import numpy as np
 
 from experiments import plots, rundir
 
-ROLLING_FRACTION = 20
-"""Rolling means span 1/ROLLING_FRACTION of a run's updates, as in the run's own curve."""
-
-
 @dataclasses.dataclass(frozen=True)
 class RunCurves:
     """One run's training curves, over updates in which at least one episode finished.
@@ -57,7 +53,7 @@ def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
         return np.array([row[name] for row in rows], float)
 
     episodes = column("episodes/episodes")
-    window = max(1, len(rows) // ROLLING_FRACTION)
+    window = plots.rolling_window(len(rows))  # as in the run's own curve
     wall = column("wall_time")
     rates = column("steps_per_second")[wall > wall[0]]
     rollout = getattr(config, "rollout_length", None)

@@ -20,6 +20,11 @@ def _figure(width: float, height: float, columns: int = 1, rows: int = 1):
     return figure, figure.subplots(rows, columns)
 
 
+def rolling_window(updates: int) -> int:
+    """Updates a learning curve's rolling means span: a twentieth of the run's, at least one."""
+    return max(1, updates // 20)
+
+
 def rolling_mean(values: np.ndarray, window: int, weights: np.ndarray | None = None) -> np.ndarray:
     """Trailing (weighted) mean over up to `window` values, same length as `values`."""
     weights = np.ones(len(values)) if weights is None else np.asarray(weights, float)
@@ -46,7 +51,7 @@ def learning_curve(rows: list[dict], path: pathlib.Path, title: str, device: str
         returns = np.array([row["episodes/return_mean"] for row in rows])
         success = np.array([row["episodes/success_rate"] for row in rows])
         episodes = np.array([row["episodes/episodes"] for row in rows])
-        window = max(1, len(rows) // 20)
+        window = rolling_window(len(rows))
         ax.scatter(steps, returns, s=6, alpha=0.4, label="episode return (mean per update)")
         ax.plot(steps, rolling_mean(returns, window), color="C0", label="rolling mean")
         if len(rows) > 1:
