@@ -19,7 +19,7 @@ import numpy as np
 
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
-from jaxarm.agents.common.trainer import run_updates
+from jaxarm.agents.common.trainer import Trainer, run_updates
 from experiments import configs, plots, rundir
 from experiments.stats import confidence_halfwidth
 
@@ -47,6 +47,16 @@ def parse_grid(base: RunConfig, assignments: list[str]) -> Grid:
     return Grid(groups=[apply_overrides(base, overrides) for overrides in static], dynamic=dynamic)
 
 
+def init_members(trainer: Trainer, keys: jax.Array, hparams):
+    """Learner states of a sweep's members, stacked: keys [M, 2] and hparams with leaves [M] -> states [M, ...].
+
+    One member at a time: vmapped, the orthogonal initialisers become batched QR factorisations, and jaxlib
+    0.10's CPU runtime deadlocks when two of those fan out over a two-worker pool at once (gdb: both workers in
+    ParallelBatchMap's BlockingCounter::Wait inside lapack_sgeqrf, 64 seeds, 2 cores).
+    """
+    return jax.jit(lambda k, h: jax.lax.map(lambda member: trainer.init(*member), (k, h)))(keys, hparams)
+
+
 def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, progress=print):
     """Trains every (dynamic combination × seed) of one static group in one vmapped program.
 
@@ -61,10 +71,7 @@ def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, pr
     ])
     keys = jnp.stack([jax.random.PRNGKey(config.seed + seed) for _, seed in members])
     start = time.perf_counter()
-    # One member at a time: vmapped, the orthogonal initialisers become batched QR factorisations, and
-    # jaxlib 0.10's CPU runtime deadlocks when two of those fan out over a two-worker pool at once (gdb:
-    # both workers in ParallelBatchMap's BlockingCounter::Wait inside lapack_sgeqrf, 64 seeds, 2 cores).
-    state = jax.jit(lambda k, h: jax.lax.map(lambda member: trainer.init(*member), (k, h)))(keys, hparams)
+    state = init_members(trainer, keys, hparams)
     if config.init_from:
         state = jax.vmap(rundir.warm_starter(config))(state)
     chunk = jax.jit(jax.vmap(lambda s, h: run_updates(trainer, s, h, config.updates_per_chunk)),
