@@ -8,8 +8,8 @@ Two goals that BENCHMARKS.md reports out of reach on the 2-core CPU rest on thes
   prints that bound beside a direct measurement of N vmapped seeds (the sweep's program).
 - arm2d at ≥ 10,000× the numpy reference. The two-link maths alone (angle update, finger position, on-goal
   test, hold count; no observation, reward, reset or statistics) is an upper bound on the full env. It is timed
-  with XLA's sine and cosine (`link_end_positions`, as the env computes it) and with a trig-free rotation of
-  kept sines and cosines, beside the full env and the numpy reference.
+  with XLA's sine and cosine and with a trig-free rotation of kept sines and cosines, each written the way
+  XLA:CPU runs fastest, beside the full env and the numpy reference.
 
 FLOPs are counted from the layer shapes (2 per multiply-add of the matmuls); elementwise work is left out, so
 the rates are conservative.
@@ -30,7 +30,6 @@ from experiments.sweep import init_members
 from jaxarm import envs
 from jaxarm.agents.common.trainer import run_updates
 from jaxarm.agents.ppo import PPOConfig
-from jaxarm.envs.arm2d.env import link_end_positions
 
 GOAL_RATIO = 10_000
 """arm2d's CPU goal: env steps/s as a multiple of the numpy reference's single env."""
@@ -69,36 +68,42 @@ def ppo_update_seconds(config: PPOConfig, seeds: int, repeats: int = 2) -> float
 
 
 def two_link_maths(rotation: bool):
-    """The two-link arm's per-step maths for one env, `(carry, action [2]) -> carry`, without observation,
-    reward, reset or statistics. carry: (angles [2], goal [2], hold [] int32) with XLA's sine and cosine, or
-    (cos [2], sin [2], goal [2], hold []) with each joint's cosine and sine rotated by the small angle change
-    (Taylor polynomials, |change| ≤ 0.1 rad) instead of recomputed."""
+    """The two-link arm's per-step maths for one env, `(carry, action (a0, a1)) -> carry`, without observation,
+    reward, reset or statistics, written for XLA:CPU's elementwise loops: every quantity a scalar per env, no
+    reductions or concatenations (those split a step into several loops and halve its rate). carry:
+    (angle0, angle1, goal_x, goal_y, hold) with XLA's sine and cosine of the absolute angles, or
+    (cos0, sin0, cos1, sin1, goal_x, goal_y, hold) with each joint's cosine and sine rotated by the small angle
+    change (Taylor polynomials, |change| ≤ 0.1 rad) instead of recomputed."""
     params = envs.make("arm2d").default_params()
-    half_goal = params.goal_size / 2
+    (length0, length1), (base_x, base_y) = params.link_lengths, params.base_pos
+    half_goal, scale = params.goal_size / 2, params.action_scale
 
-    def hold_count(finger, goal, hold):
-        on_goal = jnp.all(jnp.abs(finger - goal) < half_goal)
+    def hold_count(cos0, sin0, cos_sum, sin_sum, goal_x, goal_y, hold):
+        finger_x = base_x + length0 * cos0 + length1 * cos_sum
+        finger_y = base_y + length0 * sin0 + length1 * sin_sum
+        on_goal = (jnp.abs(finger_x - goal_x) < half_goal) & (jnp.abs(finger_y - goal_y) < half_goal)
         return jnp.where(on_goal, hold + 1, 0)
 
     def with_trigonometry(carry, action):
-        angles, goal, hold = carry
-        angles = jnp.mod(angles + action * params.action_scale, 2 * jnp.pi)
-        finger = link_end_positions(angles, params)[-1]
-        return angles, goal, hold_count(finger, goal, hold)
+        angle0, angle1, goal_x, goal_y, hold = carry
+        angle0 = jnp.mod(angle0 + action[0] * scale, 2 * jnp.pi)
+        angle1 = jnp.mod(angle1 + action[1] * scale, 2 * jnp.pi)
+        hold = hold_count(jnp.cos(angle0), jnp.sin(angle0), jnp.cos(angle0 + angle1), jnp.sin(angle0 + angle1),
+                          goal_x, goal_y, hold)
+        return angle0, angle1, goal_x, goal_y, hold
 
-    def with_rotation(carry, action):
-        cos, sin, goal, hold = carry
-        change = action * params.action_scale
+    def rotate(cos, sin, change):
         squared = change * change
         cos_change = 1 - squared * (0.5 - squared / 24)
         sin_change = change * (1 - squared * (1 / 6 - squared / 120))
-        cos, sin = cos * cos_change - sin * sin_change, sin * cos_change + cos * sin_change
-        cos_sum = cos[0] * cos[1] - sin[0] * sin[1]
-        sin_sum = sin[0] * cos[1] + cos[0] * sin[1]
-        lengths = params.link_lengths
-        finger = params.base_pos + jnp.stack([lengths[0] * cos[0] + lengths[1] * cos_sum,
-                                              lengths[0] * sin[0] + lengths[1] * sin_sum])
-        return cos, sin, goal, hold_count(finger, goal, hold)
+        return cos * cos_change - sin * sin_change, sin * cos_change + cos * sin_change
+
+    def with_rotation(carry, action):
+        cos0, sin0, cos1, sin1, goal_x, goal_y, hold = carry
+        cos0, sin0 = rotate(cos0, sin0, action[0] * scale)
+        cos1, sin1 = rotate(cos1, sin1, action[1] * scale)
+        hold = hold_count(cos0, sin0, cos0 * cos1 - sin0 * sin1, sin0 * cos1 + cos0 * sin1, goal_x, goal_y, hold)
+        return cos0, sin0, cos1, sin1, goal_x, goal_y, hold
 
     return with_rotation if rotation else with_trigonometry
 
@@ -108,16 +113,19 @@ def two_link_steps_per_second(num_envs: int, steps: int, rotation: bool, unroll:
     """Env steps/s of `two_link_maths` over `num_envs` envs in one jitted scan of `steps` steps, driven by the
     arm2d benchmark's bang-bang action pattern."""
     maths = jax.vmap(two_link_maths(rotation))
-    pattern = jnp.sign(jax.random.normal(jax.random.PRNGKey(1), (num_envs, 2)))
-    angles = jax.random.uniform(jax.random.PRNGKey(2), (num_envs, 2)) * 2 * jnp.pi
-    goal = jnp.full((num_envs, 2), 100.0)
+    pattern = jnp.sign(jax.random.normal(jax.random.PRNGKey(1), (2, num_envs)))
+    angles = jax.random.uniform(jax.random.PRNGKey(2), (2, num_envs)) * 2 * jnp.pi
+    goal = (jnp.full((num_envs,), 100.0), jnp.full((num_envs,), 100.0))
     hold = jnp.zeros((num_envs,), jnp.int32)
-    carry = (jnp.cos(angles), jnp.sin(angles), goal, hold) if rotation else (angles, goal, hold)
+    joints = (jnp.cos(angles[0]), jnp.sin(angles[0]), jnp.cos(angles[1]), jnp.sin(angles[1])) if rotation else (
+        angles[0], angles[1])
+    carry = (*joints, *goal, hold)
 
     @functools.partial(jax.jit, compiler_options=envs.compiler_options(envs.make("arm2d")))
     def run(carry):
         def body(carry, step):
-            return maths(carry, pattern * jnp.cos(step * 0.05)), None
+            action = pattern * jnp.cos(step * 0.05)
+            return maths(carry, (action[0], action[1])), None
 
         return jax.lax.scan(body, carry, jnp.arange(steps, dtype=jnp.float32), unroll=unroll)[0]
 

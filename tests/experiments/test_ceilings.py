@@ -23,23 +23,38 @@ def test_ppo_update_flops_of_the_arm2d_preset():
     assert ceilings.ppo_update_flops(configs.get("ppo_arm2d"), 9, 2) == expected == 4_271_898_624
 
 
-def test_rotation_tracks_the_sines_and_cosines_of_the_angles():
-    trig, rotation = ceilings.two_link_maths(rotation=False), ceilings.two_link_maths(rotation=True)
+def test_both_versions_of_the_two_link_maths_hold_the_goal_as_the_env_does():
+    params = envs.make("arm2d").default_params()
     angles = jnp.array([0.3, 2.0])
     # The goal under the starting finger: held at first, then lost and found again as the arm wanders.
-    goal = link_end_positions(angles, envs.make("arm2d").default_params())[-1]
+    goal = link_end_positions(angles, params)[-1]
     actions = jax.random.uniform(jax.random.PRNGKey(0), (200, 2), minval=-1, maxval=1)
 
-    def run(maths, carry):
-        return jax.lax.scan(lambda c, a: (maths(c, a), c[-1]), carry, actions)
+    def env_hold(hold, action_and_angles):
+        finger = link_end_positions(action_and_angles, params)[-1]
+        on_goal = jnp.all(jnp.abs(finger - goal) < params.goal_size / 2)
+        hold = jnp.where(on_goal, hold + 1, 0)
+        return hold, hold
+
+    env_angles = jnp.mod(angles + jnp.cumsum(actions * params.action_scale, axis=0), 2 * jnp.pi)
+    _, expected = jax.lax.scan(env_hold, jnp.zeros((), jnp.int32), env_angles)
+    assert int(expected.max()) > 0 and int(expected.min()) == 0
 
     hold = jnp.zeros((), jnp.int32)
-    (angles_end, _, _), trig_holds = run(trig, (angles, goal, hold))
-    (cos_end, sin_end, _, _), rotation_holds = run(rotation, (jnp.cos(angles), jnp.sin(angles), goal, hold))
-    np.testing.assert_allclose(cos_end, jnp.cos(angles_end), atol=1e-4)
-    np.testing.assert_allclose(sin_end, jnp.sin(angles_end), atol=1e-4)
-    assert int(trig_holds.max()) > 0 and int(trig_holds.min()) == 0
-    np.testing.assert_array_equal(trig_holds, rotation_holds)
+    starts = {False: (angles[0], angles[1], goal[0], goal[1], hold),
+              True: (jnp.cos(angles[0]), jnp.sin(angles[0]), jnp.cos(angles[1]), jnp.sin(angles[1]), goal[0], goal[1],
+                     hold)}
+    for rotation, start in starts.items():
+        maths = ceilings.two_link_maths(rotation)
+
+        def step(carry, action):
+            carry = maths(carry, action)
+            return carry, carry[-1]
+
+        end, holds = jax.lax.scan(step, start, (actions[:, 0], actions[:, 1]))
+        np.testing.assert_array_equal(holds, expected)
+    np.testing.assert_allclose(end[:4], [jnp.cos(env_angles[-1, 0]), jnp.sin(env_angles[-1, 0]),
+                                         jnp.cos(env_angles[-1, 1]), jnp.sin(env_angles[-1, 1])], atol=1e-4)
 
 
 def test_suite_prints_the_bound_and_the_table(capsys):
