@@ -24,7 +24,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from experiments import configs
-from experiments.benchmarks.arm2d import jax_steps_per_second, numpy_steps_per_second, scan_length
+from experiments.benchmarks.arm2d import (default_max_env_steps, jax_steps_per_second, numpy_steps_per_second,
+                                          scan_length)
 from experiments.benchmarks.timing import time_jitted
 from experiments.sweep import init_members
 from jaxarm import envs
@@ -39,6 +40,7 @@ def matmul_flops_per_second(size: int = 2048, repeats: int = 5) -> float:
     """FLOP/s of XLA's best repeat of one float32 [size, size] @ [size, size] product."""
     key = jax.random.PRNGKey(0)
     matrix = jax.random.normal(key, (size, size), jnp.float32)
+    # Each repeat multiplies the last product by itself: scaled so the values stay finite.
     _, best = time_jitted(jax.jit(lambda m: m @ m * (1.0 / size)), matrix, repeats)
     return 2 * size**3 / best
 
@@ -157,7 +159,7 @@ def print_arm2d(sizes: Sequence[int], steps: int, unroll: int) -> None:
     print("| envs | full env (auto-reset, statistics) | two-link maths, XLA sin/cos | two-link maths, rotation |")
     print("|---:|---:|---:|---:|")
     for size in sizes:
-        length = scan_length(size, steps, 2 * 10**7)
+        length = scan_length(size, steps, default_max_env_steps(jax.default_backend()))
         rates = (jax_steps_per_second(size, length, unroll=unroll)[0],
                  two_link_steps_per_second(size, length, rotation=False, unroll=unroll),
                  two_link_steps_per_second(size, length, rotation=True, unroll=unroll))
@@ -170,9 +172,9 @@ def main(argv=None) -> None:
     parser.add_argument("--config", default="ppo_arm2d", help="PPO preset whose update is counted and timed")
     parser.add_argument("--seeds", type=int, default=64, help="seeds vmapped in the measured sweep update")
     parser.add_argument("--sizes", default="4096,65536", help="comma-separated arm2d env counts")
-    parser.add_argument("--steps", type=int, default=1000, help="arm2d steps per timed scan (capped at 2e7 env steps)")
+    parser.add_argument("--steps", type=int, default=1000, help="arm2d steps per timed scan (capped as in the arm2d suite)")
     parser.add_argument("--unroll", type=int, default=8, help="arm2d env steps per scan iteration")
     args = parser.parse_args(argv)
-    print(f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; {np.__name__} {np.__version__}")
+    print(f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; numpy {np.__version__}")
     print_arithmetic(args.config, args.seeds)
     print_arm2d([int(text) for text in args.sizes.split(",")], args.steps, args.unroll)
