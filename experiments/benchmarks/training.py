@@ -13,9 +13,10 @@ ours bootstraps from the pre-reset observation; brax shuffles whole unrolls into
 
 Each learner runs the budget in `PARTS` equal parts (ours: calls of one program compiled ahead of time; brax:
 training epochs). The fastest part after the first gives the steady rate; everything else in the wall clock
-counts as compilation, set-up and one-off costs. Comparing only the first two parts is not enough: brax
-compiles its training epoch again on the second call (the state it gets back has another sharding; seen on
-the CPU, jax 0.10.2, brax 0.14.2: 3.97 s of compilation in epoch two of arm2d, epochs three and four ~2 s).
+counts as compilation, set-up and one-off costs. So a one-off cost outside the first part cannot pass for
+training: until 2026-11-24 brax compiled its training epoch a second time, on its second call, because our
+`device_put_replicated` shim laid the state out on a mesh axis named otherwise than brax's pmap axis (fixed in
+`jaxarm.interop.brax_compat`; 3.97 s of compilation in epoch two of arm2d on the CPU, 84 s on the sorter).
 Evaluation is jaxarm's `evaluate` on the same fresh episodes of the preset's evaluation env for both,
 with deterministic policies (tanh of the Gaussian's mean), outside the timings.
 

@@ -10,7 +10,7 @@ from brax.envs.wrappers import training as brax_training
 
 from jaxarm import envs
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
-from jaxarm.interop.brax_compat import device_put_replicated, install_device_put_replicated
+from jaxarm.interop.brax_compat import BRAX_PMAP_AXIS, device_put_replicated, install_device_put_replicated
 from jaxarm.interop.brax_env import BraxEnv, wrap_for_training
 
 NUM_ENVS = 4
@@ -40,6 +40,13 @@ def test_device_put_replicated_stacks_one_copy_per_device():
     install_device_put_replicated()
     assert callable(jax.device_put_replicated)
     assert install_device_put_replicated() is False  # never replaces an existing one
+
+
+def test_replicated_state_has_the_layout_brax_pmap_gives_back():
+    # Any other layout makes brax's pmapped epoch compile a second time, for its own outputs.
+    epoch = jax.pmap(lambda tree: jax.tree.map(lambda leaf: leaf + 1, tree), axis_name=BRAX_PMAP_AXIS)
+    replicated = device_put_replicated({"a": jnp.arange(3.0)}, jax.local_devices())
+    assert epoch(replicated)["a"].sharding == replicated["a"].sharding
 
 
 def test_time_limit_is_truncation_and_auto_reset_is_jaxarms():
