@@ -138,7 +138,7 @@ def two_link_steps_per_second(num_envs: int, steps: int, rotation: bool, unroll:
 def print_arithmetic(config_name: str, seeds: int) -> None:
     """The PPO part: XLA's matmul rate, one seed's rate, the bound for `seeds` seeds and their measured time."""
     config = configs.get(config_name)
-    env = envs.make(config.env)
+    env, _ = config.make_env()
     peak = matmul_flops_per_second()
     flops = ppo_update_flops(config, env.spec.observation_size, env.spec.action_size)
     one = ppo_update_seconds(config, 1)
@@ -158,8 +158,9 @@ def print_arm2d(sizes: Sequence[int], steps: int, unroll: int) -> None:
           f"{GOAL_RATIO * reference:.3g} env steps/s")
     print("| envs | full env (auto-reset, statistics) | two-link maths, XLA sin/cos | two-link maths, rotation |")
     print("|---:|---:|---:|---:|")
+    max_env_steps = default_max_env_steps(jax.default_backend())
     for size in sizes:
-        length = scan_length(size, steps, default_max_env_steps(jax.default_backend()))
+        length = scan_length(size, steps, max_env_steps)
         rates = (jax_steps_per_second(size, length, unroll=unroll)[0],
                  two_link_steps_per_second(size, length, rotation=False, unroll=unroll),
                  two_link_steps_per_second(size, length, rotation=True, unroll=unroll))

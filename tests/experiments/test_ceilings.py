@@ -24,37 +24,39 @@ def test_ppo_update_flops_of_the_arm2d_preset():
 
 
 def test_both_versions_of_the_two_link_maths_hold_the_goal_as_the_env_does():
-    params = envs.make("arm2d").default_params()
+    env = envs.make("arm2d")
+    params = env.default_params()
     angles = jnp.array([0.3, 2.0])
     # The goal under the starting finger: held at first, then lost and found again as the arm wanders.
     goal = link_end_positions(angles, params)[-1]
     actions = jax.random.uniform(jax.random.PRNGKey(0), (200, 2), minval=-1, maxval=1)
 
-    def env_hold(hold, action_and_angles):
-        finger = link_end_positions(action_and_angles, params)[-1]
-        on_goal = jnp.all(jnp.abs(finger - goal) < params.goal_size / 2)
-        hold = jnp.where(on_goal, hold + 1, 0)
-        return hold, hold
+    def env_step(state, action):
+        state = env.step(state, action, params)
+        return state, state.sim
 
-    env_angles = jnp.mod(angles + jnp.cumsum(actions * params.action_scale, axis=0), 2 * jnp.pi)
-    _, expected = jax.lax.scan(env_hold, jnp.zeros((), jnp.int32), env_angles)
+    start = env.reset(jax.random.PRNGKey(1), params)
+    start = start.replace(sim=start.sim.replace(angles=angles, goal=goal, hold_count=jnp.zeros((), jnp.int32)))
+    _, env_sims = jax.lax.scan(env_step, start, actions)
+    expected = env_sims.hold_count
     assert int(expected.max()) > 0 and int(expected.min()) == 0
 
     hold = jnp.zeros((), jnp.int32)
     starts = {False: (angles[0], angles[1], goal[0], goal[1], hold),
               True: (jnp.cos(angles[0]), jnp.sin(angles[0]), jnp.cos(angles[1]), jnp.sin(angles[1]), goal[0], goal[1],
                      hold)}
-    for rotation, start in starts.items():
+    for rotation, carry in starts.items():
         maths = ceilings.two_link_maths(rotation)
 
         def step(carry, action):
             carry = maths(carry, action)
             return carry, carry[-1]
 
-        end, holds = jax.lax.scan(step, start, (actions[:, 0], actions[:, 1]))
+        end, holds = jax.lax.scan(step, carry, (actions[:, 0], actions[:, 1]))
         np.testing.assert_array_equal(holds, expected)
-    np.testing.assert_allclose(end[:4], [jnp.cos(env_angles[-1, 0]), jnp.sin(env_angles[-1, 0]),
-                                         jnp.cos(env_angles[-1, 1]), jnp.sin(env_angles[-1, 1])], atol=1e-4)
+    last = env_sims.angles[-1]
+    np.testing.assert_allclose(end[:4], [jnp.cos(last[0]), jnp.sin(last[0]), jnp.cos(last[1]), jnp.sin(last[1])],
+                               atol=1e-4)
 
 
 def test_suite_prints_the_bound_and_the_table(capsys):
