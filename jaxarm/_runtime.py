@@ -17,8 +17,14 @@ import os
 CPU_FUSION_FLAG = "--xla_cpu_use_fusion_emitters"
 CPU_FUSION_OPTION = CPU_FUSION_FLAG.removeprefix("--")
 
+APPLIED_MARKER = "JAXARM_APPLIED_CPU_FLAG"
+"""Set to "1" in the environment where jaxarm added the flag. Processes started from this one inherit XLA_FLAGS
+with the flag already in it; the marker tells them it was jaxarm's, not the user's, so they compile every
+program as their parent does (without it, a subprocess compiled arm2d with the emitters off while its parent
+compiled them on, and their floats differed)."""
+
 _cpu_flag_applied = False
-"""Whether `apply_xla_settings` turned the fusion emitters off for this process."""
+"""Whether jaxarm turned the fusion emitters off for this process (here or in a parent process)."""
 
 
 def _jaxlib_version() -> tuple[int, ...]:
@@ -34,6 +40,11 @@ def cpu_flag_wanted(jaxlib_version: tuple[int, ...], xla_flags: str, keep_flags:
     return (not keep_flags) and jaxlib_version[:2] == (0, 10) and CPU_FUSION_FLAG not in xla_flags
 
 
+def cpu_flag_inherited(xla_flags: str, marker: str | None, keep_flags: bool) -> bool:
+    """Whether XLA_FLAGS holds the flag because a jaxarm parent process added it (`APPLIED_MARKER`)."""
+    return (not keep_flags) and marker == "1" and f"{CPU_FUSION_FLAG}=false" in xla_flags
+
+
 def apply_xla_settings() -> None:
     """Appends the CPU fusion flag to XLA_FLAGS where it helps (see module docstring)."""
     global _cpu_flag_applied
@@ -41,7 +52,10 @@ def apply_xla_settings() -> None:
     keep = os.environ.get("JAXARM_KEEP_XLA_FLAGS") == "1"
     if cpu_flag_wanted(_jaxlib_version(), flags, keep):
         os.environ["XLA_FLAGS"] = f"{flags} {CPU_FUSION_FLAG}=false".strip()
+        os.environ[APPLIED_MARKER] = "1"
         _cpu_flag_applied = True
+    else:
+        _cpu_flag_applied = cpu_flag_inherited(flags, os.environ.get(APPLIED_MARKER), keep)
 
 
 def fusion_emitter_options(flag_applied: bool, uses_mjx: bool) -> dict[str, bool]:

@@ -1,5 +1,9 @@
 """jaxarm's process-wide XLA:CPU setting for MJX, and the per-program options that undo it elsewhere."""
 
+import os
+import subprocess
+import sys
+
 from jaxarm import _runtime
 
 
@@ -15,3 +19,20 @@ def test_programs_without_mjx_turn_the_fusion_emitters_back_on_only_where_jaxarm
         "xla_cpu_use_fusion_emitters": True}
     assert _runtime.fusion_emitter_options(flag_applied=True, uses_mjx=True) == {}
     assert _runtime.fusion_emitter_options(flag_applied=False, uses_mjx=False) == {}
+
+
+def test_the_flag_counts_as_jaxarms_in_a_child_only_with_the_marker():
+    flag = "--xla_cpu_use_fusion_emitters=false"
+    assert _runtime.cpu_flag_inherited(flag, "1", keep_flags=False)
+    assert not _runtime.cpu_flag_inherited(flag, None, keep_flags=False)  # the user's own flag
+    assert not _runtime.cpu_flag_inherited("", "1", keep_flags=False)
+    assert not _runtime.cpu_flag_inherited(flag, "1", keep_flags=True)
+
+
+def test_a_child_process_makes_its_parents_choice():
+    # This process imported jaxarm (conftest); a subprocess inherits its environment, as a killed-and-resumed run's
+    # does, and must compile every program alike.
+    child = subprocess.run([sys.executable, "-c", "import jaxarm._runtime as r; r.apply_xla_settings(); "
+                            "print(r._cpu_flag_applied)"], env=dict(os.environ), capture_output=True, text=True,
+                           check=True)
+    assert child.stdout.strip() == str(_runtime._cpu_flag_applied)
