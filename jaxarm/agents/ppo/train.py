@@ -3,7 +3,8 @@
 One `update` collects `rollout_length` steps from every env with the stochastic policy, updates the
 observation normaliser, computes GAE (bootstrapping from the pre-reset observation on truncation, not on
 termination), and runs `num_epochs` × `num_minibatches` clipped-surrogate steps. Distributions (tanh-squashed
-Gaussian) and running statistics are brax's.
+Gaussian) and running statistics are brax's. The three phases run under the named scopes `collect`, `advantages`
+and `sgd`, which profiles show in every op's name (`python -m experiments.bench profile` sums time by them).
 """
 
 import jax
@@ -174,9 +175,8 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         total = policy_loss + hparams.value_coef * value_loss - hparams.entropy_coef * entropy
         return total, losses.LossTerms(policy_loss, value_loss, entropy, approx_kl, clip_fraction)
 
-    def update(state: PPOState, hparams: PPOHParams) -> tuple[PPOState, PPOMetrics]:
-        collect_key, shuffle_key, next_key = jax.random.split(state.key, 3)
-        env_state, rollout, episodes = collect(state, collect_key)
+    def advantage_samples(state: PPOState, rollout: Rollout, hparams: PPOHParams):
+        """(normaliser updated with the rollout's observations, [T·B] training samples with GAE targets)."""
         normalizer = state.normalizer
         if config.normalize_observations:
             normalizer = running_statistics.update(normalizer, rollout.obs)
@@ -187,10 +187,13 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
             hparams.gamma, hparams.gae_lambda,
         )
         samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets)
-        samples = jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
+        return normalizer, jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
 
-        progress = state.updates.astype(jnp.float32) / config.num_updates
-        learning_rate = hparams.learning_rate * (1.0 - progress if config.anneal_learning_rate else 1.0)
+    def sgd_epochs(params, opt_state, normalizer, samples: Samples, hparams: PPOHParams, learning_rate, key):
+        """`num_epochs` passes of `num_minibatches` clipped-surrogate steps over freshly shuffled `samples`.
+
+        Returns ((params, opt_state), (loss terms, grad norms)), the last two [num_epochs, num_minibatches].
+        """
         optimizer = make_optimizer(hparams, learning_rate)
 
         def sgd_step(carry, minibatch_and_key):
@@ -208,9 +211,20 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
             )
             return jax.lax.scan(sgd_step, carry, (minibatches, jax.random.split(step_key, config.num_minibatches)))
 
-        (params, opt_state), (terms, grad_norms) = jax.lax.scan(
-            epoch, (state.params, state.opt_state), jax.random.split(shuffle_key, config.num_epochs)
-        )
+        return jax.lax.scan(epoch, (params, opt_state), jax.random.split(key, config.num_epochs))
+
+    def update(state: PPOState, hparams: PPOHParams) -> tuple[PPOState, PPOMetrics]:
+        collect_key, shuffle_key, next_key = jax.random.split(state.key, 3)
+        with jax.named_scope("collect"):
+            env_state, rollout, episodes = collect(state, collect_key)
+        with jax.named_scope("advantages"):
+            normalizer, samples = advantage_samples(state, rollout, hparams)
+        progress = state.updates.astype(jnp.float32) / config.num_updates
+        learning_rate = hparams.learning_rate * (1.0 - progress if config.anneal_learning_rate else 1.0)
+        with jax.named_scope("sgd"):
+            (params, opt_state), (terms, grad_norms) = sgd_epochs(
+                state.params, state.opt_state, normalizer, samples, hparams, learning_rate, shuffle_key
+            )
         env_steps = state.env_steps + config.env_steps_per_update
         new_state = PPOState(
             params=params, opt_state=opt_state, normalizer=normalizer, env_state=env_state, key=next_key,
