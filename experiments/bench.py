@@ -6,7 +6,7 @@ Each suite prints ratios against a peer measured in the same run, with the devic
 import importlib
 import sys
 
-SUITES = ("arm2d", "panda_sort", "training", "scaling", "ceilings")
+SUITES = ("arm2d", "panda_sort", "training", "scaling", "ceilings", "profile")
 
 
 def main(argv=None) -> int:

@@ -1,0 +1,128 @@
+"""Where a learner's update spends its time, phase by phase, from one profiled call.
+
+Compiles `--updates` updates of a preset's learner into one program (as the runner compiles a chunk, with
+`Trainer.compiler_options`), runs it once to warm up, once timed, and once under `jax.profiler.trace`. Every op
+the device ran (GPU kernels and copies; on a CPU, XLA's thunks) is booked to the first of `--phases` that its
+HLO instruction's name stack holds: PPO runs its phases under the named scopes `collect`, `advantages` and
+`sgd`. Ops whose instruction carries no name stack (copies XLA inserted, and instructions such as those of
+MJX's constraint solver whose metadata XLA dropped) are `unattributed`.
+
+On a GPU, XLA records runs of kernels as CUDA graphs ("command buffers"); the profile shows each graph as one op
+with no name stack. Run with `XLA_FLAGS=--xla_gpu_enable_command_buffer=` to book every kernel to its phase: the
+wall clock then grows by the launch gaps, the busy times per phase do not.
+"""
+
+import argparse
+import collections
+import dataclasses
+import functools
+import glob
+import re
+import tempfile
+import time
+
+import jax
+
+from experiments import configs
+from jaxarm.agents.common.config import apply_overrides
+from jaxarm.agents.common.trainer import run_updates
+
+UNATTRIBUTED = "unattributed"
+INSTRUCTION = re.compile(r"^\s*(?:ROOT )?%?([\w.\-]+) = .*?op_name=\"([^\"]*)\"", re.MULTILINE)
+
+
+@dataclasses.dataclass(frozen=True)
+class PhaseTime:
+    """Busy time of one phase over the profiled call: seconds summed over its ops, and their count."""
+
+    phase: str
+    seconds: float
+    ops: int
+
+
+def op_names(hlo_text: str) -> dict[str, str]:
+    """{instruction name: its name stack (`op_name` metadata)} for every instruction of a compiled HLO module."""
+    return {match.group(1): match.group(2) for match in INSTRUCTION.finditer(hlo_text)}
+
+
+def phase_of(name_stack: str, phases: tuple[str, ...]) -> str:
+    """The first of `phases` that `name_stack` holds as a whole scope, else `UNATTRIBUTED`."""
+    scopes = name_stack.split("/")
+    return next((phase for phase in phases if phase in scopes), UNATTRIBUTED)
+
+
+def leaf_events(events: list) -> list:
+    """The events of one profile line that contain no other: XLA:CPU nests a loop's body ops inside the loop's own
+    event on the same thread, and only the innermost ops are work (GPU kernels on a stream never nest)."""
+    ordered = sorted(events, key=lambda event: (event.start_ns, -event.duration_ns))
+    return [event for event, following in zip(ordered, ordered[1:] + [None])
+            if following is None or following.start_ns >= event.start_ns + event.duration_ns]
+
+
+def device_ops(profile_path: str):
+    """(hlo op name, seconds) of every innermost op the device ran in an `.xplane.pb` profile: GPU planes where
+    there are any, else XLA:CPU's runtime threads (whose busy times add up over threads running at once)."""
+    # ProfileData's planes, lines and events are one-pass iterators: materialise them once.
+    planes = {plane.name: [list(line.events) for line in plane.lines] for plane in
+              jax.profiler.ProfileData.from_file(profile_path).planes}
+    device_lines = [lines for name, lines in planes.items() if name.startswith("/device:") and lines]
+    for lines in device_lines or [planes.get("/host:CPU", [])]:
+        for events in lines:
+            for event in leaf_events([event for event in events if "hlo_op" in dict(event.stats)]):
+                yield dict(event.stats)["hlo_op"], event.duration_ns * 1e-9
+
+
+def phase_times(ops, names: dict[str, str], phases: tuple[str, ...]) -> list[PhaseTime]:
+    """Busy time per phase (in `phases` order, `UNATTRIBUTED` last) of `(hlo op, seconds)` pairs."""
+    seconds, counts = collections.Counter(), collections.Counter()
+    for hlo_op, duration in ops:
+        phase = phase_of(names.get(hlo_op, ""), phases)
+        seconds[phase] += duration
+        counts[phase] += 1
+    return [PhaseTime(phase, seconds[phase], counts[phase]) for phase in (*phases, UNATTRIBUTED)]
+
+
+def profile_updates(config, num_updates: int, phases: tuple[str, ...]) -> tuple[float, list[PhaseTime]]:
+    """(wall seconds of `num_updates` updates, busy time per phase of another such call) of `config`'s learner."""
+    trainer = configs.make_trainer(config)
+    hparams = config.hparams()
+    state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams)
+    compiled = jax.jit(functools.partial(run_updates, trainer, num_updates=num_updates),
+                       compiler_options=trainer.compiler_options).lower(state, hparams).compile()
+    names = op_names(compiled.as_text())
+    jax.block_until_ready(compiled(state, hparams))  # warm-up
+    start = time.perf_counter()
+    jax.block_until_ready(compiled(state, hparams))
+    wall = time.perf_counter() - start
+    with tempfile.TemporaryDirectory() as trace_dir:
+        with jax.profiler.trace(trace_dir):
+            jax.block_until_ready(compiled(state, hparams))
+        (profile_path,) = glob.glob(f"{trace_dir}/**/*.xplane.pb", recursive=True)
+        return wall, phase_times(device_ops(profile_path), names, phases)
+
+
+def format_table(wall: float, times: list[PhaseTime], num_updates: int) -> str:
+    busy = sum(time.seconds for time in times)
+    lines = ["| phase | busy ms per update | share of busy | ops per update |", "|---|---:|---:|---:|"]
+    lines += [f"| {time.phase} | {time.seconds / num_updates * 1e3:.2f} | {time.seconds / max(busy, 1e-12):.1%} "
+              f"| {time.ops / num_updates:,.0f} |" for time in times]
+    lines.append(f"| all ops (busy) | {busy / num_updates * 1e3:.2f} | | |")
+    lines.append(f"| wall clock | {wall / num_updates * 1e3:.2f} | | |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m experiments.bench profile", description=__doc__.splitlines()[0])
+    parser.add_argument("--config", default="ppo_arm2d", help="preset name")
+    parser.add_argument("--updates", type=int, default=4, help="updates in the profiled program")
+    parser.add_argument("--phases", default="collect,advantages,sgd", help="named scopes to book time to")
+    parser.add_argument("overrides", nargs="*", help="config overrides key=value")
+    args = parser.parse_args(argv)
+    if args.updates < 1:
+        parser.error(f"--updates must be at least 1, not {args.updates}")
+    config = apply_overrides(configs.get(args.config), args.overrides)
+    phases = tuple(phase for phase in args.phases.split(",") if phase)
+    print(f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; {args.config} {' '.join(args.overrides)}; "
+          f"{args.updates} updates in one program", flush=True)
+    wall, times = profile_updates(config, args.updates, phases)
+    print(format_table(wall, times, args.updates))
