@@ -5,8 +5,9 @@ For every requested env that is registered (default: arm2d, panda_sort), with th
 - PPO env steps/s: whole updates (rollout, GAE, epochs × minibatches) of our PPO with the preset's
   hyper-parameters at `num_envs` envs, compiled ahead of time, compile excluded;
 - where PPO's time goes at the preset's env count (when the sweep reached it): the same update timed with
-  zero SGD epochs (rollout, value passes, GAE and the normaliser only) and env stepping alone, so the
-  differences isolate the policy side of the rollout and the SGD.
+  zero SGD epochs and env stepping alone, so the differences isolate the policy side of the rollout and the
+  learning. With zero epochs nothing uses the advantages, so XLA drops the value passes and GAE as dead
+  code: they are booked with the SGD.
 Sizes are tried in increasing order; the previous size's rate shortens each timed call to fit
 `--max-seconds`, and the sweep stops where even the shortest call would not fit (MJX envs on CPU stop
 early; their compile times are minutes there). One device is used; the output and the plot's title say how
@@ -21,13 +22,13 @@ import time
 from collections.abc import Callable
 
 import jax
-import jax.numpy as jnp
 import matplotlib
 import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from experiments.benchmarks.timing import env_seconds, timed  # noqa: E402
 from experiments.benchmarks.training import base_ppo_config  # noqa: E402
 from jaxarm import envs  # noqa: E402
 from jaxarm.agents.common.trainer import run_updates  # noqa: E402
@@ -36,13 +37,6 @@ from jaxarm.agents.ppo import make_trainer  # noqa: E402
 
 def parse_sizes(text: str) -> list[int]:
     return sorted(int(part) for part in text.split(",") if part)
-
-
-def timed(function, *args) -> float:
-    """Seconds of one call of an already compiled `function`, results waited for."""
-    start = time.perf_counter()
-    jax.block_until_ready(function(*args))
-    return time.perf_counter() - start
 
 
 def safe_sizes(env_name: str, sizes: list[int]) -> list[int]:
@@ -55,27 +49,6 @@ def safe_sizes(env_name: str, sizes: list[int]) -> list[int]:
         print(f"  {env_name}: skipping {', '.join(f'{size:,}' for size in dropped)} envs on the CPU "
               f"(above {limit} the CPU runtime can deadlock on this env; see the README)", flush=True)
     return [size for size in sizes if size <= limit]
-
-
-def env_seconds(env_name: str, num_envs: int, steps: int) -> tuple[float, float]:
-    """(seconds of `steps` steps of `num_envs` auto-reset envs, compile seconds) under the preset's params."""
-    env, params = base_ppo_config(env_name).make_env()
-    batch = envs.VmapEnv(envs.AutoReset(env), num_envs)
-    # A fixed bang-bang pattern swept by a cosine: cheap to make, and it visits goals, resets and time limits.
-    pattern = jnp.sign(jax.random.normal(jax.random.PRNGKey(1), (num_envs, env.spec.action_size)))
-
-    def run(state):
-        def body(carry, step):
-            return batch.step(carry, pattern * jnp.cos(step * 0.05), params), None
-
-        return jax.lax.scan(body, state, jnp.arange(steps, dtype=jnp.float32))[0]
-
-    state = jax.jit(batch.reset)(jax.random.PRNGKey(0), params)
-    start = time.perf_counter()
-    compiled = jax.jit(run, compiler_options=envs.compiler_options(env)).lower(state).compile()
-    compile_seconds = time.perf_counter() - start
-    timed(compiled, state)  # warm-up: first-call allocations
-    return min(timed(compiled, state) for _ in range(2)), compile_seconds
 
 
 def ppo_seconds(env_name: str, num_envs: int, num_updates: int, **overrides) -> tuple[float, float]:
@@ -110,7 +83,9 @@ class Measure:
 
 
 def env_measure(env_name: str) -> Measure:
-    return Measure(lambda size, units: env_seconds(env_name, size, units), lambda size: size, 10, 1000)
+    config = base_ppo_config(env_name)
+    options = envs.compiler_options(config.make_env()[0])
+    return Measure(lambda size, units: env_seconds(config, size, units, options), lambda size: size, 10, 1000)
 
 
 def ppo_measure(env_name: str) -> Measure:
@@ -145,16 +120,17 @@ def time_breakdown(env_name: str, num_updates: int) -> list[tuple[str, float]]:
     config = base_ppo_config(env_name)
     full, _ = ppo_seconds(env_name, config.num_envs, num_updates)
     no_sgd, _ = ppo_seconds(env_name, config.num_envs, num_updates, num_epochs=0)
-    env_only, _ = env_seconds(env_name, config.num_envs, config.rollout_length * num_updates)
+    options = envs.compiler_options(config.make_env()[0])
+    env_only, _ = env_seconds(config, config.num_envs, config.rollout_length * num_updates, options)
     sgd_steps = config.num_epochs * config.num_minibatches
     per_update = 1000.0 / num_updates
     return [
         ("whole update", full * per_update),
         (f"env stepping alone ({config.num_envs:,} envs × {config.rollout_length} steps)", env_only * per_update),
-        ("policy sampling, value passes, GAE, normaliser", (no_sgd - env_only) * per_update),
-        (f"SGD: {config.num_epochs} epochs × {config.num_minibatches} minibatches of {config.minibatch_size:,}",
-         (full - no_sgd) * per_update),
-        ("  per SGD step", (full - no_sgd) * per_update / sgd_steps),
+        ("policy sampling and the normaliser", (no_sgd - env_only) * per_update),
+        (f"value passes, GAE and SGD: {config.num_epochs} epochs × {config.num_minibatches} minibatches of "
+         f"{config.minibatch_size:,}", (full - no_sgd) * per_update),
+        ("  per SGD step, value passes and GAE included", (full - no_sgd) * per_update / sgd_steps),
     ]
 
 

@@ -3,7 +3,11 @@
 import time
 
 import jax
+import jax.numpy as jnp
 import numpy as np
+
+from jaxarm import envs
+from jaxarm.agents.common.config import RunConfig
 
 
 def time_jitted(run, state, repeats: int) -> tuple[float, float]:
@@ -17,3 +21,39 @@ def time_jitted(run, state, repeats: int) -> tuple[float, float]:
         state = jax.block_until_ready(run(state))
         best = min(best, time.perf_counter() - start)
     return compile_seconds, best
+
+
+def timed(function, *args) -> float:
+    """Seconds of one call of an already compiled `function`, results waited for."""
+    start = time.perf_counter()
+    jax.block_until_ready(function(*args))
+    return time.perf_counter() - start
+
+
+ACTION_POOL_SIZE = 16
+"""Distinct action sets `env_seconds` cycles through."""
+
+
+def env_seconds(config: RunConfig, num_envs: int, steps: int, compiler_options: dict) -> tuple[float, float]:
+    """(best seconds of `steps` steps of `num_envs` auto-reset envs, compile seconds), `config`'s env and params.
+
+    The envs step inside one `lax.scan`, compiled ahead of time with `compiler_options`, as a learner's rollout
+    steps them, with actions drawn as an untrained policy draws them (tanh of a standard normal), from a pool of
+    `ACTION_POOL_SIZE` sets drawn once, so that drawing them costs next to nothing.
+    """
+    env, params = config.make_env()
+    batch = envs.VmapEnv(envs.AutoReset(env), num_envs)
+    pool = jnp.tanh(jax.random.normal(jax.random.PRNGKey(1), (ACTION_POOL_SIZE, num_envs, env.spec.action_size)))
+
+    def run(state):
+        def body(carry, index):
+            return batch.step(carry, pool[index], params), None
+
+        return jax.lax.scan(body, state, jnp.arange(steps) % ACTION_POOL_SIZE)[0]
+
+    state = jax.jit(batch.reset)(jax.random.PRNGKey(0), params)
+    start = time.perf_counter()
+    compiled = jax.jit(run, compiler_options=compiler_options).lower(state).compile()
+    compile_seconds = time.perf_counter() - start
+    timed(compiled, state)  # warm-up: first-call allocations
+    return min(timed(compiled, state) for _ in range(2)), compile_seconds

@@ -24,6 +24,11 @@ Both learners compile with the same XLA settings: the process's. Our runner woul
 with XLA:CPU's fusion emitters on (`Trainer.compiler_options`), which brax's own programs cannot be given here;
 with jaxlib 0.10 on a CPU, run this suite with `JAXARM_KEEP_XLA_FLAGS=1` for such an env, so that both compile
 the way our runner does (and as brax does without jaxarm imported).
+
+With both learners, the suite then times the same envs stepping alone (same count, same steps per update, no
+policy, no learning) and prints each learner's cost beyond that, and the ceiling: the throughput ratio against
+brax that a learner costing nothing would reach. Where the env's physics dominates an update (the sorter on a
+GPU), that ceiling bounds any learner.
 """
 
 import argparse
@@ -36,6 +41,7 @@ import jax
 import numpy as np
 
 from experiments import configs
+from experiments.benchmarks.timing import env_seconds
 from jaxarm import envs
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import run_updates
@@ -112,7 +118,9 @@ def ppo_config(env_name: str, num_envs: int | None, env_steps: int | None) -> PP
 
 def evaluate_policy(config: PPOConfig, policy, episodes: int, seed: int) -> tuple[float, float]:
     """(success rate, mean return) of a deterministic `policy: obs [B, O] -> action [B, A]` on fresh episodes of
-    `config`'s evaluation env (training-only curricula off, as in every evaluation)."""
+    `config`'s evaluation env (training-only curricula off, as in every evaluation); NaNs for no episodes."""
+    if episodes == 0:
+        return float("nan"), float("nan")
     env, env_params = config.make_eval_env()
     result = jax.jit(lambda key: evaluate(env, env_params, policy, key, episodes))(jax.random.PRNGKey(seed + 1))
     summary = result.summary()
@@ -216,6 +224,31 @@ def run_brax(config: PPOConfig, learning_rate: float, eval_episodes: int) -> Res
     return Result(int(steps), total_seconds, part_seconds, success, return_mean)
 
 
+def env_stepping_seconds(config: PPOConfig) -> float:
+    """Seconds per update of stepping `config`'s envs alone (`num_envs` × `rollout_length` env steps, no learner),
+    compiled with the process's XLA settings as both learners are; timed over one part's updates."""
+    updates = config.num_updates // PARTS
+    seconds, _ = env_seconds(config, config.num_envs, config.rollout_length * updates, compiler_options={})
+    return seconds / updates
+
+
+def ceiling_line(config: PPOConfig, ours: Result, brax: Result, env_seconds_per_update: float) -> str:
+    """What each learner costs beyond stepping the envs, and the most any learner could run at against brax.
+
+    A learner that cost nothing would take `env_seconds_per_update` per update: brax's steady update time over
+    that is the ceiling on the throughput ratio. The learners' own costs are their steady update times less it.
+    """
+    ours_update, brax_update = (result.train_seconds / config.num_updates for result in (ours, brax))
+    return (
+        f"env stepping alone ({config.num_envs:,} envs × {config.rollout_length} steps per update, no learner): "
+        f"{env_seconds_per_update * 1e3:.1f} ms per update, {config.env_steps_per_update / env_seconds_per_update:,.0f} "
+        f"env steps/s. Steady update: ours {ours_update * 1e3:.1f} ms, brax {brax_update * 1e3:.1f} ms; beyond the env "
+        f"stepping our learner costs {(ours_update - env_seconds_per_update) * 1e3:.1f} ms, brax's "
+        f"{(brax_update - env_seconds_per_update) * 1e3:.1f} ms. Ceiling: a learner that cost nothing would run at "
+        f"{brax_update / env_seconds_per_update:.2f}× brax's steady rate; ours runs at {brax_update / ours_update:.2f}×."
+    )
+
+
 def format_parts(result: Result) -> str:
     return " + ".join(f"{seconds:.2f}" for seconds in result.part_seconds) + " s"
 
@@ -248,13 +281,16 @@ def main(argv=None) -> None:
     parser.add_argument("--quick", action="store_true",
                         help=f"CPU smoke run: {QUICK_NUM_ENVS} envs, {QUICK_ENV_STEPS:,} env steps unless given")
     parser.add_argument("--brax-learning-rate", type=float, default=1e-3, help="brax's constant learning rate")
-    parser.add_argument("--eval-episodes", type=int, default=1000, help="fresh deterministic episodes per learner")
+    parser.add_argument("--eval-episodes", type=int, default=1000,
+                        help="fresh deterministic episodes per learner (0: no evaluation, throughput alone)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--learners", choices=("both", "jaxarm", "brax"), default="both",
                         help="run one learner alone (its line, no table): for budgets one call cannot hold both")
     args = parser.parse_args(argv)
     if args.env not in envs.names():
         parser.error(f"unknown env {args.env!r}; registered: {', '.join(envs.names())}")
+    if args.eval_episodes < 0:
+        parser.error(f"--eval-episodes must be 0 or more, not {args.eval_episodes}")
     if args.quick:
         args.num_envs = args.num_envs or QUICK_NUM_ENVS
         args.env_steps = args.env_steps or QUICK_ENV_STEPS
@@ -278,3 +314,4 @@ def main(argv=None) -> None:
               f"return {result.return_mean:.1f}", flush=True)
     if len(results) == 2:
         print(format_table(results["jaxarm"], results["brax"]))
+        print(ceiling_line(config, results["jaxarm"], results["brax"], env_stepping_seconds(config)), flush=True)

@@ -39,3 +39,21 @@ def test_one_learner_alone_prints_its_line_and_no_table(capsys):
     out = capsys.readouterr().out
     assert "jaxarm PPO:" in out and "env steps/s at the steady rate" in out
     assert "brax PPO" not in out and "| jaxarm PPO | brax PPO |" not in out
+
+
+def test_ceiling_line_books_each_learner_beyond_the_env_stepping():
+    config = ppo_config("arm2d", num_envs=64, env_steps=64 * 16 * PARTS * 10)  # 40 updates
+    ours = Result(env_steps=config.total_env_steps, total_seconds=9.0, part_seconds=(3.0, 1.5, 1.5, 1.5),
+                  success_rate=1.0, return_mean=0.0)  # steady 6 s: 150 ms per update
+    brax = Result(env_steps=config.total_env_steps, total_seconds=9.0, part_seconds=(3.0, 2.0, 2.0, 2.0),
+                  success_rate=1.0, return_mean=0.0)  # steady 8 s: 200 ms per update
+    line = training.ceiling_line(config, ours, brax, env_seconds_per_update=0.125)
+    assert "125.0 ms per update" in line
+    assert "our learner costs 25.0 ms, brax's 75.0 ms" in line
+    assert "would run at 1.60× brax's steady rate; ours runs at 1.33×" in line
+
+
+def test_env_stepping_alone_is_timed_per_update():
+    config = ppo_config("arm2d", num_envs=16, env_steps=16 * 16 * PARTS * 2)
+    seconds = training.env_stepping_seconds(config)
+    assert 0.0 < seconds < 1.0
