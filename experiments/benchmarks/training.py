@@ -239,13 +239,15 @@ def ceiling_line(config: PPOConfig, ours: Result, brax: Result, env_seconds_per_
     that is the ceiling on the throughput ratio. The learners' own costs are their steady update times less it.
     """
     ours_update, brax_update = (result.train_seconds / config.num_updates for result in (ours, brax))
+    env_rate = config.env_steps_per_update / env_seconds_per_update
     return (
         f"env stepping alone ({config.num_envs:,} envs × {config.rollout_length} steps per update, no learner): "
-        f"{env_seconds_per_update * 1e3:.1f} ms per update, {config.env_steps_per_update / env_seconds_per_update:,.0f} "
-        f"env steps/s. Steady update: ours {ours_update * 1e3:.1f} ms, brax {brax_update * 1e3:.1f} ms; beyond the env "
-        f"stepping our learner costs {(ours_update - env_seconds_per_update) * 1e3:.1f} ms, brax's "
+        f"{env_seconds_per_update * 1e3:.1f} ms per update, {env_rate:,.0f} env steps/s. "
+        f"Steady update: ours {ours_update * 1e3:.1f} ms, brax {brax_update * 1e3:.1f} ms; beyond the env stepping "
+        f"our learner costs {(ours_update - env_seconds_per_update) * 1e3:.1f} ms, brax's "
         f"{(brax_update - env_seconds_per_update) * 1e3:.1f} ms. Ceiling: a learner that cost nothing would run at "
-        f"{brax_update / env_seconds_per_update:.2f}× brax's steady rate; ours runs at {brax_update / ours_update:.2f}×."
+        f"{brax_update / env_seconds_per_update:.2f}× brax's steady rate; "
+        f"ours runs at {brax_update / ours_update:.2f}×."
     )
 
 
