@@ -15,17 +15,15 @@ wall clock then grows by the launch gaps, the busy times per phase do not.
 import argparse
 import collections
 import dataclasses
-import functools
 import glob
 import re
 import tempfile
-import time
 
 import jax
 
 from experiments import configs
+from experiments.benchmarks.timing import compile_updates, timed
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.agents.common.trainer import run_updates
 
 UNATTRIBUTED = "unattributed"
 INSTRUCTION = re.compile(r"^\s*(?:ROOT )?%?([\w.\-]+) = .*?op_name=\"([^\"]*)\"", re.MULTILINE)
@@ -84,16 +82,10 @@ def phase_times(ops, names: dict[str, str], phases: tuple[str, ...]) -> list[Pha
 
 def profile_updates(config, num_updates: int, phases: tuple[str, ...]) -> tuple[float, list[PhaseTime]]:
     """(wall seconds of `num_updates` updates, busy time per phase of another such call) of `config`'s learner."""
-    trainer = configs.make_trainer(config)
-    hparams = config.hparams()
-    state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams)
-    compiled = jax.jit(functools.partial(run_updates, trainer, num_updates=num_updates),
-                       compiler_options=trainer.compiler_options).lower(state, hparams).compile()
+    compiled, state, hparams, _ = compile_updates(config, num_updates)
     names = op_names(compiled.as_text())
-    jax.block_until_ready(compiled(state, hparams))  # warm-up
-    start = time.perf_counter()
-    jax.block_until_ready(compiled(state, hparams))
-    wall = time.perf_counter() - start
+    timed(compiled, state, hparams)  # warm-up
+    wall = timed(compiled, state, hparams)
     with tempfile.TemporaryDirectory() as trace_dir:
         with jax.profiler.trace(trace_dir):
             jax.block_until_ready(compiled(state, hparams))
@@ -102,10 +94,11 @@ def profile_updates(config, num_updates: int, phases: tuple[str, ...]) -> tuple[
 
 
 def format_table(wall: float, times: list[PhaseTime], num_updates: int) -> str:
-    busy = sum(time.seconds for time in times)
+    busy = sum(phase_time.seconds for phase_time in times)
     lines = ["| phase | busy ms per update | share of busy | ops per update |", "|---|---:|---:|---:|"]
-    lines += [f"| {time.phase} | {time.seconds / num_updates * 1e3:.2f} | {time.seconds / max(busy, 1e-12):.1%} "
-              f"| {time.ops / num_updates:,.0f} |" for time in times]
+    lines += [f"| {phase_time.phase} | {phase_time.seconds / num_updates * 1e3:.2f} "
+              f"| {phase_time.seconds / max(busy, 1e-12):.1%} | {phase_time.ops / num_updates:,.0f} |"
+              for phase_time in times]
     lines.append(f"| all ops (busy) | {busy / num_updates * 1e3:.2f} | | |")
     lines.append(f"| wall clock | {wall / num_updates * 1e3:.2f} | | |")
     return "\n".join(lines)

@@ -16,9 +16,7 @@ many there are (multi-device runs come later). The figure goes to `--plot`.
 
 import argparse
 import dataclasses
-import functools
 import pathlib
-import time
 from collections.abc import Callable
 
 import jax
@@ -28,11 +26,9 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from experiments.benchmarks.timing import env_seconds, timed  # noqa: E402
+from experiments.benchmarks.timing import compile_updates, env_seconds, timed  # noqa: E402
 from experiments.benchmarks.training import base_ppo_config  # noqa: E402
 from jaxarm import envs  # noqa: E402
-from jaxarm.agents.common.trainer import run_updates  # noqa: E402
-from jaxarm.agents.ppo import make_trainer  # noqa: E402
 
 
 def parse_sizes(text: str) -> list[int]:
@@ -54,13 +50,7 @@ def safe_sizes(env_name: str, sizes: list[int]) -> list[int]:
 def ppo_seconds(env_name: str, num_envs: int, num_updates: int, **overrides) -> tuple[float, float]:
     """(seconds of `num_updates` PPO updates, compile seconds) at `num_envs` envs; `overrides` edit the config."""
     config = dataclasses.replace(base_ppo_config(env_name), num_envs=num_envs, **overrides)
-    trainer = make_trainer(config)
-    hparams = config.hparams()
-    state = jax.jit(trainer.init)(jax.random.PRNGKey(0), hparams)
-    start = time.perf_counter()
-    compiled = jax.jit(functools.partial(run_updates, trainer, num_updates=num_updates),
-                       compiler_options=trainer.compiler_options).lower(state, hparams).compile()
-    compile_seconds = time.perf_counter() - start
+    compiled, state, hparams, compile_seconds = compile_updates(config, num_updates)
     timed(compiled, state, hparams)  # warm-up
     seconds = min(timed(compiled, state, hparams) for _ in range(2))
     return seconds, compile_seconds
@@ -84,8 +74,7 @@ class Measure:
 
 def env_measure(env_name: str) -> Measure:
     config = base_ppo_config(env_name)
-    options = envs.compiler_options(config.make_env()[0])
-    return Measure(lambda size, units: env_seconds(config, size, units, options), lambda size: size, 10, 1000)
+    return Measure(lambda size, units: env_seconds(config, size, units), lambda size: size, 10, 1000)
 
 
 def ppo_measure(env_name: str) -> Measure:
@@ -120,8 +109,7 @@ def time_breakdown(env_name: str, num_updates: int) -> list[tuple[str, float]]:
     config = base_ppo_config(env_name)
     full, _ = ppo_seconds(env_name, config.num_envs, num_updates)
     no_sgd, _ = ppo_seconds(env_name, config.num_envs, num_updates, num_epochs=0)
-    options = envs.compiler_options(config.make_env()[0])
-    env_only, _ = env_seconds(config, config.num_envs, config.rollout_length * num_updates, options)
+    env_only, _ = env_seconds(config, config.num_envs, config.rollout_length * num_updates)
     sgd_steps = config.num_epochs * config.num_minibatches
     per_update = 1000.0 / num_updates
     return [

@@ -1,13 +1,16 @@
 """Timing of jitted functions for the benchmark suites."""
 
+import functools
 import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from experiments import configs
 from jaxarm import envs
 from jaxarm.agents.common.config import RunConfig
+from jaxarm.agents.common.trainer import run_updates
 
 
 def time_jitted(run, state, repeats: int) -> tuple[float, float]:
@@ -34,11 +37,27 @@ ACTION_POOL_SIZE = 16
 """Distinct action sets `env_seconds` cycles through."""
 
 
-def env_seconds(config: RunConfig, num_envs: int, steps: int, compiler_options: dict) -> tuple[float, float]:
+def compile_updates(config: RunConfig, num_updates: int):
+    """(compiled program, initial state, hparams, compile seconds) of `num_updates` updates of `config`'s learner.
+
+    One program compiled ahead of time as the runner compiles a chunk (with `Trainer.compiler_options`), but
+    without donating its state, so that the same state can be run again and again.
+    """
+    trainer = configs.make_trainer(config)
+    hparams = config.hparams()
+    state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams)
+    start = time.perf_counter()
+    compiled = jax.jit(functools.partial(run_updates, trainer, num_updates=num_updates),
+                       compiler_options=trainer.compiler_options).lower(state, hparams).compile()
+    return compiled, state, hparams, time.perf_counter() - start
+
+
+def env_seconds(config: RunConfig, num_envs: int, steps: int,
+                compiler_options: dict | None = None) -> tuple[float, float]:
     """(best seconds of `steps` steps of `num_envs` auto-reset envs, compile seconds), `config`'s env and params.
 
-    The envs step inside one `lax.scan`, compiled ahead of time with `compiler_options`, as a learner's rollout
-    steps them, with actions drawn as an untrained policy draws them (tanh of a standard normal), from a pool of
+    The envs step inside one `lax.scan`, compiled ahead of time with `compiler_options` (None: the env's own,
+    `jaxarm.envs.compiler_options`, as our learners compile it), as a learner's rollout steps them, with actions drawn as an untrained policy draws them (tanh of a standard normal), from a pool of
     `ACTION_POOL_SIZE` sets drawn once, so that drawing them costs next to nothing.
     """
     env, params = config.make_env()
@@ -53,6 +72,8 @@ def env_seconds(config: RunConfig, num_envs: int, steps: int, compiler_options: 
 
     state = jax.jit(batch.reset)(jax.random.PRNGKey(0), params)
     start = time.perf_counter()
+    if compiler_options is None:
+        compiler_options = envs.compiler_options(env)
     compiled = jax.jit(run, compiler_options=compiler_options).lower(state).compile()
     compile_seconds = time.perf_counter() - start
     timed(compiled, state)  # warm-up: first-call allocations
