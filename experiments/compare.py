@@ -18,6 +18,7 @@ import numpy as np
 
 from experiments import plots, rundir
 
+
 @dataclasses.dataclass(frozen=True)
 class RunCurves:
     """One run's training curves, over updates in which at least one episode finished.
@@ -79,16 +80,19 @@ def value_at(run: RunCurves, values: np.ndarray, seconds: float) -> float:
 def table(runs: list[RunCurves]) -> str:
     """Markdown: one row per run, with training success and return also at the wall clock every run reached."""
     common = min(run.wall_seconds[-1] for run in runs)
-    lines = [f"| run | env steps per update | env steps/s | env steps | wall s | training success | return | "
-             f"success at {common:.0f} s | return at {common:.0f} s | eval success |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    lines = [
+        f"| run | env steps per update | env steps/s | env steps | wall s | training success | return | "
+        f"success at {common:.0f} s | return at {common:.0f} s | eval success |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
     for run in runs:
-        evaluated = (f"{run.evaluation['success_rate']:.1%} ({run.evaluation['episodes']:,})"
-                     if run.evaluation else "—")
+        evaluated = f"{run.evaluation['success_rate']:.1%} ({run.evaluation['episodes']:,})" if run.evaluation else "—"
+        batch = f"{run.batch:,}" if run.batch else "—"
         lines.append(
-            f"| {run.label} | {f'{run.batch:,}' if run.batch else '—'} | {run.steps_per_second:,.0f} | {run.env_steps[-1]:,.0f} | "
+            f"| {run.label} | {batch} | {run.steps_per_second:,.0f} | {run.env_steps[-1]:,.0f} | "
             f"{run.wall_seconds[-1]:.0f} | {run.success[-1]:.1%} | {run.returns[-1]:.1f} | "
-            f"{value_at(run, run.success, common):.1%} | {value_at(run, run.returns, common):.1f} | {evaluated} |")
+            f"{value_at(run, run.success, common):.1%} | {value_at(run, run.returns, common):.1f} | {evaluated} |"
+        )
     return "\n".join(lines)
 
 
@@ -98,16 +102,21 @@ def device_name(runs: list[RunCurves], given: str | None) -> str:
         return given
     named = {run.evaluation["device"] for run in runs if run.evaluation and "device" in run.evaluation}
     if len(named) != 1:
-        raise ValueError("name the device for the figure with --device (the runs' eval.json files "
-                         f"name {sorted(named) or 'none'})")
+        raise ValueError(
+            f"name the device for the figure with --device (the runs' eval.json files name {sorted(named) or 'none'})"
+        )
     return named.pop()
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m experiments.compare", description=__doc__.splitlines()[0])
     parser.add_argument("run_dirs", nargs="+")
-    parser.add_argument("--label", action="append", dest="labels",
-                        help="a run's label; give one per run, in order (default: directory names)")
+    parser.add_argument(
+        "--label",
+        action="append",
+        dest="labels",
+        help="a run's label; give one per run, in order (default: directory names)",
+    )
     parser.add_argument("--title", default="runs compared")
     parser.add_argument("--device", help="device named in the figure (default: the runs' eval.json)")
     parser.add_argument("--out", default="compare.png", help="where the PNG goes")
@@ -116,7 +125,7 @@ def main(argv=None) -> int:
     try:
         if len(labels) != len(args.run_dirs):
             raise ValueError(f"{len(labels)} --label for {len(args.run_dirs)} runs")
-        runs = [load_run(pathlib.Path(path), label) for path, label in zip(args.run_dirs, labels)]
+        runs = [load_run(pathlib.Path(path), label) for path, label in zip(args.run_dirs, labels, strict=True)]
         device = device_name(runs, args.device)
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)

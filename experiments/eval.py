@@ -5,6 +5,7 @@ eval.json, and with --video writes video.gif of a few episodes drawn without a w
 """
 
 import argparse
+import operator
 import pathlib
 import sys
 
@@ -12,9 +13,9 @@ import imageio.v2 as imageio
 import jax
 import numpy as np
 
+from experiments import configs, rundir
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.evaluate import rollout_episodes
-from experiments import configs, rundir
 
 
 def episode_frames(env, env_params, trainer, state, key, episodes: int) -> list[np.ndarray]:
@@ -26,7 +27,7 @@ def episode_frames(env, env_params, trainer, state, key, episodes: int) -> list[
     for episode in range(episodes):
         length = int(states.episode.length[-1, episode])
         for step in range(length):
-            frames.append(env.render(jax.tree.map(lambda leaf: leaf[step, episode], states), env_params))
+            frames.append(env.render(jax.tree.map(operator.itemgetter((step, episode)), states), env_params))
     return frames
 
 
@@ -50,8 +51,10 @@ def main(argv=None) -> int:
     result = rundir.evaluate_state(trainer, config, state, args.episodes, args.seed)
     result["checkpoint_update"] = int(state.updates)
     rundir.write_json(run_dir / "eval.json", result)
-    print(f"{run_dir}: success_rate {result['success_rate']:.3f} return_mean {result['return_mean']:.2f} "
-          f"over {result['episodes']} episodes")
+    print(
+        f"{run_dir}: success_rate {result['success_rate']:.3f} return_mean {result['return_mean']:.2f} "
+        f"over {result['episodes']} episodes"
+    )
     if args.video:
         env, env_params = config.make_eval_env()
         frames = episode_frames(env, env_params, trainer, state, jax.random.PRNGKey(args.seed + 1), 3)

@@ -13,8 +13,13 @@ class Progress:
     def __init__(self, total_env_steps: int):
         self.enabled = sys.stderr.isatty()
         self.bar = RichProgress(
-            TextColumn("[bold]env steps"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[stats]}"),
-            TimeElapsedColumn(), TimeRemainingColumn(), disable=not self.enabled,
+            TextColumn("[bold]env steps"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[stats]}"),
+            TimeElapsedColumn(),
+            TimeRemainingColumn(),
+            disable=not self.enabled,
         )
         self.task = self.bar.add_task("train", total=total_env_steps, stats="")
 
@@ -31,8 +36,7 @@ class Progress:
     def update(self, env_steps: int, steps_per_second: float, flat_metrics: dict) -> None:
         episodes = flat_metrics.get("episodes/episodes", np.zeros(1))
         weight = np.maximum(episodes.sum(), 1.0)
-        stats = (
-            f"{steps_per_second:,.0f} steps/s  return {(flat_metrics['episodes/return_mean'] * episodes).sum() / weight:.2f}"
-            f"  success {(flat_metrics['episodes/success_rate'] * episodes).sum() / weight:.1%}"
-        )
+        mean_return = (flat_metrics["episodes/return_mean"] * episodes).sum() / weight
+        success = (flat_metrics["episodes/success_rate"] * episodes).sum() / weight
+        stats = f"{steps_per_second:,.0f} steps/s  return {mean_return:.2f}  success {success:.1%}"
         self.bar.update(self.task, completed=env_steps, stats=stats)

@@ -16,11 +16,11 @@ import time
 import jax
 import numpy as np
 
+from experiments import configs, plots, progress, rundir
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.agents.common.sharding import data_mesh, data_parallel
 from jaxarm.agents.common.trainer import make_chunk_runner
-from experiments import configs, plots, progress, rundir
 
 
 class TrainingDiverged(RuntimeError):
@@ -33,10 +33,16 @@ def parse_args(argv):
     parser.add_argument("--list", action="store_true", help="list presets and exit")
     parser.add_argument("--out", help="run directory (default runs/<config>-<timestamp>)")
     parser.add_argument("--resume", help="continue the run in this directory from its latest checkpoint")
-    parser.add_argument("--stop-after-minutes", type=float,
-                        help="checkpoint and stop after the chunk that passes this wall time (resume later)")
-    parser.add_argument("--distributed", action="store_true",
-                        help="call jax.distributed.initialize() first (multi-host: run the same command on every host)")
+    parser.add_argument(
+        "--stop-after-minutes",
+        type=float,
+        help="checkpoint and stop after the chunk that passes this wall time (resume later)",
+    )
+    parser.add_argument(
+        "--distributed",
+        action="store_true",
+        help="call jax.distributed.initialize() first (multi-host: run the same command on every host)",
+    )
     parser.add_argument("overrides", nargs="*", help="config overrides key=value (env_params.NAME=VALUE too)")
     args = parser.parse_args(argv)
     if not (args.list or args.config or args.resume):
@@ -48,8 +54,11 @@ def parse_args(argv):
 
 def first_non_finite(flat_metrics: dict[str, np.ndarray]) -> tuple[int, str] | None:
     """(index within the chunk, metric name) of the first NaN/inf, or None."""
-    found = [(int(np.argmax(~np.isfinite(values))), name)
-             for name, values in flat_metrics.items() if not np.all(np.isfinite(values))]
+    found = [
+        (int(np.argmax(~np.isfinite(values))), name)
+        for name, values in flat_metrics.items()
+        if not np.all(np.isfinite(values))
+    ]
     return min(found) if found else None
 
 
@@ -95,8 +104,10 @@ def train(config, preset: str, run_dir: pathlib.Path, resume: bool, stop_after_s
     writer = SummaryWriter(str(run_dir / "tensorboard"))
     last_saved = done_updates
     start = time.perf_counter()
-    with progress.Progress(trainer.num_updates * trainer.env_steps_per_update) as bar, \
-            (run_dir / "metrics.jsonl").open("a") as log:
+    with (
+        progress.Progress(trainer.num_updates * trainer.env_steps_per_update) as bar,
+        (run_dir / "metrics.jsonl").open("a") as log,
+    ):
         bar.advance_to(done_updates * trainer.env_steps_per_update)
         while done_updates < trainer.num_updates:
             count = min(config.updates_per_chunk, trainer.num_updates - done_updates)
@@ -107,7 +118,11 @@ def train(config, preset: str, run_dir: pathlib.Path, resume: bool, stop_after_s
             chunk_time = time.perf_counter() - chunk_start
             bad = first_non_finite(flat)
             if bad is not None or not state_is_finite(state):
-                where = f"update {done_updates + bad[0] + 1} ({bad[1]})" if bad else f"updates {done_updates + 1}-{done_updates + count}"
+                where = (
+                    f"update {done_updates + bad[0] + 1} ({bad[1]})"
+                    if bad
+                    else f"updates {done_updates + 1}-{done_updates + count}"
+                )
                 raise TrainingDiverged(
                     f"NaN or inf at {where}; training stopped. The last good checkpoint "
                     f"(update {checkpoint.latest_step(checkpoints)}) in {checkpoints} is intact."
@@ -121,8 +136,11 @@ def train(config, preset: str, run_dir: pathlib.Path, resume: bool, stop_after_s
             log.flush()
             done_updates += count
             out_of_time = stop_after_s is not None and time.perf_counter() - start > stop_after_s
-            if (done_updates - last_saved >= config.checkpoint_every_updates or done_updates == trainer.num_updates
-                    or out_of_time):
+            if (
+                done_updates - last_saved >= config.checkpoint_every_updates
+                or done_updates == trainer.num_updates
+                or out_of_time
+            ):
                 checkpoint.save(checkpoints, done_updates, state)
                 last_saved = done_updates
             bar.update(done_updates * trainer.env_steps_per_update, rate, flat)
@@ -162,8 +180,10 @@ def main(argv=None) -> int:
     except (ValueError, checkpoint.CheckpointError, TrainingDiverged) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    print(f"{run_dir}: success_rate {result['success_rate']:.3f}, return_mean {result['return_mean']:.2f}, "
-          f"{result['env_steps']:,} env steps in {result['train_wall_time']:.1f} s on {result['device']}")
+    print(
+        f"{run_dir}: success_rate {result['success_rate']:.3f}, return_mean {result['return_mean']:.2f}, "
+        f"{result['env_steps']:,} env steps in {result['train_wall_time']:.1f} s on {result['device']}"
+    )
     return 0
 
 

@@ -18,11 +18,11 @@ import typing
 import jax
 import numpy as np
 
+from experiments import configs
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.ppo.warm_start import warm_start
-from experiments import configs
 
 
 def new_run_dir(preset: str, root: str = "runs") -> pathlib.Path:
@@ -60,8 +60,10 @@ def read_config(run_dir: pathlib.Path) -> tuple[RunConfig, str]:
         preset, agent = data.pop("preset"), data.pop("agent")
         cls = config_classes()[agent]
         hints = typing.get_type_hints(cls)
-        fields = {name: _as_tuples(value) if typing.get_origin(hints[name]) is tuple else value
-                  for name, value in data.items()}
+        fields = {
+            name: _as_tuples(value) if typing.get_origin(hints[name]) is tuple else value
+            for name, value in data.items()
+        }
         return cls(**fields), preset
     except (json.JSONDecodeError, KeyError, TypeError) as error:
         raise ValueError(f"{path} is corrupt or from another version: {error}") from None
@@ -80,8 +82,9 @@ def warm_starter(config: RunConfig):
     source_dir = pathlib.Path(config.init_from)
     source, _ = read_config(source_dir)
     if (source.AGENT, config.AGENT) != ("ppo", "ppo"):
-        raise ValueError(f"init_from: warm starts exist for PPO only ({source_dir} is {source.AGENT}, "
-                         f"this run {config.AGENT})")
+        raise ValueError(
+            f"init_from: warm starts exist for PPO only ({source_dir} is {source.AGENT}, this run {config.AGENT})"
+        )
     trained = restore_state(source_dir, configs.make_trainer(source), source)
     index = config.make_env()[0].observation_source_index(source.make_env()[0])
     return lambda state: warm_start(state, trained, index)

@@ -17,11 +17,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from experiments import configs, plots, rundir
+from experiments.stats import confidence_halfwidth
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import Trainer, run_updates
-from experiments import configs, plots, rundir
-from experiments.stats import confidence_halfwidth
+
 
 @dataclasses.dataclass(frozen=True)
 class Grid:
@@ -66,28 +67,37 @@ def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, pr
     trainer = configs.make_trainer(config)
     members = [(combo, seed) for combo in dynamic for seed in range(seeds)]
     base = config.hparams()
-    hparams = jax.tree.map(lambda *leaves: jnp.stack(leaves), *[
-        base.replace(**{name: jnp.float32(value) for name, value in combo.items()}) for combo, _ in members
-    ])
+    hparams = jax.tree.map(
+        lambda *leaves: jnp.stack(leaves),
+        *[base.replace(**{name: jnp.float32(value) for name, value in combo.items()}) for combo, _ in members],
+    )
     keys = jnp.stack([jax.random.PRNGKey(config.seed + seed) for _, seed in members])
     start = time.perf_counter()
     state = init_members(trainer, keys, hparams)
     if config.init_from:
         state = jax.vmap(rundir.warm_starter(config))(state)
-    chunk = jax.jit(jax.vmap(lambda s, h: run_updates(trainer, s, h, config.updates_per_chunk)),
-                    compiler_options=trainer.compiler_options)
+    chunk = jax.jit(
+        jax.vmap(lambda s, h: run_updates(trainer, s, h, config.updates_per_chunk)),
+        compiler_options=trainer.compiler_options,
+    )
     chunks = []
     for index in range(trainer.num_updates // config.updates_per_chunk):
         state, metrics = chunk(state, hparams)
         chunks.append(jax.device_get(metrics))
-        progress(f"  chunk {index + 1}/{trainer.num_updates // config.updates_per_chunk} "
-                 f"({time.perf_counter() - start:.1f} s)")
+        progress(
+            f"  chunk {index + 1}/{trainer.num_updates // config.updates_per_chunk} "
+            f"({time.perf_counter() - start:.1f} s)"
+        )
     metrics = jax.tree.map(lambda *parts: np.concatenate(parts, axis=1), *chunks)
     env, env_params = config.make_eval_env()
     eval_keys = jax.random.split(jax.random.PRNGKey(config.seed + 1_000_003), len(members))
-    results = jax.jit(jax.vmap(
-        lambda learner, key: evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, config.eval_episodes)
-    ))(state, eval_keys)
+    results = jax.jit(
+        jax.vmap(
+            lambda learner, key: evaluate(
+                env, env_params, lambda obs: trainer.act(learner, obs), key, config.eval_episodes
+            )
+        )
+    )(state, eval_keys)
     return metrics, jax.device_get(results), time.perf_counter() - start
 
 
@@ -116,18 +126,26 @@ def collect(config: RunConfig, base: RunConfig, dynamic: list[dict], seeds: int,
     for index, combo in enumerate(dynamic):
         members = slice(index * seeds, (index + 1) * seeds)
         label = describe(config, base, combo)
-        rows.append(summarise(label, results.successes[members].mean(axis=1), results.returns[members].mean(axis=1),
-                              wall))
-        curves[label] = tuple(np.where(finished[members], values[members], np.nan) if masked else values[members]
-                              for values, masked in ((metrics.env_steps, False),
-                                                     (metrics.episodes.success_rate, True),
-                                                     (metrics.episodes.return_mean, True)))
+        rows.append(
+            summarise(label, results.successes[members].mean(axis=1), results.returns[members].mean(axis=1), wall)
+        )
+        curves[label] = tuple(
+            np.where(finished[members], values[members], np.nan) if masked else values[members]
+            for values, masked in (
+                (metrics.env_steps, False),
+                (metrics.episodes.success_rate, True),
+                (metrics.episodes.return_mean, True),
+            )
+        )
     return rows, curves
 
 
 def describe(config: RunConfig, base: RunConfig, combo: dict) -> str:
-    changed = [f"{field.name}={getattr(config, field.name)}" for field in dataclasses.fields(config)
-               if getattr(config, field.name) != getattr(base, field.name)]
+    changed = [
+        f"{field.name}={getattr(config, field.name)}"
+        for field in dataclasses.fields(config)
+        if getattr(config, field.name) != getattr(base, field.name)
+    ]
     return " ".join(changed + [f"{name}={value:g}" for name, value in combo.items()]) or "base"
 
 
@@ -136,10 +154,15 @@ def write_tables(rows: list[dict], out: pathlib.Path) -> None:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    lines = ["| setting | seeds | success (mean ± 95% CI) | return (mean ± 95% CI) | group wall s |",
-             "|---|---:|---:|---:|---:|"]
-    lines += [f"| {row['setting']} | {row['seeds']} | {row['success_mean']:.3f} ± {row['success_ci95']:.3f} | "
-              f"{row['return_mean']:.2f} ± {row['return_ci95']:.2f} | {row['group_wall_s']} |" for row in rows]
+    lines = [
+        "| setting | seeds | success (mean ± 95% CI) | return (mean ± 95% CI) | group wall s |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    lines += [
+        f"| {row['setting']} | {row['seeds']} | {row['success_mean']:.3f} ± {row['success_ci95']:.3f} | "
+        f"{row['return_mean']:.2f} ± {row['return_ci95']:.2f} | {row['group_wall_s']} |"
+        for row in rows
+    ]
     (out / "results.md").write_text("\n".join(lines) + "\n")
 
 

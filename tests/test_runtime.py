@@ -15,8 +15,7 @@ def test_cpu_flag_only_for_jaxlib_0_10_and_never_over_the_users_choice():
 
 
 def test_programs_without_mjx_turn_the_fusion_emitters_back_on_only_where_jaxarm_turned_them_off():
-    assert _runtime.fusion_emitter_options(flag_applied=True, uses_mjx=False) == {
-        "xla_cpu_use_fusion_emitters": True}
+    assert _runtime.fusion_emitter_options(flag_applied=True, uses_mjx=False) == {"xla_cpu_use_fusion_emitters": True}
     assert _runtime.fusion_emitter_options(flag_applied=True, uses_mjx=True) == {}
     assert _runtime.fusion_emitter_options(flag_applied=False, uses_mjx=False) == {}
 
@@ -32,7 +31,11 @@ def test_the_flag_counts_as_jaxarms_in_a_child_only_with_the_marker():
 def test_a_child_process_makes_its_parents_choice():
     # This process imported jaxarm (conftest); a subprocess inherits its environment, as a killed-and-resumed run's
     # does, and must compile every program alike.
-    child = subprocess.run([sys.executable, "-c", "import jaxarm._runtime as r; r.apply_xla_settings(); "
-                            "print(r._cpu_flag_applied)"], env=dict(os.environ), capture_output=True, text=True,
-                           check=True)
+    child = subprocess.run(
+        [sys.executable, "-c", "import jaxarm._runtime as r; r.apply_xla_settings(); print(r._cpu_flag_applied)"],
+        env=dict(os.environ),
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     assert child.stdout.strip() == str(_runtime._cpu_flag_applied)

@@ -12,14 +12,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from experiments.benchmarks.timing import time_jitted
 from jaxarm import envs
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
 from jaxarm.envs.arm2d.numpy_reference import ClassicArm
-from experiments.benchmarks.timing import time_jitted
 
 
-def jax_steps_per_second(num_envs: int, steps: int, auto_reset: bool = True, unroll: int = 1,
-                         repeats: int = 3) -> tuple[float, float]:
+def jax_steps_per_second(
+    num_envs: int, steps: int, auto_reset: bool = True, unroll: int = 1, repeats: int = 3
+) -> tuple[float, float]:
     """(env steps/s of the best repeat, compile seconds) for `num_envs` envs over `steps` steps.
 
     Without auto-reset, episodes that end keep stepping (the env's maths is the same): that column shows
@@ -77,16 +78,21 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench arm2d", description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="1,1024,65536,1048576", help="comma-separated env counts")
     parser.add_argument("--steps", type=int, default=1000, help="steps per timed scan")
-    parser.add_argument("--max-env-steps", type=int,
-                        help="env steps per timed call, at most (default: 2e7 on a CPU, 2e9 on an accelerator)")
+    parser.add_argument(
+        "--max-env-steps",
+        type=int,
+        help="env steps per timed call, at most (default: 2e7 on a CPU, 2e9 on an accelerator)",
+    )
     parser.add_argument("--unroll", type=int, default=8, help="env steps per scan iteration (8: see BENCHMARKS.md)")
     args = parser.parse_args(argv)
     max_env_steps = args.max_env_steps or default_max_env_steps(jax.default_backend())
     reference = numpy_steps_per_second(None)
     batched_numpy = numpy_steps_per_second(1024)
     device = jax.devices()[0].device_kind
-    print(f"device: {device}; jax {jax.__version__}; scan unroll {args.unroll}; "
-          f"at most {max_env_steps:,} env steps per timed call")
+    print(
+        f"device: {device}; jax {jax.__version__}; scan unroll {args.unroll}; "
+        f"at most {max_env_steps:,} env steps per timed call"
+    )
     print(f"numpy reference, single env loop: {reference:,.0f} steps/s")
     print(f"numpy reference, batch of 1024:   {batched_numpy:,.0f} steps/s ({batched_numpy / reference:,.0f}x single)")
     print("| envs | env steps/s (auto-reset, statistics) | vs numpy single env | without auto-reset | compile s |")
@@ -95,4 +101,6 @@ def main(argv=None) -> None:
         steps = scan_length(size, args.steps, max_env_steps)
         rate, compile_seconds = jax_steps_per_second(size, steps, unroll=args.unroll)
         bare, _ = jax_steps_per_second(size, steps, auto_reset=False, unroll=args.unroll)
-        print(f"| {size:,} | {rate:,.3g} | {rate / reference:,.0f}x | {bare:,.3g} | {compile_seconds:.1f} |", flush=True)
+        print(
+            f"| {size:,} | {rate:,.3g} | {rate / reference:,.0f}x | {bare:,.3g} | {compile_seconds:.1f} |", flush=True
+        )

@@ -17,6 +17,7 @@ the rates are conservative.
 
 import argparse
 import functools
+import itertools
 from collections.abc import Sequence
 
 import jax
@@ -24,8 +25,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from experiments import configs
-from experiments.benchmarks.arm2d import (default_max_env_steps, jax_steps_per_second, numpy_steps_per_second,
-                                          scan_length)
+from experiments.benchmarks.arm2d import (
+    default_max_env_steps,
+    jax_steps_per_second,
+    numpy_steps_per_second,
+    scan_length,
+)
 from experiments.benchmarks.timing import time_jitted
 from experiments.sweep import init_members
 from jaxarm import envs
@@ -47,7 +52,7 @@ def matmul_flops_per_second(size: int = 2048, repeats: int = 5) -> float:
 
 def mlp_flops(sizes: Sequence[int]) -> int:
     """FLOPs of one sample's forward pass through the dense layers `sizes[0] -> sizes[1] -> ...`."""
-    return sum(2 * inputs * outputs for inputs, outputs in zip(sizes[:-1], sizes[1:]))
+    return sum(2 * inputs * outputs for inputs, outputs in itertools.pairwise(sizes))
 
 
 def ppo_update_flops(config: PPOConfig, observation_size: int, action_size: int) -> int:
@@ -90,8 +95,9 @@ def two_link_maths(rotation: bool):
         angle0, angle1, goal_x, goal_y, hold = carry
         angle0 = jnp.mod(angle0 + action[0] * scale, 2 * jnp.pi)
         angle1 = jnp.mod(angle1 + action[1] * scale, 2 * jnp.pi)
-        hold = hold_count(jnp.cos(angle0), jnp.sin(angle0), jnp.cos(angle0 + angle1), jnp.sin(angle0 + angle1),
-                          goal_x, goal_y, hold)
+        hold = hold_count(
+            jnp.cos(angle0), jnp.sin(angle0), jnp.cos(angle0 + angle1), jnp.sin(angle0 + angle1), goal_x, goal_y, hold
+        )
         return angle0, angle1, goal_x, goal_y, hold
 
     def rotate(cos, sin, change):
@@ -110,8 +116,7 @@ def two_link_maths(rotation: bool):
     return with_rotation if rotation else with_trigonometry
 
 
-def two_link_steps_per_second(num_envs: int, steps: int, rotation: bool, unroll: int = 8,
-                              repeats: int = 3) -> float:
+def two_link_steps_per_second(num_envs: int, steps: int, rotation: bool, unroll: int = 8, repeats: int = 3) -> float:
     """Env steps/s of `two_link_maths` over `num_envs` envs in one jitted scan of `steps` steps, driven by the
     arm2d benchmark's bang-bang action pattern."""
     maths = jax.vmap(two_link_maths(rotation))
@@ -119,8 +124,11 @@ def two_link_steps_per_second(num_envs: int, steps: int, rotation: bool, unroll:
     angles = jax.random.uniform(jax.random.PRNGKey(2), (2, num_envs)) * 2 * jnp.pi
     goal = (jnp.full((num_envs,), 100.0), jnp.full((num_envs,), 100.0))
     hold = jnp.zeros((num_envs,), jnp.int32)
-    joints = (jnp.cos(angles[0]), jnp.sin(angles[0]), jnp.cos(angles[1]), jnp.sin(angles[1])) if rotation else (
-        angles[0], angles[1])
+    joints = (
+        (jnp.cos(angles[0]), jnp.sin(angles[0]), jnp.cos(angles[1]), jnp.sin(angles[1]))
+        if rotation
+        else (angles[0], angles[1])
+    )
     carry = (*joints, *goal, hold)
 
     @functools.partial(jax.jit, compiler_options=envs.compiler_options(envs.make("arm2d")))
@@ -145,27 +153,37 @@ def print_arithmetic(config_name: str, seeds: int) -> None:
     many = ppo_update_seconds(config, seeds)
     share = flops / one / peak
     print(f"XLA matmul, float32 2048x2048: {peak / 1e9:.1f} GFLOP/s")
-    print(f"{config_name}, one seed: {flops / 1e9:.2f} GFLOP of matmuls per update in {one * 1e3:.1f} ms = "
-          f"{flops / one / 1e9:.1f} GFLOP/s ({share:.0%} of the matmul rate)")
-    print(f"{seeds} seeds: at least {seeds * share:.1f}x one seed's update time at the matmul rate; "
-          f"measured {many * 1e3:,.0f} ms = {many / one:.1f}x", flush=True)
+    print(
+        f"{config_name}, one seed: {flops / 1e9:.2f} GFLOP of matmuls per update in {one * 1e3:.1f} ms = "
+        f"{flops / one / 1e9:.1f} GFLOP/s ({share:.0%} of the matmul rate)"
+    )
+    print(
+        f"{seeds} seeds: at least {seeds * share:.1f}x one seed's update time at the matmul rate; "
+        f"measured {many * 1e3:,.0f} ms = {many / one:.1f}x",
+        flush=True,
+    )
 
 
 def print_arm2d(sizes: Sequence[int], steps: int, unroll: int) -> None:
     """The arm2d part: the full env and the two-link maths at each size, as multiples of the numpy reference."""
     reference = numpy_steps_per_second(None)
-    print(f"numpy reference, single env: {reference:,.0f} steps/s; goal {GOAL_RATIO:,}x = "
-          f"{GOAL_RATIO * reference:.3g} env steps/s")
+    print(
+        f"numpy reference, single env: {reference:,.0f} steps/s; goal {GOAL_RATIO:,}x = "
+        f"{GOAL_RATIO * reference:.3g} env steps/s"
+    )
     print("| envs | full env (auto-reset, statistics) | two-link maths, XLA sin/cos | two-link maths, rotation |")
     print("|---:|---:|---:|---:|")
     max_env_steps = default_max_env_steps(jax.default_backend())
     for size in sizes:
         length = scan_length(size, steps, max_env_steps)
-        rates = (jax_steps_per_second(size, length, unroll=unroll)[0],
-                 two_link_steps_per_second(size, length, rotation=False, unroll=unroll),
-                 two_link_steps_per_second(size, length, rotation=True, unroll=unroll))
-        print(f"| {size:,} | " + " | ".join(f"{rate:.3g} ({rate / reference:,.0f}x)" for rate in rates) + " |",
-              flush=True)
+        rates = (
+            jax_steps_per_second(size, length, unroll=unroll)[0],
+            two_link_steps_per_second(size, length, rotation=False, unroll=unroll),
+            two_link_steps_per_second(size, length, rotation=True, unroll=unroll),
+        )
+        print(
+            f"| {size:,} | " + " | ".join(f"{rate:.3g} ({rate / reference:,.0f}x)" for rate in rates) + " |", flush=True
+        )
 
 
 def main(argv=None) -> None:
@@ -173,7 +191,9 @@ def main(argv=None) -> None:
     parser.add_argument("--config", default="ppo_arm2d", help="PPO preset whose update is counted and timed")
     parser.add_argument("--seeds", type=int, default=64, help="seeds vmapped in the measured sweep update")
     parser.add_argument("--sizes", default="4096,65536", help="comma-separated arm2d env counts")
-    parser.add_argument("--steps", type=int, default=1000, help="arm2d steps per timed scan (capped as in the arm2d suite)")
+    parser.add_argument(
+        "--steps", type=int, default=1000, help="arm2d steps per timed scan (capped as in the arm2d suite)"
+    )
     parser.add_argument("--unroll", type=int, default=8, help="arm2d env steps per scan iteration")
     args = parser.parse_args(argv)
     print(f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; numpy {np.__version__}")

@@ -11,8 +11,8 @@ import argparse
 import jax
 from mujoco import mjx
 
-from jaxarm import envs
 from experiments.benchmarks.timing import time_jitted
+from jaxarm import envs
 
 
 def env_rates(env, num_envs: int, steps: int, repeats: int) -> tuple[float, float]:
@@ -51,24 +51,33 @@ def bare_mjx_rates(env, num_envs: int, physics_steps: int, repeats: int) -> tupl
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m experiments.bench panda_sort",
-                                     description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m experiments.bench panda_sort", description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="panda_sort", help="registered panda_sort variant")
-    parser.add_argument("--sizes", default="1,64",
-                        help="comma-separated env counts (e.g. 1,1024,4096,16384 on a GPU; at most 64 on a CPU)")
+    parser.add_argument(
+        "--sizes",
+        default="1,64",
+        help="comma-separated env counts (e.g. 1,1024,4096,16384 on a GPU; at most 64 on a CPU)",
+    )
     parser.add_argument("--steps", type=int, default=20, help="env steps per timed scan")
     parser.add_argument("--repeats", type=int, default=2, help="timed repeats; the best is reported")
     args = parser.parse_args(argv)
     env = envs.make(args.env)
-    print(f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; env {args.env}: "
-          f"{env.objects_count} objects, {env.substeps} physics substeps per env step, "
-          f"{env.mj_model.npair} contact pairs")
-    print("| envs | env steps/s | physics steps/s (env) | bare mjx.step physics steps/s | env / bare "
-          "| compile s (env) | compile s (bare) |")
+    print(
+        f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; env {args.env}: "
+        f"{env.objects_count} objects, {env.substeps} physics substeps per env step, "
+        f"{env.mj_model.npair} contact pairs"
+    )
+    print(
+        "| envs | env steps/s | physics steps/s (env) | bare mjx.step physics steps/s | env / bare "
+        "| compile s (env) | compile s (bare) |"
+    )
     print("|---:|---:|---:|---:|---:|---:|---:|")
     for size in (int(text) for text in args.sizes.split(",")):
         rate, env_compile = env_rates(env, size, args.steps, args.repeats)
         bare, bare_compile = bare_mjx_rates(env, size, args.steps * env.substeps, args.repeats)
         physics = rate * env.substeps
-        print(f"| {size:,} | {rate:,.4g} | {physics:,.4g} | {bare:,.4g} | {physics / bare:.2f} "
-              f"| {env_compile:.1f} | {bare_compile:.1f} |", flush=True)
+        print(
+            f"| {size:,} | {rate:,.4g} | {physics:,.4g} | {bare:,.4g} | {physics / bare:.2f} "
+            f"| {env_compile:.1f} | {bare_compile:.1f} |",
+            flush=True,
+        )

@@ -53,16 +53,21 @@ def leaf_events(events: list) -> list:
     """The events of one profile line that contain no other: XLA:CPU nests a loop's body ops inside the loop's own
     event on the same thread, and only the innermost ops are work (GPU kernels on a stream never nest)."""
     ordered = sorted(events, key=lambda event: (event.start_ns, -event.duration_ns))
-    return [event for event, following in zip(ordered, ordered[1:] + [None])
-            if following is None or following.start_ns >= event.start_ns + event.duration_ns]
+    return [
+        event
+        for event, following in zip(ordered, ordered[1:] + [None], strict=True)
+        if following is None or following.start_ns >= event.start_ns + event.duration_ns
+    ]
 
 
 def device_ops(profile_path: str):
     """(hlo op name, seconds) of every innermost op the device ran in an `.xplane.pb` profile: GPU planes where
     there are any, else XLA:CPU's runtime threads (whose busy times add up over threads running at once)."""
     # ProfileData's planes, lines and events are one-pass iterators: materialise them once.
-    planes = {plane.name: [list(line.events) for line in plane.lines] for plane in
-              jax.profiler.ProfileData.from_file(profile_path).planes}
+    planes = {
+        plane.name: [list(line.events) for line in plane.lines]
+        for plane in jax.profiler.ProfileData.from_file(profile_path).planes
+    }
     device_lines = [lines for name, lines in planes.items() if name.startswith("/device:") and lines]
     for lines in device_lines or [planes.get("/host:CPU", [])]:
         for events in lines:
@@ -96,9 +101,11 @@ def profile_updates(config, num_updates: int, phases: tuple[str, ...]) -> tuple[
 def format_table(wall: float, times: list[PhaseTime], num_updates: int) -> str:
     busy = sum(phase_time.seconds for phase_time in times)
     lines = ["| phase | busy ms per update | share of busy | ops per update |", "|---|---:|---:|---:|"]
-    lines += [f"| {phase_time.phase} | {phase_time.seconds / num_updates * 1e3:.2f} "
-              f"| {phase_time.seconds / max(busy, 1e-12):.1%} | {phase_time.ops / num_updates:,.0f} |"
-              for phase_time in times]
+    lines += [
+        f"| {phase_time.phase} | {phase_time.seconds / num_updates * 1e3:.2f} "
+        f"| {phase_time.seconds / max(busy, 1e-12):.1%} | {phase_time.ops / num_updates:,.0f} |"
+        for phase_time in times
+    ]
     lines.append(f"| all ops (busy) | {busy / num_updates * 1e3:.2f} | | |")
     lines.append(f"| wall clock | {wall / num_updates * 1e3:.2f} | | |")
     return "\n".join(lines)
@@ -115,7 +122,10 @@ def main(argv=None) -> None:
         parser.error(f"--updates must be at least 1, not {args.updates}")
     config = apply_overrides(configs.get(args.config), args.overrides)
     phases = tuple(phase for phase in args.phases.split(",") if phase)
-    print(f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; {args.config} {' '.join(args.overrides)}; "
-          f"{args.updates} updates in one program", flush=True)
+    print(
+        f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; {args.config} {' '.join(args.overrides)}; "
+        f"{args.updates} updates in one program",
+        flush=True,
+    )
     wall, times = profile_updates(config, args.updates, phases)
     print(format_table(wall, times, args.updates))

@@ -42,8 +42,11 @@ def safe_sizes(env_name: str, sizes: list[int]) -> list[int]:
         return sizes
     dropped = [size for size in sizes if size > limit]
     if dropped:
-        print(f"  {env_name}: skipping {', '.join(f'{size:,}' for size in dropped)} envs on the CPU "
-              f"(above {limit} the CPU runtime can deadlock on this env; see the README)", flush=True)
+        print(
+            f"  {env_name}: skipping {', '.join(f'{size:,}' for size in dropped)} envs on the CPU "
+            f"(above {limit} the CPU runtime can deadlock on this env; see the README)",
+            flush=True,
+        )
     return [size for size in sizes if size <= limit]
 
 
@@ -79,9 +82,7 @@ def env_measure(env_name: str) -> Measure:
 
 def ppo_measure(env_name: str) -> Measure:
     rollout_length = base_ppo_config(env_name).rollout_length
-    return Measure(
-        lambda size, units: ppo_seconds(env_name, size, units), lambda size: size * rollout_length, 1, 20
-    )
+    return Measure(lambda size, units: ppo_seconds(env_name, size, units), lambda size: size * rollout_length, 1, 20)
 
 
 def sweep(sizes: list[int], measure: Measure, target_steps: int, max_seconds: float) -> list[tuple[int, float, float]]:
@@ -116,8 +117,11 @@ def time_breakdown(env_name: str, num_updates: int) -> list[tuple[str, float]]:
         ("whole update", full * per_update),
         (f"env stepping alone ({config.num_envs:,} envs × {config.rollout_length} steps)", env_only * per_update),
         ("policy sampling and the normaliser", (no_sgd - env_only) * per_update),
-        (f"value passes, GAE and SGD: {config.num_epochs} epochs × {config.num_minibatches} minibatches of "
-         f"{config.minibatch_size:,}", (full - no_sgd) * per_update),
+        (
+            f"value passes, GAE and SGD: {config.num_epochs} epochs × {config.num_minibatches} minibatches of "
+            f"{config.minibatch_size:,}",
+            (full - no_sgd) * per_update,
+        ),
         ("  per SGD step, value passes and GAE included", (full - no_sgd) * per_update / sgd_steps),
     ]
 
@@ -127,7 +131,7 @@ def plot(curves: dict[str, list[tuple[int, float, float]]], path: pathlib.Path, 
     fig, ax = plt.subplots(figsize=(8, 5))
     for label, rows in curves.items():
         if rows:
-            sizes, rates, _ = zip(*rows)
+            sizes, rates, _ = zip(*rows, strict=True)
             ax.plot(sizes, rates, marker="o", label=label)
     ax.set_xscale("log", base=2)
     ax.set_yscale("log")

@@ -47,17 +47,24 @@ def compile_updates(config: RunConfig, num_updates: int):
     hparams = config.hparams()
     state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams)
     start = time.perf_counter()
-    compiled = jax.jit(functools.partial(run_updates, trainer, num_updates=num_updates),
-                       compiler_options=trainer.compiler_options).lower(state, hparams).compile()
+    compiled = (
+        jax.jit(
+            functools.partial(run_updates, trainer, num_updates=num_updates), compiler_options=trainer.compiler_options
+        )
+        .lower(state, hparams)
+        .compile()
+    )
     return compiled, state, hparams, time.perf_counter() - start
 
 
-def env_seconds(config: RunConfig, num_envs: int, steps: int,
-                compiler_options: dict | None = None) -> tuple[float, float]:
+def env_seconds(
+    config: RunConfig, num_envs: int, steps: int, compiler_options: dict | None = None
+) -> tuple[float, float]:
     """(best seconds of `steps` steps of `num_envs` auto-reset envs, compile seconds), `config`'s env and params.
 
     The envs step inside one `lax.scan`, compiled ahead of time with `compiler_options` (None: the env's own,
-    `jaxarm.envs.compiler_options`, as our learners compile it), as a learner's rollout steps them, with actions drawn as an untrained policy draws them (tanh of a standard normal), from a pool of
+    `jaxarm.envs.compiler_options`, as our learners compile it), as a learner's rollout steps them, with
+    actions drawn as an untrained policy draws them (tanh of a standard normal), from a pool of
     `ACTION_POOL_SIZE` sets drawn once, so that drawing them costs next to nothing.
     """
     env, params = config.make_env()

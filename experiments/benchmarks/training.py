@@ -92,8 +92,10 @@ def base_ppo_config(env_name: str) -> PPOConfig:
     if preset in configs.names():
         return configs.get(preset)
     matching = (configs.get(name) for name in configs.names())
-    return next((config for config in matching if isinstance(config, PPOConfig) and config.env == env_name),
-                PPOConfig(env=env_name))
+    return next(
+        (config for config in matching if isinstance(config, PPOConfig) and config.env == env_name),
+        PPOConfig(env=env_name),
+    )
 
 
 def ppo_config(env_name: str, num_envs: int | None, env_steps: int | None) -> PPOConfig:
@@ -107,7 +109,9 @@ def ppo_config(env_name: str, num_envs: int | None, env_steps: int | None) -> PP
     steps_per_update = num_envs * base.rollout_length
     num_updates = PARTS * -(-env_steps // (PARTS * steps_per_update))
     config = dataclasses.replace(
-        base, num_envs=num_envs, total_env_steps=num_updates * steps_per_update,
+        base,
+        num_envs=num_envs,
+        total_env_steps=num_updates * steps_per_update,
         updates_per_chunk=num_updates // PARTS,
     )
     config.check()
@@ -135,9 +139,7 @@ def run_ours(config: PPOConfig, eval_episodes: int) -> Result:
     state = jax.block_until_ready(jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams))
     # Compiled with the process's XLA settings, as brax's programs are (not `trainer.compiler_options`): see the
     # module docstring.
-    runner = jax.jit(
-        functools.partial(run_updates, trainer, num_updates=config.num_updates // PARTS), donate_argnums=0
-    )
+    runner = jax.jit(functools.partial(run_updates, trainer, num_updates=config.num_updates // PARTS), donate_argnums=0)
     compiled = runner.lower(state, hparams).compile()
     part_seconds = []
     for _ in range(PARTS):
@@ -145,9 +147,7 @@ def run_ours(config: PPOConfig, eval_episodes: int) -> Result:
         state, _ = jax.block_until_ready(compiled(state, hparams))
         part_seconds.append(time.perf_counter() - part_start)
     total_seconds = time.perf_counter() - start
-    success, return_mean = evaluate_policy(
-        config, lambda obs: trainer.act(state, obs), eval_episodes, config.seed
-    )
+    success, return_mean = evaluate_policy(config, lambda obs: trainer.act(state, obs), eval_episodes, config.seed)
     return Result(int(state.env_steps), total_seconds, tuple(part_seconds), success, return_mean)
 
 
@@ -258,16 +258,36 @@ def format_parts(result: Result) -> str:
 def format_table(ours: Result, brax: Result) -> str:
     rows = [
         ("env steps", f"{ours.env_steps:,}", f"{brax.env_steps:,}", ours.env_steps / brax.env_steps),
-        ("wall clock, compile included (s)", f"{ours.total_seconds:.1f}", f"{brax.total_seconds:.1f}",
-         ours.total_seconds / brax.total_seconds),
-        ("compile, set-up, one-off (s)", f"{ours.compile_seconds:.1f}", f"{brax.compile_seconds:.1f}",
-         ours.compile_seconds / max(brax.compile_seconds, 1e-9)),
-        ("training at the steady rate (s)", f"{ours.train_seconds:.1f}", f"{brax.train_seconds:.1f}",
-         ours.train_seconds / brax.train_seconds),
-        ("env steps/s at the steady rate", f"{ours.steps_per_second:,.0f}", f"{brax.steps_per_second:,.0f}",
-         ours.steps_per_second / brax.steps_per_second),
-        ("deterministic success rate", f"{ours.success_rate:.1%}", f"{brax.success_rate:.1%}",
-         ours.success_rate / max(brax.success_rate, 1e-9)),
+        (
+            "wall clock, compile included (s)",
+            f"{ours.total_seconds:.1f}",
+            f"{brax.total_seconds:.1f}",
+            ours.total_seconds / brax.total_seconds,
+        ),
+        (
+            "compile, set-up, one-off (s)",
+            f"{ours.compile_seconds:.1f}",
+            f"{brax.compile_seconds:.1f}",
+            ours.compile_seconds / max(brax.compile_seconds, 1e-9),
+        ),
+        (
+            "training at the steady rate (s)",
+            f"{ours.train_seconds:.1f}",
+            f"{brax.train_seconds:.1f}",
+            ours.train_seconds / brax.train_seconds,
+        ),
+        (
+            "env steps/s at the steady rate",
+            f"{ours.steps_per_second:,.0f}",
+            f"{brax.steps_per_second:,.0f}",
+            ours.steps_per_second / brax.steps_per_second,
+        ),
+        (
+            "deterministic success rate",
+            f"{ours.success_rate:.1%}",
+            f"{brax.success_rate:.1%}",
+            ours.success_rate / max(brax.success_rate, 1e-9),
+        ),
         ("mean return", f"{ours.return_mean:.1f}", f"{brax.return_mean:.1f}", ours.return_mean / brax.return_mean),
     ]
     lines = ["| | jaxarm PPO | brax PPO | jaxarm / brax |", "|---|---:|---:|---:|"]
@@ -280,14 +300,25 @@ def main(argv=None) -> None:
     parser.add_argument("--env", default="arm2d", help=f"registered env name ({', '.join(envs.names())})")
     parser.add_argument("--env-steps", type=int, help="env-step budget of each learner (default: the preset's)")
     parser.add_argument("--num-envs", type=int, help="parallel envs of each learner (default: the preset's)")
-    parser.add_argument("--quick", action="store_true",
-                        help=f"CPU smoke run: {QUICK_NUM_ENVS} envs, {QUICK_ENV_STEPS:,} env steps unless given")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help=f"CPU smoke run: {QUICK_NUM_ENVS} envs, {QUICK_ENV_STEPS:,} env steps unless given",
+    )
     parser.add_argument("--brax-learning-rate", type=float, default=1e-3, help="brax's constant learning rate")
-    parser.add_argument("--eval-episodes", type=int, default=1000,
-                        help="fresh deterministic episodes per learner (0: no evaluation, throughput alone)")
+    parser.add_argument(
+        "--eval-episodes",
+        type=int,
+        default=1000,
+        help="fresh deterministic episodes per learner (0: no evaluation, throughput alone)",
+    )
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--learners", choices=("both", "jaxarm", "brax"), default="both",
-                        help="run one learner alone (its line, no table): for budgets one call cannot hold both")
+    parser.add_argument(
+        "--learners",
+        choices=("both", "jaxarm", "brax"),
+        default="both",
+        help="run one learner alone (its line, no table): for budgets one call cannot hold both",
+    )
     args = parser.parse_args(argv)
     if args.env not in envs.names():
         parser.error(f"unknown env {args.env!r}; registered: {', '.join(envs.names())}")
@@ -299,21 +330,31 @@ def main(argv=None) -> None:
     config = dataclasses.replace(ppo_config(args.env, args.num_envs, args.env_steps), seed=args.seed)
     import brax
 
-    print(f"device: {jax.devices()[0].device_kind} (1 of {jax.device_count()} used by each learner); "
-          f"jax {jax.__version__}, brax {brax.__version__}")
-    print(f"env {config.env} {dict(config.env_params)}; {config.num_envs:,} envs × {config.rollout_length} steps "
-          f"per update, {config.num_updates} updates, {config.num_minibatches} minibatches × {config.num_epochs} "
-          f"epochs, MLPs {config.policy_hidden_sizes}/{config.value_hidden_sizes} {config.activation}, "
-          f"γ {config.gamma}; "
-          f"lr ours {config.learning_rate:g} (linear decay), brax {args.brax_learning_rate:g} (constant)", flush=True)
-    learners = {"jaxarm": lambda: run_ours(config, args.eval_episodes),
-                "brax": lambda: run_brax(config, args.brax_learning_rate, args.eval_episodes)}
+    print(
+        f"device: {jax.devices()[0].device_kind} (1 of {jax.device_count()} used by each learner); "
+        f"jax {jax.__version__}, brax {brax.__version__}"
+    )
+    print(
+        f"env {config.env} {dict(config.env_params)}; {config.num_envs:,} envs × {config.rollout_length} steps "
+        f"per update, {config.num_updates} updates, {config.num_minibatches} minibatches × {config.num_epochs} "
+        f"epochs, MLPs {config.policy_hidden_sizes}/{config.value_hidden_sizes} {config.activation}, "
+        f"γ {config.gamma}; "
+        f"lr ours {config.learning_rate:g} (linear decay), brax {args.brax_learning_rate:g} (constant)",
+        flush=True,
+    )
+    learners = {
+        "jaxarm": lambda: run_ours(config, args.eval_episodes),
+        "brax": lambda: run_brax(config, args.brax_learning_rate, args.eval_episodes),
+    }
     results = {}
     for name in learners if args.learners == "both" else [args.learners]:
         result = results[name] = learners[name]()
-        print(f"{name} PPO: {result.total_seconds:.1f} s, parts {format_parts(result)}, "
-              f"{result.steps_per_second:,.0f} env steps/s at the steady rate, success {result.success_rate:.1%}, "
-              f"return {result.return_mean:.1f}", flush=True)
+        print(
+            f"{name} PPO: {result.total_seconds:.1f} s, parts {format_parts(result)}, "
+            f"{result.steps_per_second:,.0f} env steps/s at the steady rate, success {result.success_rate:.1%}, "
+            f"return {result.return_mean:.1f}",
+            flush=True,
+        )
     if len(results) == 2:
         print(format_table(results["jaxarm"], results["brax"]))
         print(ceiling_line(config, results["jaxarm"], results["brax"], env_stepping_seconds(config)), flush=True)

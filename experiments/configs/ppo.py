@@ -2,10 +2,10 @@
 
 import dataclasses
 
+from experiments.configs import preset
 from jaxarm.agents.common.config import with_pair
 from jaxarm.agents.ppo import PPOConfig
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
-from experiments.configs import preset
 
 # Measured on the 2-core CPU (deterministic success on 1,000 fresh episodes, random reachable goals):
 # - γ: at 2M steps and lr 1e-3, γ 0.99 gave 36% and γ 0.95 72%; the goal is held ~50 steps and then the
@@ -31,7 +31,9 @@ ARM2D_PPO = PPOConfig(
 @preset("PPO on arm2d with random goals over the reachable disc (2-core CPU: under a minute)")
 def ppo_arm2d() -> PPOConfig:
     return dataclasses.replace(
-        ARM2D_PPO, env_params=(("goal_mode", GOAL_UNIFORM_REACHABLE), ("success_bonus", 10.0)), total_env_steps=1_500_000
+        ARM2D_PPO,
+        env_params=(("goal_mode", GOAL_UNIFORM_REACHABLE), ("success_bonus", 10.0)),
+        total_env_steps=1_500_000,
     )
 
 
@@ -53,12 +55,16 @@ SORTER_ENV_PARAMS = (
     # with the object over its bin, 3% of held starts dropped it in, CPU 2026-11-23). A whole pick-and-place
     # is worth 100 of shaping beside the 500 of the placement; carry, the stage nearest the goal, weighs most.
     # Reach rises over 20 cm (at 10 cm it was flat at the start pose, 25 cm above the objects).
-    ("reach_weight", 10.0), ("reach_scale", 0.2), ("grasp_weight", 20.0), ("lift_weight", 20.0),
+    ("reach_weight", 10.0),
+    ("reach_scale", 0.2),
+    ("grasp_weight", 20.0),
+    ("lift_weight", 20.0),
     ("carry_weight", 50.0),
     # A reverse curriculum in training only (evaluation: none). With held starts alone (30%, H100 2026-11-23)
     # 90% of them ended in the right bin within 13M steps, but no object was ever picked from the table; the
     # grasp-ready starts (arm low, open fingers around the object) bridge that gap.
-    ("held_start_prob", 0.2), ("ready_start_prob", 0.3),
+    ("held_start_prob", 0.2),
+    ("ready_start_prob", 0.3),
 )
 SORTER_EVAL_ENV_PARAMS = (("held_start_prob", 0.0), ("ready_start_prob", 0.0), ("presorted_prob", 0.0))
 """Every evaluation runs the real task: the curricula's starts switched off."""

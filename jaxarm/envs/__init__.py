@@ -6,6 +6,19 @@ from jaxarm.envs.registry import describe, make, names, override_params, registe
 from jaxarm.envs.wrappers import AutoReset, VmapEnv, Wrapper
 
 __all__ = [
-    "AutoReset", "Env", "EnvSpec", "EnvState", "EpisodeStats", "Transition", "VmapEnv", "Wrapper",
-    "check_action", "compiler_options", "describe", "make", "names", "override_params", "register",
+    "AutoReset",
+    "Env",
+    "EnvSpec",
+    "EnvState",
+    "EpisodeStats",
+    "Transition",
+    "VmapEnv",
+    "Wrapper",
+    "check_action",
+    "compiler_options",
+    "describe",
+    "make",
+    "names",
+    "override_params",
+    "register",
 ]

@@ -177,8 +177,10 @@ class Env(abc.ABC, Generic[Params, Sim]):
         `source`'s observation, or −1 where `source` has none (a learner trained on `source` can then be
         warm-started here). Here: the identity, for observations of the same shape; ValueError otherwise."""
         if source.spec.observation_shape != self.spec.observation_shape:
-            raise ValueError(f"{type(self).__name__}'s observation {self.spec.observation_shape} has no mapping "
-                             f"from {type(source).__name__}'s {source.spec.observation_shape}")
+            raise ValueError(
+                f"{type(self).__name__}'s observation {self.spec.observation_shape} has no mapping "
+                f"from {type(source).__name__}'s {source.spec.observation_shape}"
+            )
         return np.arange(self.spec.observation_size)
 
     def render(self, state: EnvState[Sim], params: Params) -> np.ndarray:

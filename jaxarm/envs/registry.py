@@ -80,15 +80,35 @@ def override_params(params, overrides: Mapping[str, Any]):
 
 register("arm2d", "jaxarm.envs.arm2d:Arm2d", "2-link planar reaching arm (the classic tutorial arm)")
 register("arm2d_squid", "jaxarm.envs.arm2d:Arm2d", "5-link planar reaching arm ('squid arm')", num_links=5)
-register("panda_sort", "jaxarm.envs.panda_sort:PandaSort",
-         "Franka Panda (MJX) sorting 1 object into shape bins, end-effector control")
-register("panda_sort3", "jaxarm.envs.panda_sort:PandaSort",
-         "Panda sorter with 3 objects, one target at a time (observed first)", objects_count=3, target_first=True)
-register("panda_sort_blocker", "jaxarm.envs.panda_sort:PandaSort", "Panda sorter with a bar between objects and bins",
-         blocker=True)
-register("panda_sort_joint", "jaxarm.envs.panda_sort:PandaSort", "Panda sorter with joint-delta control",
-         control_mode="joint")
-register("panda_sort_tosser", "jaxarm.envs.panda_sort:PandaSort", "Panda sorter with the bins across a gap",
-         tosser=True)
-register("peg_insert", "jaxarm.envs.peg_insert:PegInsert",
-         "Franka Panda (MJX) inserting a peg into a square hole shifted at random, end-effector control")
+register(
+    "panda_sort",
+    "jaxarm.envs.panda_sort:PandaSort",
+    "Franka Panda (MJX) sorting 1 object into shape bins, end-effector control",
+)
+register(
+    "panda_sort3",
+    "jaxarm.envs.panda_sort:PandaSort",
+    "Panda sorter with 3 objects, one target at a time (observed first)",
+    objects_count=3,
+    target_first=True,
+)
+register(
+    "panda_sort_blocker",
+    "jaxarm.envs.panda_sort:PandaSort",
+    "Panda sorter with a bar between objects and bins",
+    blocker=True,
+)
+register(
+    "panda_sort_joint",
+    "jaxarm.envs.panda_sort:PandaSort",
+    "Panda sorter with joint-delta control",
+    control_mode="joint",
+)
+register(
+    "panda_sort_tosser", "jaxarm.envs.panda_sort:PandaSort", "Panda sorter with the bins across a gap", tosser=True
+)
+register(
+    "peg_insert",
+    "jaxarm.envs.peg_insert:PegInsert",
+    "Franka Panda (MJX) inserting a peg into a square hole shifted at random, end-effector control",
+)

@@ -74,8 +74,12 @@ class BraxEnv(brax_base.Env):
         zero = jnp.zeros((), jnp.float32)
         info = self._episode_info(env_state) if self.auto_reset else {}
         return brax_base.State(
-            pipeline_state=env_state, obs=env_state.obs, reward=zero, done=zero,
-            metrics={"success": zero}, info=info,
+            pipeline_state=env_state,
+            obs=env_state.obs,
+            reward=zero,
+            done=zero,
+            metrics={"success": zero},
+            info=info,
         )
 
     def step(self, state: brax_base.State, action: jax.Array) -> brax_base.State:
@@ -124,8 +128,9 @@ class BraxEnv(brax_base.Env):
         }
 
 
-def wrap_for_training(env: BraxEnv, episode_length: int = 1000, action_repeat: int = 1,
-                      randomization_fn=None) -> brax_base.Wrapper:
+def wrap_for_training(
+    env: BraxEnv, episode_length: int = 1000, action_repeat: int = 1, randomization_fn=None
+) -> brax_base.Wrapper:
     """brax's `wrap_env_fn` for a `BraxEnv(auto_reset=True)`: vmap only, time limit and resets stay jaxarm's.
 
     Same signature as `brax.envs.training.wrap`. `episode_length` must equal the env's time limit (brax's

@@ -121,7 +121,8 @@ class GymnasiumVectorEnv(VectorEnv):
         self.num_envs = num_envs
         self.params = env.default_params() if params is None else params
         self.metadata = {
-            "render_modes": _render_modes(env, render_mode), "render_fps": 30,
+            "render_modes": _render_modes(env, render_mode),
+            "render_fps": 30,
             "autoreset_mode": AutoresetMode.SAME_STEP,
         }
         self.render_mode = render_mode
@@ -147,10 +148,20 @@ class GymnasiumVectorEnv(VectorEnv):
         self.state = self._step(self.state, jnp.asarray(actions), self.params)
         state = self.state
         last = state.last_episode
-        obs, reward, terminated, truncated, final_obs, done, episode = jax.tree.map(np.array, jax.device_get(
-            (state.obs, state.reward, state.terminated, state.truncated, state.final_obs, state.done,
-             {"r": last.return_, "l": last.length, "success": last.success})
-        ))
+        obs, reward, terminated, truncated, final_obs, done, episode = jax.tree.map(
+            np.array,
+            jax.device_get(
+                (
+                    state.obs,
+                    state.reward,
+                    state.terminated,
+                    state.truncated,
+                    state.final_obs,
+                    state.done,
+                    {"r": last.return_, "l": last.length, "success": last.success},
+                )
+            ),
+        )
         infos = {"final_obs": final_obs, "_final_obs": done, "episode": episode, "_episode": done}
         return obs, reward, terminated, truncated, infos
 

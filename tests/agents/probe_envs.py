@@ -38,17 +38,23 @@ class TargetActionEnv(Env[TargetActionParams, ProbeSim]):
         self.spec = EnvSpec(observation_shape=(action_size,), action_shape=(action_size,))
 
     def default_params(self) -> TargetActionParams:
-        return TargetActionParams(target_range=jnp.array(0.5, jnp.float32),
-                                  max_episode_steps=jnp.array(1, jnp.int32))
+        return TargetActionParams(target_range=jnp.array(0.5, jnp.float32), max_episode_steps=jnp.array(1, jnp.int32))
 
     def _reset(self, key, params):
-        target = jax.random.uniform(key, self.spec.action_shape, minval=-params.target_range,
-                                    maxval=params.target_range)
+        target = jax.random.uniform(
+            key, self.spec.action_shape, minval=-params.target_range, maxval=params.target_range
+        )
         return ProbeSim(obs=target), target, ()
 
     def _transition(self, sim, action, params):
-        return Transition(sim=sim, obs=sim.obs, reward=-jnp.sum(jnp.square(action - sim.obs)),
-                          terminated=jnp.ones((), jnp.bool_), success=jnp.ones((), jnp.bool_), info=())
+        return Transition(
+            sim=sim,
+            obs=sim.obs,
+            reward=-jnp.sum(jnp.square(action - sim.obs)),
+            terminated=jnp.ones((), jnp.bool_),
+            success=jnp.ones((), jnp.bool_),
+            info=(),
+        )
 
 
 @struct.dataclass
@@ -67,13 +73,20 @@ class ConstantRewardEnv(Env[ConstantRewardParams, ProbeSim]):
     spec = EnvSpec(observation_shape=(1,), action_shape=(1,))
 
     def default_params(self) -> ConstantRewardParams:
-        return ConstantRewardParams(reward=jnp.array(1.0, jnp.float32), terminate=jnp.array(False),
-                                    max_episode_steps=jnp.array(5, jnp.int32))
+        return ConstantRewardParams(
+            reward=jnp.array(1.0, jnp.float32), terminate=jnp.array(False), max_episode_steps=jnp.array(5, jnp.int32)
+        )
 
     def _reset(self, key, params):
         obs = jnp.ones((1,), jnp.float32)
         return ProbeSim(obs=obs), obs, ()
 
     def _transition(self, sim, action, params):
-        return Transition(sim=sim, obs=sim.obs, reward=params.reward.astype(jnp.float32),
-                          terminated=params.terminate, success=params.terminate, info=())
+        return Transition(
+            sim=sim,
+            obs=sim.obs,
+            reward=params.reward.astype(jnp.float32),
+            terminated=params.terminate,
+            success=params.terminate,
+            info=(),
+        )

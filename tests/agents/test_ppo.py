@@ -6,7 +6,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-
 from brax.training.acme import running_statistics
 
 from jaxarm.agents.common.evaluate import evaluate
@@ -15,8 +14,16 @@ from jaxarm.agents.ppo import PPOConfig, make_trainer
 from jaxarm.agents.ppo.train import make_networks
 from tests.agents.probe_envs import ConstantRewardEnv, TargetActionEnv
 
-TINY = PPOConfig(num_envs=8, rollout_length=4, num_minibatches=2, num_epochs=2, total_env_steps=32 * 4,
-                 updates_per_chunk=2, policy_hidden_sizes=(16,), value_hidden_sizes=(16,))
+TINY = PPOConfig(
+    num_envs=8,
+    rollout_length=4,
+    num_minibatches=2,
+    num_epochs=2,
+    total_env_steps=32 * 4,
+    updates_per_chunk=2,
+    policy_hidden_sizes=(16,),
+    value_hidden_sizes=(16,),
+)
 
 
 def test_whole_run_equals_the_chunked_run():
@@ -28,7 +35,7 @@ def test_whole_run_equals_the_chunked_run():
     for _ in range(trainer.num_updates // TINY.updates_per_chunk):
         state, _ = chunk(state, hparams)
     assert int(whole_state.updates) == trainer.num_updates == 4
-    for whole, chunked in zip(jax.tree.leaves(whole_state.params), jax.tree.leaves(state.params)):
+    for whole, chunked in zip(jax.tree.leaves(whole_state.params), jax.tree.leaves(state.params), strict=True):
         np.testing.assert_allclose(whole, chunked, rtol=1e-5, atol=1e-6)
 
 
@@ -54,8 +61,16 @@ def test_sizes_that_do_not_split_into_minibatches_are_rejected():
 
 @pytest.mark.slow
 def test_ppo_solves_the_fixed_goal_arm():
-    config = PPOConfig(num_envs=256, rollout_length=16, num_minibatches=4, total_env_steps=600_000,
-                       updates_per_chunk=10, gamma=0.9, learning_rate=3e-3, env_params=(("success_bonus", 10.0),))
+    config = PPOConfig(
+        num_envs=256,
+        rollout_length=16,
+        num_minibatches=4,
+        total_env_steps=600_000,
+        updates_per_chunk=10,
+        gamma=0.9,
+        learning_rate=3e-3,
+        env_params=(("success_bonus", 10.0),),
+    )
     trainer = make_trainer(config)
     state, metrics = jax.jit(make_train(trainer))(jax.random.PRNGKey(0), config.hparams())
     env, env_params = config.make_env()
@@ -63,9 +78,19 @@ def test_ppo_solves_the_fixed_goal_arm():
     assert float(result.successes.mean()) >= 0.95
 
 
-PROBE = PPOConfig(num_envs=64, rollout_length=8, num_minibatches=4, num_epochs=4, total_env_steps=64 * 8 * 60,
-                  updates_per_chunk=60, policy_hidden_sizes=(32,), value_hidden_sizes=(32,), gamma=0.9,
-                  learning_rate=3e-3, entropy_coef=0.0)
+PROBE = PPOConfig(
+    num_envs=64,
+    rollout_length=8,
+    num_minibatches=4,
+    num_epochs=4,
+    total_env_steps=64 * 8 * 60,
+    updates_per_chunk=60,
+    policy_hidden_sizes=(32,),
+    value_hidden_sizes=(32,),
+    gamma=0.9,
+    learning_rate=3e-3,
+    entropy_coef=0.0,
+)
 
 
 def probe_value(config, state, obs):

@@ -17,8 +17,14 @@ from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, pol
 from jaxarm.agents.td3.networks import Critic, apply_critics
 from tests.agents.probe_envs import ConstantRewardEnv, TargetActionEnv
 
-SMALL = dict(hidden_sizes=(32, 32), batch_size=64, buffer_size=4_096, updates_per_chunk=10,
-             checkpoint_every_updates=10, eval_episodes=10)
+SMALL = dict(
+    hidden_sizes=(32, 32),
+    batch_size=64,
+    buffer_size=4_096,
+    updates_per_chunk=10,
+    checkpoint_every_updates=10,
+    eval_episodes=10,
+)
 
 
 def train(config, env=None, env_params=None, seed=0):
@@ -79,11 +85,16 @@ def test_critic_actor_losses_and_smoothing_and_polyak():
 
 
 def test_replay_stores_pre_reset_next_obs_and_truncation_is_not_termination():
-    config = TD3Config(env_params=(("max_episode_steps", 3),), num_envs=2, rollout_length=3,
-                       learning_starts=10**6, total_env_steps=6, **{**SMALL, "buffer_size": 16})
+    config = TD3Config(
+        env_params=(("max_episode_steps", 3),),
+        num_envs=2,
+        rollout_length=3,
+        learning_starts=10**6,
+        total_env_steps=6,
+        **{**SMALL, "buffer_size": 16},
+    )
     trainer = make_trainer(config)
-    state, metrics = jax.jit(trainer.update)(trainer.init(jax.random.PRNGKey(0), config.hparams()),
-                                             config.hparams())
+    state, metrics = jax.jit(trainer.update)(trainer.init(jax.random.PRNGKey(0), config.hparams()), config.hparams())
     stored = jax.tree.map(lambda leaf: leaf[:6].reshape(3, 2, *leaf.shape[1:]), state.replay.items)  # [T, B]
     assert int(state.replay.size) == 6
     assert not np.any(stored.terminated)
@@ -116,14 +127,25 @@ def test_config_rejects_a_delay_that_does_not_divide_the_gradient_steps():
 DDPG = dict(num_critics=1, policy_delay=1, target_smoothing=False)
 
 
-@pytest.mark.parametrize("terminate, expected_q, learner", [(False, 2.0, {}), (True, 1.0, DDPG)],
-                         ids=["td3-truncation-bootstraps", "ddpg-termination-cuts"])
+@pytest.mark.parametrize(
+    "terminate, expected_q, learner",
+    [(False, 2.0, {}), (True, 1.0, DDPG)],
+    ids=["td3-truncation-bootstraps", "ddpg-termination-cuts"],
+)
 def test_critic_learns_constant_reward_value(terminate, expected_q, learner):
     """γ = 0.5, reward 1: Q = 1 / (1 − γ) = 2 when time limits truncate (bootstrap), 1 when terminating."""
     env = ConstantRewardEnv()
     env_params = env.default_params().replace(terminate=jnp.array(terminate))
-    config = TD3Config(gamma=0.5, num_envs=4, learning_starts=64, total_env_steps=4_000, grad_steps_per_update=2,
-                       tau=0.05, **SMALL, **learner)
+    config = TD3Config(
+        gamma=0.5,
+        num_envs=4,
+        learning_starts=64,
+        total_env_steps=4_000,
+        grad_steps_per_update=2,
+        tau=0.05,
+        **SMALL,
+        **learner,
+    )
     trainer, state, metrics = train(config, env, env_params)
     obs = jnp.ones((3, 1))
     actions = jnp.array([[-1.0], [0.0], [1.0]])
@@ -149,8 +171,10 @@ def test_vmap_over_seeds_and_learning_rates():
     config = TD3Config(num_envs=4, learning_starts=32, total_env_steps=160, grad_steps_per_update=2, **SMALL)
     trainer = make_trainer(config)
     hparams = jax.tree.map(lambda leaf: jnp.stack([leaf] * 4), config.hparams())
-    hparams = hparams.replace(actor_learning_rate=jnp.array([1e-3, 1e-3, 1e-4, 1e-4]),
-                              critic_learning_rate=jnp.array([1e-3, 1e-3, 1e-4, 1e-4]))
+    hparams = hparams.replace(
+        actor_learning_rate=jnp.array([1e-3, 1e-3, 1e-4, 1e-4]),
+        critic_learning_rate=jnp.array([1e-3, 1e-3, 1e-4, 1e-4]),
+    )
     keys = jnp.stack([jax.random.PRNGKey(seed) for seed in (0, 1, 0, 1)])
     state, metrics = jax.jit(jax.vmap(make_train(trainer)))(keys, hparams)
     assert metrics.critic_loss.shape == (4, trainer.num_updates)
@@ -176,5 +200,6 @@ def test_ddpg_solves_fixed_goal_arm2d():
     trainer, state, _ = train(config)
     env, env_params = config.make_env()
     result = jax.jit(lambda key: evaluate(env, env_params, partial(trainer.act, state), key, 200))(
-        jax.random.PRNGKey(42))
+        jax.random.PRNGKey(42)
+    )
     assert float(result.successes.mean()) >= 0.9

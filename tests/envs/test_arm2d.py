@@ -14,8 +14,11 @@ from jaxarm.envs.arm2d.numpy_reference import ClassicArm
 def start_state(env, params, angles, goal):
     """A reset state moved to the given angles and goal (hold count 0), observation recomputed."""
     state = env.reset(jax.random.key(0), params)
-    sim = Arm2dSim(angles=jnp.asarray(angles, jnp.float32), goal=jnp.asarray(goal, jnp.float32),
-                   hold_count=jnp.zeros((), jnp.int32))
+    sim = Arm2dSim(
+        angles=jnp.asarray(angles, jnp.float32),
+        goal=jnp.asarray(goal, jnp.float32),
+        hold_count=jnp.zeros((), jnp.int32),
+    )
     return state.replace(sim=sim, obs=env._observe(sim, params))
 
 
@@ -30,8 +33,9 @@ def test_parity_with_numpy_reference_on_random_action_sequences(num_links):
         # Every other episode starts near the goal so that the bonus, holding and termination are exercised.
         goal = rng.uniform(0, 400, 2) if episode % 2 else np.array(env_finger(angles, params))
         reference = ClassicArm(link_lengths=np.asarray(params.link_lengths), success_bonus=7.0)
-        np.testing.assert_allclose(reference.reset_to(angles, goal), start_state(env, params, angles, goal).obs,
-                                   atol=1e-5)
+        np.testing.assert_allclose(
+            reference.reset_to(angles, goal), start_state(env, params, angles, goal).obs, atol=1e-5
+        )
         state = start_state(env, params, angles, goal)
         for _ in range(200):
             action = rng.uniform(-1.5, 1.5, num_links) * (episode % 2 or 0.05)
@@ -107,7 +111,9 @@ def test_goal_modes(mode):
         np.testing.assert_array_equal(goals, np.tile([100.0, 100.0], (2000, 1)))
     elif mode == GOAL_UNIFORM_WORLD:
         # The reachable disc plus the goal square's margin covers ~91% of the world.
-        assert goals.min() >= 0 and goals.max() <= 400 and 0.05 < np.mean(~np.asarray(states.info.goal_reachable)) < 0.15
+        assert (
+            goals.min() >= 0 and goals.max() <= 400 and 0.05 < np.mean(~np.asarray(states.info.goal_reachable)) < 0.15
+        )
     else:
         radius = np.linalg.norm(goals - 200, axis=1)
         assert radius.max() <= 200.001 and np.all(np.asarray(states.info.goal_reachable))

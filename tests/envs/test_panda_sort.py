@@ -16,6 +16,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from jaxarm import envs  # noqa: E402
+from jaxarm.envs.panda.robot import HOME_QPOS  # noqa: E402
 from jaxarm.envs.panda_sort import (  # noqa: E402
     IN_CORRECT_BIN,
     IN_PLAY,
@@ -24,7 +25,6 @@ from jaxarm.envs.panda_sort import (  # noqa: E402
     SHAPE_SPHERE,
     PandaSort,
 )
-from jaxarm.envs.panda.robot import HOME_QPOS  # noqa: E402
 from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE  # noqa: E402
 from jaxarm.envs.panda_sort.scripted import script_start, scripted_action  # noqa: E402
 
@@ -40,18 +40,20 @@ TCP_OFFSET = 0.1034
 def dh_transform(a: float, d: float, alpha: float, theta: float) -> np.ndarray:
     """Modified-DH link transform RotX(alpha) TransX(a) RotZ(theta) TransZ(d), [4, 4]."""
     ca, sa, ct, st = np.cos(alpha), np.sin(alpha), np.cos(theta), np.sin(theta)
-    return np.array([
-        [ct, -st, 0.0, a],
-        [st * ca, ct * ca, -sa, -d * sa],
-        [st * sa, ct * sa, ca, d * ca],
-        [0.0, 0.0, 0.0, 1.0],
-    ])
+    return np.array(
+        [
+            [ct, -st, 0.0, a],
+            [st * ca, ct * ca, -sa, -d * sa],
+            [st * sa, ct * sa, ca, d * ca],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    )
 
 
 def dh_hand_pose(q: np.ndarray) -> np.ndarray:
     """[7] joint angles -> [4, 4] pose of the hand (flange, turned by the hand's -45 degrees)."""
     pose = np.eye(4)
-    for a, d, alpha, theta in zip(DH_A, DH_D, DH_ALPHA, q):
+    for a, d, alpha, theta in zip(DH_A, DH_D, DH_ALPHA, q, strict=True):
         pose = pose @ dh_transform(a, d, alpha, theta)
     return pose @ dh_transform(0.0, FLANGE_D, 0.0, HAND_YAW)
 
@@ -111,7 +113,7 @@ def object_position(state) -> np.ndarray:
 
 
 def tcp_position(state) -> np.ndarray:
-    return np.asarray(state.obs[OBJECT_OBS_SIZE:OBJECT_OBS_SIZE + 3])
+    return np.asarray(state.obs[OBJECT_OBS_SIZE : OBJECT_OBS_SIZE + 3])
 
 
 def run_steps(step, state, params, actions):
@@ -143,12 +145,15 @@ def scripted_pick_and_place(step, state, params, bin_xy, max_steps=300):
     return state, np.array(correct), np.array(wrong), np.array(shaping)
 
 
-@pytest.mark.parametrize("q", [
-    HOME_QPOS,
-    np.array([0.3, 0.2, -0.4, -1.5, 0.6, 2.0, -0.7]),
-    np.array([-1.2, -0.9, 1.1, -2.6, -1.4, 0.8, 2.1]),
-    np.array([2.0, 1.2, 0.5, -0.5, 2.5, 3.0, 0.3]),
-])
+@pytest.mark.parametrize(
+    "q",
+    [
+        HOME_QPOS,
+        np.array([0.3, 0.2, -0.4, -1.5, 0.6, 2.0, -0.7]),
+        np.array([-1.2, -0.9, 1.1, -2.6, -1.4, 0.8, 2.1]),
+        np.array([2.0, 1.2, 0.5, -0.5, 2.5, 3.0, 0.3]),
+    ],
+)
 def test_hand_pose_matches_published_dh_kinematics(env, q):
     data = mujoco.MjData(env.mj_model)
     data.qpos[env.ids.robot.arm_qpos] = q
@@ -175,23 +180,35 @@ def test_frictionless_bin_walls_still_stop_an_object_thrown_at_them(env, params,
     size = 0.025
     wall_outside = env.layout.bin_centers[0][1] - env.layout.bin_half - 2 * env.layout.bin_wall_half_thickness
     x = env.layout.bin_centers[0][0]
-    state = with_object(env, reset(jax.random.key(2), params), SHAPE_CUBE, size,
-                        [x, wall_outside - size - 0.03, size + 0.001, 1, 0, 0, 0], velocity=[0.0, 1.0, 0, 0, 0, 0])
+    state = with_object(
+        env,
+        reset(jax.random.key(2), params),
+        SHAPE_CUBE,
+        size,
+        [x, wall_outside - size - 0.03, size + 0.001, 1, 0, 0, 0],
+        velocity=[0.0, 1.0, 0, 0, 0, 0],
+    )
     state, terms = run_steps(step, state, params, [np.zeros(5)] * 15)
     assert int(state.info.in_play_count) == 1 and not np.any(terms.correct_bin) and not np.any(terms.wrong_bin)
     assert float(object_position(state)[1]) < wall_outside - size + 0.005, "the cube went through the wall"
 
 
 # The largest cube turned 45 degrees is wider across its corners than the open fingers: the hand must turn.
-@pytest.mark.parametrize("shape, size, yaw", [
-    (SHAPE_CUBE, 0.0375, np.pi / 4), (SHAPE_CYLINDER, 0.025, 0.5), (SHAPE_SPHERE, 0.025, 0.0),
-])
+@pytest.mark.parametrize(
+    "shape, size, yaw",
+    [
+        (SHAPE_CUBE, 0.0375, np.pi / 4),
+        (SHAPE_CYLINDER, 0.025, 0.5),
+        (SHAPE_SPHERE, 0.025, 0.0),
+    ],
+)
 def test_scripted_pick_and_place_scores_500_exactly_once(env, params, reset, step, shape, size, yaw):
     pose = [0.5, -0.1, size + 0.001, np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)]
     state = with_object(env, reset(jax.random.key(0), params), shape, size, pose)
     initial_potential = float(state.sim.potential.sum())
     state, correct, wrong, shaping = scripted_pick_and_place(
-        step, state, params, np.array(env.layout.bin_centers[shape]))
+        step, state, params, np.array(env.layout.bin_centers[shape])
+    )
     assert bool(state.terminated), "the object never reached a bin"
     assert list(correct[correct != 0]) == [500.0] and not np.any(wrong)
     assert int(state.info.correct_count) == 1 and bool(state.episode.success)
@@ -239,8 +256,9 @@ def test_a_grasp_ready_start_closes_on_the_object_and_lifts_it(env, params, rese
     ready = params.replace(ready_start_prob=jnp.float32(1.0), size_scale_low=jnp.float32(1.5))  # the largest
     state = curriculum_start(env, reset(jax.random.key(10 + int(shape)), ready), ready, shape, held=False)
     np.testing.assert_allclose(object_position(state)[:2], tcp_position(state)[:2], atol=1e-6)
-    state, terms = run_steps(step, state, ready, [np.r_[0.0, 0.0, 0.0, 0.0, -1.0]] * 8
-                             + [np.r_[0.0, 0.0, 0.5, 0.0, -1.0]] * 30)
+    state, terms = run_steps(
+        step, state, ready, [np.r_[0.0, 0.0, 0.0, 0.0, -1.0]] * 8 + [np.r_[0.0, 0.0, 0.5, 0.0, -1.0]] * 30
+    )
     assert float(object_position(state)[2]) > 0.1, "the object did not come up with the hand"
     assert terms.grasp.sum() == pytest.approx(float(ready.grasp_weight)) and terms.lift.sum() > 0
 
@@ -257,7 +275,7 @@ def step3(env3):
 
 def listed_objects(env, obs: np.ndarray) -> np.ndarray:
     """[..., O] observations -> [..., N, OBJECT_OBS_SIZE] the object rows in the order they are listed."""
-    return obs[..., :env.objects_count * OBJECT_OBS_SIZE].reshape(*obs.shape[:-1], env.objects_count, OBJECT_OBS_SIZE)
+    return obs[..., : env.objects_count * OBJECT_OBS_SIZE].reshape(*obs.shape[:-1], env.objects_count, OBJECT_OBS_SIZE)
 
 
 def batched_resets(env, params, seed: int, count: int = 64):
@@ -265,7 +283,7 @@ def batched_resets(env, params, seed: int, count: int = 64):
     states = jax.jit(jax.vmap(lambda key: env.reset(key, params)))(jax.random.split(jax.random.key(seed), count))
     positions = np.asarray(states.sim.qpos[:, env.ids.object_qpos[:, None] + np.arange(3)])
     at = env.objects_count * OBJECT_OBS_SIZE
-    return states, positions, np.asarray(states.obs[:, at:at + 3])
+    return states, positions, np.asarray(states.obs[:, at : at + 3])
 
 
 def test_grasp_ready_starts_keep_other_objects_clear_of_the_hand(env3):
@@ -305,7 +323,9 @@ def drop_into_own_bin(env, state, slot: int):
     """`state` with object `slot` held 12 cm above the centre of its own bin."""
     own_bin = env.layout.bin_centers[int(state.sim.shape[slot])]
     pose_idx = env.ids.object_qpos[slot] + np.arange(7)
-    return state.replace(sim=state.sim.replace(qpos=state.sim.qpos.at[pose_idx].set(jnp.array([*own_bin, 0.12, 1, 0, 0, 0]))))
+    return state.replace(
+        sim=state.sim.replace(qpos=state.sim.qpos.at[pose_idx].set(jnp.array([*own_bin, 0.12, 1, 0, 0, 0])))
+    )
 
 
 def test_a_one_object_observation_maps_onto_the_target_of_three(env, env3):
@@ -313,8 +333,8 @@ def test_a_one_object_observation_maps_onto_the_target_of_three(env, env3):
     size = OBJECT_OBS_SIZE
     assert index.shape == env3.spec.observation_shape
     np.testing.assert_array_equal(index[:size], np.arange(size))
-    np.testing.assert_array_equal(index[size:3 * size], -1)
-    np.testing.assert_array_equal(index[3 * size:], size + np.arange(env.spec.observation_size - size))
+    np.testing.assert_array_equal(index[size : 3 * size], -1)
+    np.testing.assert_array_equal(index[3 * size :], size + np.arange(env.spec.observation_size - size))
     with pytest.raises(ValueError, match="no mapping"):
         env3.observation_source_index(envs.make("arm2d"))
 
@@ -344,10 +364,14 @@ def test_the_target_is_listed_first_shaped_alone_and_handed_on_to_the_nearest_ob
         order = (target + np.arange(3)) % 3
         in_play = np.asarray(state.sim.outcome)[order] == IN_PLAY
         np.testing.assert_allclose(listed[:, :3], positions[order] * in_play[:, None], atol=1e-6)
-        tcp = np.asarray(state.obs[3 * OBJECT_OBS_SIZE:3 * OBJECT_OBS_SIZE + 3])
-        reach = float(params.reach_weight) * (1 - np.tanh(np.linalg.norm(positions[target] - tcp) / float(params.reach_scale)))
+        tcp = np.asarray(state.obs[3 * OBJECT_OBS_SIZE : 3 * OBJECT_OBS_SIZE + 3])
+        reach = float(params.reach_weight) * (
+            1 - np.tanh(np.linalg.norm(positions[target] - tcp) / float(params.reach_scale))
+        )
         placed = int(state.info.correct_count)
-        np.testing.assert_allclose(float(state.sim.potential[0]), reach + placed * float(params.reach_weight), rtol=1e-4)
+        np.testing.assert_allclose(
+            float(state.sim.potential[0]), reach + placed * float(params.reach_weight), rtol=1e-4
+        )
         return target, positions, tcp
 
     first, _, _ = check_target_listed_and_shaped(state)
@@ -381,7 +405,11 @@ def test_wrong_bin_scores_200_once_and_the_object_leaves_play(env, params, reset
 def test_object_pushed_off_the_table_costs_50_once(env, params, reset, step):
     size = 0.025
     state = with_object(
-        env, reset(jax.random.key(4), params), SHAPE_SPHERE, size, [0.8, -0.1, size, 1, 0, 0, 0],
+        env,
+        reset(jax.random.key(4), params),
+        SHAPE_SPHERE,
+        size,
+        [0.8, -0.1, size, 1, 0, 0, 0],
         velocity=[1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
     )
     state, terms = run_steps(step, state, params, [np.zeros(5)] * 20)
@@ -404,7 +432,9 @@ def test_random_actions_stay_finite_with_per_env_randomised_params():
     scale = jax.random.uniform(key, (num_envs,), minval=0.5, maxval=1.5)
     params = jax.tree.map(lambda leaf: jnp.broadcast_to(leaf, (num_envs, *leaf.shape)), base)
     params = params.replace(
-        object_friction=base.object_friction * scale, mass_scale=scale, size_scale_high=1.0 + 0.5 * scale,
+        object_friction=base.object_friction * scale,
+        mass_scale=scale,
+        size_scale_high=1.0 + 0.5 * scale,
     )
     batch = envs.VmapEnv(envs.AutoReset(env), num_envs, batched_params=True)
 

@@ -42,21 +42,23 @@ def test_both_versions_of_the_two_link_maths_hold_the_goal_as_the_env_does():
     assert int(expected.max()) > 0 and int(expected.min()) == 0
 
     hold = jnp.zeros((), jnp.int32)
-    starts = {False: (angles[0], angles[1], goal[0], goal[1], hold),
-              True: (jnp.cos(angles[0]), jnp.sin(angles[0]), jnp.cos(angles[1]), jnp.sin(angles[1]), goal[0], goal[1],
-                     hold)}
+    starts = {
+        False: (angles[0], angles[1], goal[0], goal[1], hold),
+        True: (jnp.cos(angles[0]), jnp.sin(angles[0]), jnp.cos(angles[1]), jnp.sin(angles[1]), goal[0], goal[1], hold),
+    }
     for rotation, carry in starts.items():
         maths = ceilings.two_link_maths(rotation)
 
-        def step(carry, action):
+        def step(carry, action, maths=maths):
             carry = maths(carry, action)
             return carry, carry[-1]
 
         end, holds = jax.lax.scan(step, carry, (actions[:, 0], actions[:, 1]))
         np.testing.assert_array_equal(holds, expected)
     last = env_sims.angles[-1]
-    np.testing.assert_allclose(end[:4], [jnp.cos(last[0]), jnp.sin(last[0]), jnp.cos(last[1]), jnp.sin(last[1])],
-                               atol=1e-4)
+    np.testing.assert_allclose(
+        end[:4], [jnp.cos(last[0]), jnp.sin(last[0]), jnp.cos(last[1]), jnp.sin(last[1])], atol=1e-4
+    )
 
 
 def test_suite_prints_the_bound_and_the_table(capsys):

@@ -16,10 +16,19 @@ def write_run(run_dir, num_envs: int, rows: list[tuple[float, float, float, floa
     rundir.write_config(run_dir, config, "ppo_arm2d")
     lines = []
     for update, (wall, rate, episodes, success, returns) in enumerate(rows, start=1):
-        lines.append(json.dumps({"updates": update, "wall_time": wall, "steps_per_second": rate,
-                                 "env_steps": update * num_envs * config.rollout_length,
-                                 "episodes/episodes": episodes, "episodes/success_rate": success,
-                                 "episodes/return_mean": returns}))
+        lines.append(
+            json.dumps(
+                {
+                    "updates": update,
+                    "wall_time": wall,
+                    "steps_per_second": rate,
+                    "env_steps": update * num_envs * config.rollout_length,
+                    "episodes/episodes": episodes,
+                    "episodes/success_rate": success,
+                    "episodes/return_mean": returns,
+                }
+            )
+        )
     (run_dir / "metrics.jsonl").write_text("\n".join(lines) + "\n")
     if device:
         (run_dir / "eval.json").write_text(json.dumps({"episodes": 100, "success_rate": 0.5, "device": device}))
@@ -27,8 +36,12 @@ def write_run(run_dir, num_envs: int, rows: list[tuple[float, float, float, floa
 
 
 def test_a_run_reads_back_with_its_batch_rate_and_episode_weighted_curves(tmp_path):
-    rows = [(10.0, 100.0, 1, 0.0, -1.0), (10.0, 100.0, 0, 0.9, 9.0), (12.0, 300.0, 3, 1.0, 3.0),
-            (14.0, 500.0, 1, 1.0, 5.0)]
+    rows = [
+        (10.0, 100.0, 1, 0.0, -1.0),
+        (10.0, 100.0, 0, 0.9, 9.0),
+        (12.0, 300.0, 3, 1.0, 3.0),
+        (14.0, 500.0, 1, 1.0, 5.0),
+    ]
     run = compare.load_run(write_run(tmp_path / "a", 64, rows))
     assert run.label == "a" and run.batch == 64 * 16
     # The update with no finished episode is left out; with 3 rows the rolling window is 1 update.
@@ -43,8 +56,12 @@ def test_a_run_reads_back_with_its_batch_rate_and_episode_weighted_curves(tmp_pa
 
 def test_the_table_compares_runs_at_the_wall_clock_all_of_them_reached(tmp_path):
     short = write_run(tmp_path / "short", 64, [(10.0, 100.0, 2, 0.2, 1.0), (20.0, 100.0, 2, 0.4, 2.0)], "GPU X")
-    long = write_run(tmp_path / "long", 128, [(10.0, 100.0, 2, 0.1, 0.5), (20.0, 100.0, 2, 0.3, 1.5),
-                                               (30.0, 100.0, 2, 0.9, 9.5)], "GPU X")
+    long = write_run(
+        tmp_path / "long",
+        128,
+        [(10.0, 100.0, 2, 0.1, 0.5), (20.0, 100.0, 2, 0.3, 1.5), (30.0, 100.0, 2, 0.9, 9.5)],
+        "GPU X",
+    )
     runs = [compare.load_run(short), compare.load_run(long, "big batch")]
     lines = compare.table(runs).splitlines()
     assert "success at 20 s" in lines[0]

@@ -18,9 +18,9 @@ def test_name_stacks_map_to_whole_scopes_only():
 
 def test_instruction_names_are_read_with_their_name_stacks():
     hlo = (
-        '  %fusion.3 = f32[64]{0} fusion(f32[64]{0} %p), kind=kLoop, calls=%fused, '
+        "  %fusion.3 = f32[64]{0} fusion(f32[64]{0} %p), kind=kLoop, calls=%fused, "
         'metadata={op_type="add" op_name="jit(f)/sgd/add" source_file="x.py"}\n'
-        '  ROOT %copy.1 = f32[64]{0} copy(f32[64]{0} %fusion.3)\n'
+        "  ROOT %copy.1 = f32[64]{0} copy(f32[64]{0} %fusion.3)\n"
         '  %wrapped_sine = f32[64]{0} fusion(%p), metadata={op_name="jit(f)/collect/sin"}\n'
     )
     assert profile.op_names(hlo) == {"fusion.3": "jit(f)/sgd/add", "wrapped_sine": "jit(f)/collect/sin"}

@@ -13,12 +13,20 @@ import jax
 import numpy as np
 import pytest
 
+from experiments import configs, run, rundir
+from experiments import eval as eval_cli
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.ppo.warm_start import warm_start
-from experiments import configs, eval as eval_cli, rundir, run
 
-SMALL = ["num_envs=64", "rollout_length=16", "num_minibatches=2", "total_env_steps=24576",
-         "updates_per_chunk=4", "checkpoint_every_updates=4", "eval_episodes=20"]
+SMALL = [
+    "num_envs=64",
+    "rollout_length=16",
+    "num_minibatches=2",
+    "total_env_steps=24576",
+    "updates_per_chunk=4",
+    "checkpoint_every_updates=4",
+    "eval_episodes=20",
+]
 
 
 def run_cli(*args):
@@ -42,8 +50,14 @@ def test_a_run_writes_config_metrics_checkpoints_curve_and_eval(finished_run):
     assert config["preset"] == "ppo_arm2d_fixed" and config["num_envs"] == 64
     rows = rundir.read_metrics(finished_run)
     assert [row["updates"] for row in rows] == list(range(1, 25))
-    assert {"env_steps", "episodes/return_mean", "episodes/success_rate", "loss/policy_loss", "steps_per_second",
-            "wall_time"} <= set(rows[0])
+    assert {
+        "env_steps",
+        "episodes/return_mean",
+        "episodes/success_rate",
+        "loss/policy_loss",
+        "steps_per_second",
+        "wall_time",
+    } <= set(rows[0])
     assert checkpoint.latest_step(finished_run / "checkpoints") == 24
     assert (finished_run / "curve.png").stat().st_size > 10_000
     assert any((finished_run / "tensorboard").iterdir())
@@ -94,7 +108,9 @@ def test_resume_after_sigkill_matches_an_uninterrupted_run(finished_run, tmp_pat
     assert killed_at is not None and killed_at < 24, "the run finished before it could be killed"
     assert run.main(["--resume", str(run_dir)]) == 0
     assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 25))
-    for resumed, uninterrupted in zip(jax.tree.leaves(final_params(run_dir)), jax.tree.leaves(final_params(finished_run))):
+    for resumed, uninterrupted in zip(
+        jax.tree.leaves(final_params(run_dir)), jax.tree.leaves(final_params(finished_run)), strict=True
+    ):
         np.testing.assert_array_equal(resumed, uninterrupted)
 
 
@@ -105,7 +121,7 @@ def test_nan_stops_the_run_naming_the_update_and_keeps_the_last_good_checkpoint(
     with pytest.raises(run.TrainingDiverged, match=r"update 25 .*last good checkpoint \(update 24\)"):
         run.train(diverging, preset, finished_run, resume=True)
     assert checkpoint.latest_step(finished_run / "checkpoints") == 24
-    for kept, before in zip(jax.tree.leaves(final_params(finished_run)), jax.tree.leaves(good)):
+    for kept, before in zip(jax.tree.leaves(final_params(finished_run)), jax.tree.leaves(good), strict=True):
         np.testing.assert_array_equal(kept, before)
 
 
@@ -134,11 +150,14 @@ def test_a_warm_start_begins_from_the_trained_networks_and_statistics(finished_r
     trainer = configs.make_trainer(warm)
     fresh = jax.jit(trainer.init)(jax.random.PRNGKey(5), warm.hparams())
     started = rundir.warm_starter(warm)(fresh)
-    for copied, source in zip(jax.tree.leaves((started.params, started.normalizer)),
-                              jax.tree.leaves((trained.params, trained.normalizer))):
+    for copied, source in zip(
+        jax.tree.leaves((started.params, started.normalizer)),
+        jax.tree.leaves((trained.params, trained.normalizer)),
+        strict=True,
+    ):
         np.testing.assert_array_equal(copied, source)
     assert int(started.env_steps) == 0 and int(started.updates) == 0
-    for kept, new in zip(jax.tree.leaves(started.opt_state), jax.tree.leaves(fresh.opt_state)):
+    for kept, new in zip(jax.tree.leaves(started.opt_state), jax.tree.leaves(fresh.opt_state), strict=True):
         np.testing.assert_array_equal(kept, new)
 
     # An input the trained learner never saw gets zero weight: at its (normalised) mean the policy is unchanged.

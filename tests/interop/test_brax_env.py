@@ -108,9 +108,18 @@ def test_brax_ppo_trains_through_the_adapter():
     env, params = make_params(max_episode_steps=20)
     steps_seen = []
     _, policy_params, metrics = ppo.train(
-        environment=BraxEnv(env, params), wrap_env_fn=wrap_for_training, episode_length=20,
-        num_timesteps=16 * 8 * 4 * 2, num_envs=16, unroll_length=8, batch_size=16, num_minibatches=4,
-        num_updates_per_batch=2, num_evals=2, num_eval_envs=16, normalize_observations=True,
+        environment=BraxEnv(env, params),
+        wrap_env_fn=wrap_for_training,
+        episode_length=20,
+        num_timesteps=16 * 8 * 4 * 2,
+        num_envs=16,
+        unroll_length=8,
+        batch_size=16,
+        num_minibatches=4,
+        num_updates_per_batch=2,
+        num_evals=2,
+        num_eval_envs=16,
+        normalize_observations=True,
         network_factory=functools.partial(
             ppo_networks.make_ppo_networks, policy_hidden_layer_sizes=(16,), value_hidden_layer_sizes=(16,)
         ),
@@ -129,9 +138,17 @@ def test_brax_sac_trains_through_the_adapter():
     install_device_put_replicated()
     env, params = make_params(max_episode_steps=20)
     _, policy_params, metrics = sac.train(
-        environment=BraxEnv(env, params), wrap_env_fn=wrap_for_training, episode_length=20,
-        num_timesteps=1_000, num_envs=8, batch_size=32, min_replay_size=128, max_replay_size=2_048,
-        num_evals=2, num_eval_envs=8, normalize_observations=True,
+        environment=BraxEnv(env, params),
+        wrap_env_fn=wrap_for_training,
+        episode_length=20,
+        num_timesteps=1_000,
+        num_envs=8,
+        batch_size=32,
+        min_replay_size=128,
+        max_replay_size=2_048,
+        num_evals=2,
+        num_eval_envs=8,
+        normalize_observations=True,
         network_factory=functools.partial(sac_networks.make_sac_networks, hidden_layer_sizes=(16,)),
     )
     assert metrics["training/sps"] > 0

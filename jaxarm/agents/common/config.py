@@ -129,7 +129,9 @@ def apply_overrides(config: RunConfig, overrides: Iterable[str]) -> RunConfig:
         key, text = item.split("=", 1)
         group, _, name = key.partition(".")
         if name and group in ("env_kwargs", "env_params", "eval_env_params"):
-            config = dataclasses.replace(config, **{group: with_pair(getattr(config, group), name, parse_literal(text))})
+            config = dataclasses.replace(
+                config, **{group: with_pair(getattr(config, group), name, parse_literal(text))}
+            )
             continue
         if key not in fields:
             raise ValueError(f"unknown config key {key!r}{closest_match_hint(key, fields)}")

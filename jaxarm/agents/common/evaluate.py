@@ -37,8 +37,9 @@ class EvalResult:
         }
 
 
-def rollout_episodes(env, env_params, policy: Callable[[jax.Array], jax.Array], key, episodes: int,
-                     max_steps: int) -> EnvState:
+def rollout_episodes(
+    env, env_params, policy: Callable[[jax.Array], jax.Array], key, episodes: int, max_steps: int
+) -> EnvState:
     """Runs `episodes` fresh episodes to their end (no auto-reset) with `policy: obs [B, O] -> action [B, A]`.
 
     Returns the env states after every step, [max_steps, episodes, ...]; an env that has finished stays
@@ -64,5 +65,9 @@ def evaluate(env, env_params, policy, key, episodes: int) -> EvalResult:
     """Runs `episodes` fresh episodes with a deterministic `policy` and returns their results (jit-able)."""
     max_steps = int(env_params.max_episode_steps)
     final = jax.tree.map(lambda leaf: leaf[-1], rollout_episodes(env, env_params, policy, key, episodes, max_steps))
-    return EvalResult(returns=final.episode.return_, lengths=final.episode.length, successes=final.episode.success,
-                      final_info=final.info)
+    return EvalResult(
+        returns=final.episode.return_,
+        lengths=final.episode.length,
+        successes=final.episode.success,
+        final_info=final.info,
+    )

@@ -55,8 +55,11 @@ def make_train(trainer: Trainer) -> Callable[[jax.Array, Any], tuple[Any, Any]]:
 
 def make_chunk_runner(trainer: Trainer, updates_per_chunk: int):
     """A jitted `(state, hparams) -> (state, metrics [updates_per_chunk])`; compiled once, reused."""
-    return jax.jit(partial(run_updates, trainer, num_updates=updates_per_chunk), donate_argnums=0,
-                   compiler_options=trainer.compiler_options)
+    return jax.jit(
+        partial(run_updates, trainer, num_updates=updates_per_chunk),
+        donate_argnums=0,
+        compiler_options=trainer.compiler_options,
+    )
 
 
 @struct.dataclass

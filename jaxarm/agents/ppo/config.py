@@ -87,10 +87,10 @@ class PPOConfig(RunConfig):
     def minibatch_size(self) -> int:
         return self.env_steps_per_update // self.num_minibatches
 
-
     def check(self) -> None:
         """Raises ValueError on sizes PPO cannot use."""
         if self.env_steps_per_update % self.num_minibatches:
             raise ValueError(
-                f"rollout_length*num_envs={self.env_steps_per_update} must divide by num_minibatches={self.num_minibatches}"
+                f"rollout_length*num_envs={self.env_steps_per_update} must divide by "
+                f"num_minibatches={self.num_minibatches}"
             )

@@ -183,8 +183,13 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         values = value_of(state.params, normalizer, rollout.obs)
         next_values = value_of(state.params, normalizer, rollout.final_obs)
         advantages, targets = losses.gae(
-            rollout.reward * hparams.reward_scale, values, next_values, rollout.terminated, rollout.done,
-            hparams.gamma, hparams.gae_lambda,
+            rollout.reward * hparams.reward_scale,
+            values,
+            next_values,
+            rollout.terminated,
+            rollout.done,
+            hparams.gamma,
+            hparams.gae_lambda,
         )
         samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets)
         return normalizer, jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
@@ -227,8 +232,13 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
             )
         env_steps = state.env_steps + config.env_steps_per_update
         new_state = PPOState(
-            params=params, opt_state=opt_state, normalizer=normalizer, env_state=env_state, key=next_key,
-            env_steps=env_steps, updates=state.updates + 1,
+            params=params,
+            opt_state=opt_state,
+            normalizer=normalizer,
+            env_state=env_state,
+            key=next_key,
+            env_steps=env_steps,
+            updates=state.updates + 1,
         )
         metrics = PPOMetrics(
             env_steps=env_steps,
@@ -244,6 +254,10 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         return action_dist.mode(policy_params_of(state.params, state.normalizer, obs))
 
     return Trainer(
-        init=init, update=update, act=act, num_updates=config.num_updates,
-        env_steps_per_update=config.env_steps_per_update, compiler_options=compiler_options(env),
+        init=init,
+        update=update,
+        act=act,
+        num_updates=config.num_updates,
+        env_steps_per_update=config.env_steps_per_update,
+        compiler_options=compiler_options(env),
     )

@@ -79,16 +79,25 @@ class TD3Config(RunConfig):
     grad_steps_per_update: int = 4
 
     def __post_init__(self):
-        for field in ("num_critics", "policy_delay", "batch_size", "buffer_size", "rollout_length",
-                      "grad_steps_per_update"):
+        for field in (
+            "num_critics",
+            "policy_delay",
+            "batch_size",
+            "buffer_size",
+            "rollout_length",
+            "grad_steps_per_update",
+        ):
             if getattr(self, field) <= 0:
                 raise ValueError(f"{field} must be positive, got {getattr(self, field)}")
         if self.grad_steps_per_update % self.policy_delay:
-            raise ValueError(f"grad_steps_per_update ({self.grad_steps_per_update}) must be a multiple of "
-                             f"policy_delay ({self.policy_delay})")
+            raise ValueError(
+                f"grad_steps_per_update ({self.grad_steps_per_update}) must be a multiple of "
+                f"policy_delay ({self.policy_delay})"
+            )
         if self.env_steps_per_update > self.buffer_size:
-            raise ValueError(f"buffer_size ({self.buffer_size}) must hold one update's "
-                             f"{self.env_steps_per_update} env steps")
+            raise ValueError(
+                f"buffer_size ({self.buffer_size}) must hold one update's {self.env_steps_per_update} env steps"
+            )
 
     @property
     def env_steps_per_update(self) -> int:
@@ -97,4 +106,3 @@ class TD3Config(RunConfig):
     @property
     def num_updates(self) -> int:
         return self.whole_chunks(self.env_steps_per_update)
-

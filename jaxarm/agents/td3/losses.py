@@ -20,8 +20,9 @@ def smoothed_target_action(target_action: jax.Array, noise: jax.Array, noise_cli
     return jnp.clip(target_action + jnp.clip(noise, -noise_clip, noise_clip), -1.0, 1.0)
 
 
-def critic_target(next_q: jax.Array, reward: jax.Array, terminated: jax.Array, gamma: jax.Array,
-                  reward_scale: jax.Array) -> jax.Array:
+def critic_target(
+    next_q: jax.Array, reward: jax.Array, terminated: jax.Array, gamma: jax.Array, reward_scale: jax.Array
+) -> jax.Array:
     """y = reward_scale·r + γ·(1 − terminated)·min_c Q'_c(s', a').
 
     Args:

@@ -110,8 +110,9 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         action = jnp.zeros((action_size,), jnp.float32)
         actor_params = actor.init(actor_key, obs)
         critic_params = init_critics(critic, critic_key, config.num_critics, obs, action)
-        example = Experience(obs=obs, action=action, reward=jnp.zeros((), jnp.float32), next_obs=obs,
-                             terminated=jnp.zeros((), jnp.bool_))
+        example = Experience(
+            obs=obs, action=action, reward=jnp.zeros((), jnp.float32), next_obs=obs, terminated=jnp.zeros((), jnp.bool_)
+        )
         return TD3State(
             actor_params=actor_params,
             critic_params=critic_params,
@@ -138,13 +139,19 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             random = jax.random.uniform(random_key, shape, minval=-1.0, maxval=1.0)
             action = jnp.where(env_steps < config.learning_starts, random, noisy)
             next_state = batch_env.step(env_state, to_env_action(action), env_params)
-            experience = Experience(obs=env_state.obs, action=action, reward=next_state.reward,
-                                    next_obs=next_state.final_obs, terminated=next_state.terminated)
+            experience = Experience(
+                obs=env_state.obs,
+                action=action,
+                reward=next_state.reward,
+                next_obs=next_state.final_obs,
+                terminated=next_state.terminated,
+            )
             return (next_state, env_steps + config.num_envs), (experience, next_state)
 
         step_keys = jax.random.split(key, config.rollout_length)
         (env_state, env_steps), (experience, states) = jax.lax.scan(
-            env_step, (state.env_state, state.env_steps), step_keys)
+            env_step, (state.env_state, state.env_steps), step_keys
+        )
         flat = jax.tree.map(lambda leaf: leaf.reshape(-1, *leaf.shape[2:]), experience)
         return env_state, env_steps, flat, states
 
@@ -179,16 +186,19 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         """`policy_delay` critic steps, then one actor step and one target step; returns (state, losses)."""
         sample_key, noise_key = jax.random.split(key)
         batches = replay.sample(state.replay, sample_key, config.policy_delay * config.batch_size)
-        batches = jax.tree.map(lambda leaf: leaf.reshape(config.policy_delay, config.batch_size, *leaf.shape[1:]),
-                               batches)
+        batches = jax.tree.map(
+            lambda leaf: leaf.reshape(config.policy_delay, config.batch_size, *leaf.shape[1:]), batches
+        )
         (critic_params, critic_opt_state), (critic_losses, q_means) = jax.lax.scan(
-            lambda carry, inputs: critic_step(carry, inputs, hparams, state.target_actor_params,
-                                              state.target_critic_params),
+            lambda carry, inputs: critic_step(
+                carry, inputs, hparams, state.target_actor_params, state.target_critic_params
+            ),
             (state.critic_params, state.critic_opt_state),
             (batches, jax.random.split(noise_key, config.policy_delay)),
         )
         actor_params, actor_opt_state, loss = actor_step(
-            state.actor_params, state.actor_opt_state, critic_params, batches.obs[-1], hparams)
+            state.actor_params, state.actor_opt_state, critic_params, batches.obs[-1], hparams
+        )
         state = state.replace(
             actor_params=actor_params,
             critic_params=critic_params,
@@ -202,7 +212,8 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     def learn(state: TD3State, key: jax.Array, hparams: TD3HParams):
         blocks = config.grad_steps_per_update // config.policy_delay
         state, (critic_losses, actor_losses, q_means) = jax.lax.scan(
-            lambda carry, block_key: delayed_block(carry, block_key, hparams), state, jax.random.split(key, blocks))
+            lambda carry, block_key: delayed_block(carry, block_key, hparams), state, jax.random.split(key, blocks)
+        )
         return state, (jnp.mean(critic_losses), jnp.mean(actor_losses), jnp.mean(q_means))
 
     def skip_learning(state: TD3State, key: jax.Array, hparams: TD3HParams):
@@ -213,13 +224,30 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     def update(state: TD3State, hparams: TD3HParams) -> tuple[TD3State, TD3Metrics]:
         key, collect_key, learn_key = jax.random.split(state.key, 3)
         env_state, env_steps, experience, states = collect(state, hparams, collect_key)
-        state = state.replace(env_state=env_state, env_steps=env_steps, key=key, updates=state.updates + 1,
-                              replay=replay.add(state.replay, experience))
+        state = state.replace(
+            env_state=env_state,
+            env_steps=env_steps,
+            key=key,
+            updates=state.updates + 1,
+            replay=replay.add(state.replay, experience),
+        )
         state, (critic_loss_value, actor_loss_value, q_mean) = jax.lax.cond(
-            env_steps >= config.learning_starts, learn, skip_learning, state, learn_key, hparams)
-        metrics = TD3Metrics(env_steps=env_steps, episodes=summarise_episodes(states),
-                             critic_loss=critic_loss_value, actor_loss=actor_loss_value, q_mean=q_mean)
+            env_steps >= config.learning_starts, learn, skip_learning, state, learn_key, hparams
+        )
+        metrics = TD3Metrics(
+            env_steps=env_steps,
+            episodes=summarise_episodes(states),
+            critic_loss=critic_loss_value,
+            actor_loss=actor_loss_value,
+            q_mean=q_mean,
+        )
         return state, metrics
 
-    return Trainer(init=init, update=update, act=act, num_updates=config.num_updates,
-                   env_steps_per_update=config.env_steps_per_update, compiler_options=compiler_options(env))
+    return Trainer(
+        init=init,
+        update=update,
+        act=act,
+        num_updates=config.num_updates,
+        env_steps_per_update=config.env_steps_per_update,
+        compiler_options=compiler_options(env),
+    )

@@ -11,5 +11,11 @@ from jaxarm.envs.arm2d.env import (
 )
 
 __all__ = [
-    "GOAL_FIXED", "GOAL_UNIFORM_REACHABLE", "GOAL_UNIFORM_WORLD", "Arm2d", "Arm2dInfo", "Arm2dParams", "Arm2dSim",
+    "GOAL_FIXED",
+    "GOAL_UNIFORM_REACHABLE",
+    "GOAL_UNIFORM_WORLD",
+    "Arm2d",
+    "Arm2dInfo",
+    "Arm2dParams",
+    "Arm2dSim",
 ]

@@ -163,7 +163,7 @@ class Arm2d(Env[Arm2dParams, Arm2dSim]):
         uniforms = jax.random.uniform(key, (self.num_links + 4,))
         sim = Arm2dSim(
             angles=uniforms[: self.num_links] * 2 * jnp.pi,
-            goal=sample_goal(uniforms[self.num_links:], params),
+            goal=sample_goal(uniforms[self.num_links :], params),
             hold_count=jnp.zeros((), jnp.int32),
         )
         return sim, self._observe(sim, params), self._info(sim, params, jnp.zeros((), jnp.bool_))
@@ -179,8 +179,11 @@ class Arm2d(Env[Arm2dParams, Arm2dSim]):
         return Transition(
             sim=sim,
             obs=self._observe(sim, params),
-            reward=(-params.distance_weight * info.distance + params.goal_bonus * on_goal
-                    + params.success_bonus * terminated),
+            reward=(
+                -params.distance_weight * info.distance
+                + params.goal_bonus * on_goal
+                + params.success_bonus * terminated
+            ),
             terminated=terminated,
             success=terminated,
             info=info,

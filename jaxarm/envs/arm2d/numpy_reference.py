@@ -14,8 +14,17 @@ class ClassicArm:
     Args mirror Arm2dParams' defaults. Call `reset_to(angles, goal)` then `step(action)`.
     """
 
-    def __init__(self, link_lengths=(100.0, 100.0), base=(200.0, 200.0), world=400.0, goal_size=40.0,
-                 action_scale=0.1, hold_steps=50, success_bonus=0.0, max_episode_steps=200):
+    def __init__(
+        self,
+        link_lengths=(100.0, 100.0),
+        base=(200.0, 200.0),
+        world=400.0,
+        goal_size=40.0,
+        action_scale=0.1,
+        hold_steps=50,
+        success_bonus=0.0,
+        max_episode_steps=200,
+    ):
         self.link_lengths = np.asarray(link_lengths, np.float32)
         self.base = np.asarray(base, np.float32)
         self.world = np.float32(world)

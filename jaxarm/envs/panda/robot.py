@@ -62,8 +62,9 @@ def tcp_pose_at(model: mujoco.MjModel, ids: PandaIds, arm_q: np.ndarray) -> tupl
     return data.site_xpos[ids.tcp_site].copy(), data.site_xmat[ids.tcp_site].reshape(3, 3).astype(np.float32)
 
 
-def solve_arm_posture(model: mujoco.MjModel, ids: PandaIds, tcp_position: np.ndarray, rotation: np.ndarray,
-                      iterations: int = 200) -> np.ndarray:
+def solve_arm_posture(
+    model: mujoco.MjModel, ids: PandaIds, tcp_position: np.ndarray, rotation: np.ndarray, iterations: int = 200
+) -> np.ndarray:
     """Outside jit: [7] arm joints, from HOME_QPOS, putting the tool centre at `tcp_position` with `rotation`.
 
     Raises ValueError if the IK does not reach the pose within 0.1 mm (out of reach or at a joint limit).
@@ -111,8 +112,16 @@ def tcp_jacobian(model: mjx.Model, data: mjx.Data, ids: PandaIds) -> jax.Array:
     return jnp.concatenate([jacp.T, jacr.T])
 
 
-def ik_arm_targets(model: mjx.Model, data: mjx.Data, ids: PandaIds, tcp_target: jax.Array,
-                   tcp_rotation: jax.Array, damping, posture_gain, posture: np.ndarray) -> jax.Array:
+def ik_arm_targets(
+    model: mjx.Model,
+    data: mjx.Data,
+    ids: PandaIds,
+    tcp_target: jax.Array,
+    tcp_rotation: jax.Array,
+    damping,
+    posture_gain,
+    posture: np.ndarray,
+) -> jax.Array:
     """[7] arm joint targets moving the tool centre towards `tcp_target` [3] with `tcp_rotation` [3, 3].
 
     One damped least-squares step from the measured joints, plus `posture_gain` of the way to `posture` [7]

@@ -17,7 +17,22 @@ from jaxarm.envs.panda_sort.layout import SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_NAME
 from jaxarm.envs.panda_sort.params import PandaSortParams
 
 __all__ = [
-    "CONTROL_DT", "IN_CORRECT_BIN", "IN_PLAY", "IN_WRONG_BIN", "MODE_EE", "MODE_JOINT", "ON_FLOOR", "SHAPE_CUBE",
-    "SHAPE_CYLINDER", "SHAPE_NAMES", "SHAPE_SPHERE", "Layout", "PandaSort", "PandaSortInfo", "PandaSortParams",
-    "PandaSortSim", "RewardTerms", "make_layout",
+    "CONTROL_DT",
+    "IN_CORRECT_BIN",
+    "IN_PLAY",
+    "IN_WRONG_BIN",
+    "MODE_EE",
+    "MODE_JOINT",
+    "ON_FLOOR",
+    "SHAPE_CUBE",
+    "SHAPE_CYLINDER",
+    "SHAPE_NAMES",
+    "SHAPE_SPHERE",
+    "Layout",
+    "PandaSort",
+    "PandaSortInfo",
+    "PandaSortParams",
+    "PandaSortSim",
+    "RewardTerms",
+    "make_layout",
 ]

@@ -27,7 +27,12 @@ from mujoco import mjx
 
 from jaxarm.envs.base import Env, EnvSpec, Transition
 from jaxarm.envs.panda.robot import (
-    FINGER_OPEN, HOME_QPOS, ik_arm_targets, solve_arm_posture, tcp_jacobian, tcp_pose_at,
+    FINGER_OPEN,
+    HOME_QPOS,
+    ik_arm_targets,
+    solve_arm_posture,
+    tcp_jacobian,
+    tcp_pose_at,
 )
 from jaxarm.envs.panda_sort.layout import Layout, make_layout
 from jaxarm.envs.panda_sort.model import ModelIds, build_model, resolve_ids
@@ -169,8 +174,9 @@ def object_mass_inertia(shape: jax.Array, size: jax.Array, density: jax.Array) -
     return mass, ms2 * factors
 
 
-def spawn_xy(key: jax.Array, count: int, layout: Layout, max_extent: jax.Array,
-             centre_slot: jax.Array = -1) -> jax.Array:
+def spawn_xy(
+    key: jax.Array, count: int, layout: Layout, max_extent: jax.Array, centre_slot: jax.Array = -1
+) -> jax.Array:
     """[count, 2] object positions in distinct cells of the spawn grid, jittered as far as the cell allows.
 
     `max_extent` bounds every object's horizontal reach from its centre, so objects never overlap. Object
@@ -249,8 +255,14 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
     cpu_max_envs = 64
     uses_mjx = True
 
-    def __init__(self, objects_count: int = 1, control_mode: str = MODE_EE, blocker: bool = False,
-                 tosser: bool = False, target_first: bool = False):
+    def __init__(
+        self,
+        objects_count: int = 1,
+        control_mode: str = MODE_EE,
+        blocker: bool = False,
+        tosser: bool = False,
+        target_first: bool = False,
+    ):
         if not 1 <= objects_count <= 5:
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
         if control_mode not in (MODE_EE, MODE_JOINT):
@@ -334,8 +346,9 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         # The home tool frame has yaw 0, so turning it about z by the target yaw gives a pointing-down target.
         yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3)) + action[3] * params.ee_yaw_step
         rotation = rotation_about_z(yaw) @ self._home_tcp_rotation
-        return ik_arm_targets(model, data, robot, target, rotation, params.ik_damping, params.ik_posture_gain,
-                              self.start_qpos)
+        return ik_arm_targets(
+            model, data, robot, target, rotation, params.ik_damping, params.ik_posture_gain, self.start_qpos
+        )
 
     def _ctrl(self, model, data, action, params) -> jax.Array:
         finger = (action[-1] + 1.0) * (FINGER_OPEN / 2)
@@ -377,16 +390,30 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         pose = sim.qpos[ids.object_qpos[:, None] + np.arange(7)]
         velocity = sim.qvel[ids.object_qvel[:, None] + np.arange(6)]
         tcp = data.site_xpos[ids.robot.tcp_site]
-        relative_yaw = yaw_of_quaternion(pose[:, 3:]) - yaw_of_rotation(data.site_xmat[ids.robot.tcp_site].reshape(3, 3))
-        objects = jnp.concatenate([
-            pose, velocity, jax.nn.one_hot(sim.shape, 3), sim.size[:, None], in_play.astype(jnp.float32),
-            pose[:, :3] - tcp, self.carry_targets(sim, params) - pose[:, :3],
-            jnp.cos(4.0 * relative_yaw)[:, None], jnp.sin(4.0 * relative_yaw)[:, None],
-        ], -1)
+        relative_yaw = yaw_of_quaternion(pose[:, 3:]) - yaw_of_rotation(
+            data.site_xmat[ids.robot.tcp_site].reshape(3, 3)
+        )
+        objects = jnp.concatenate(
+            [
+                pose,
+                velocity,
+                jax.nn.one_hot(sim.shape, 3),
+                sim.size[:, None],
+                in_play.astype(jnp.float32),
+                pose[:, :3] - tcp,
+                self.carry_targets(sim, params) - pose[:, :3],
+                jnp.cos(4.0 * relative_yaw)[:, None],
+                jnp.sin(4.0 * relative_yaw)[:, None],
+            ],
+            -1,
+        )
         tcp_velocity = tcp_jacobian(model, data, ids.robot) @ sim.qvel
         tool = [
-            tcp, data.xquat[ids.robot.hand_body], tcp_velocity,
-            jnp.sum(sim.qpos[ids.robot.finger_qpos])[None], sim.qpos[ids.robot.arm_qpos],
+            tcp,
+            data.xquat[ids.robot.hand_body],
+            tcp_velocity,
+            jnp.sum(sim.qpos[ids.robot.finger_qpos])[None],
+            sim.qpos[ids.robot.arm_qpos],
         ]
         return jnp.concatenate([(objects * in_play)[self.slot_order(sim)].ravel(), *tool]).astype(jnp.float32)
 
@@ -421,10 +448,14 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         )
         lift = held * jnp.clip((position[:, 2] - sim.size) / params.lift_height, 0.0, 1.0)
         to_target = jnp.linalg.norm(position - self.carry_targets(sim, params), axis=-1)
-        stages = jnp.stack([
-            1.0 - jnp.tanh(distance / params.reach_scale), held.astype(jnp.float32), lift,
-            lift * (1.0 - jnp.tanh(to_target / params.carry_scale)),
-        ])  # [4, N]
+        stages = jnp.stack(
+            [
+                1.0 - jnp.tanh(distance / params.reach_scale),
+                held.astype(jnp.float32),
+                lift,
+                lift * (1.0 - jnp.tanh(to_target / params.carry_scale)),
+            ]
+        )  # [4, N]
         shaped = in_play & (jnp.arange(self.objects_count) == sim.target) if self.target_first else in_play
         per_object = jnp.where(shaped, stages, (sim.outcome == IN_CORRECT_BIN).astype(jnp.float32))
         weights = jnp.stack([params.reach_weight, params.grasp_weight, params.lift_weight, params.carry_weight])
@@ -482,8 +513,13 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         shape = jax.random.randint(shape_key, (n,), 0, 3).astype(jnp.int32)
         scale = jax.random.uniform(size_key, (n,), minval=params.size_scale_low, maxval=params.size_scale_high)
         size = params.object_size * scale
-        xy = spawn_xy(spawn_key, n, self.layout, params.object_size * params.size_scale_high * np.sqrt(2.0),
-                      jnp.where(ready, focus, -1))
+        xy = spawn_xy(
+            spawn_key,
+            n,
+            self.layout,
+            params.object_size * params.size_scale_high * np.sqrt(2.0),
+            jnp.where(ready, focus, -1),
+        )
         yaw = jax.random.uniform(yaw_key, (n,), maxval=2 * jnp.pi)
         # Resting on the table, 1 mm above it, turned about z.
         zero = jnp.zeros(n)
@@ -514,8 +550,9 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         # Moving the focus object to the hand changes no robot quantity, so `data` still serves the observation.
         return sim, self._observe(model, data, sim, params), self._info(zero_terms, sim.outcome)
 
-    def _place_in_hand(self, sim: PandaSortSim, data: mjx.Data, focus: jax.Array, held: jax.Array,
-                       ready: jax.Array, hover: jax.Array) -> PandaSortSim:
+    def _place_in_hand(
+        self, sim: PandaSortSim, data: mjx.Data, focus: jax.Array, held: jax.Array, ready: jax.Array, hover: jax.Array
+    ) -> PandaSortSim:
         """Curriculum starts for object `focus` (an int32 slot). Where `held`: between the closed fingers at the
         tool centre, faces towards the pads. Where `ready`: on the table under the tool centre, between the
         open fingers (faces towards the pads) or, where also `hover`, below them at the yaw it was drawn with.
@@ -523,7 +560,9 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         robot = self.ids.robot
         pose_idx = jnp.asarray(self.ids.object_qpos)[focus] + jnp.arange(7)
         own_quat = sim.qpos[pose_idx[3:]]
-        yaw = jnp.where(hover, yaw_of_quaternion(own_quat), yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3)))
+        yaw = jnp.where(
+            hover, yaw_of_quaternion(own_quat), yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
+        )
         tcp = data.site_xpos[robot.tcp_site]
         height = jnp.where(held, tcp[2] + PAD_ABOVE_TCP, sim.size[focus] + 0.001)
         pose = jnp.concatenate([tcp[:2], height[None], jnp.stack([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])])
@@ -541,8 +580,9 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
         data = jax.lax.fori_loop(0, self.substeps, lambda _, d: mjx.step(model, d), data)
         outcome = next_outcome(sim.outcome, sim.shape, self.object_positions(data.qpos), self.layout)
         qpos, qvel = self._park(data.qpos, data.qvel, outcome)
-        next_sim = sim.replace(qpos=qpos, qvel=qvel, qacc_warmstart=data.qacc_warmstart, ctrl=data.ctrl,
-                               outcome=outcome)
+        next_sim = sim.replace(
+            qpos=qpos, qvel=qvel, qacc_warmstart=data.qacc_warmstart, ctrl=data.ctrl, outcome=outcome
+        )
         data = self.kinematics(model, next_sim)
         next_sim = next_sim.replace(target=self.next_target(data, next_sim))
         next_sim = next_sim.replace(potential=self.shaping_potential(data, next_sim, params))
@@ -556,4 +596,3 @@ class PandaSort(Env[PandaSortParams, PandaSortSim]):
             success=info.correct_count == self.objects_count,
             info=info,
         )
-

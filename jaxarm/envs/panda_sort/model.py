@@ -88,8 +88,11 @@ def _add_object(worldbody, slot: int) -> None:
     common = dict(contype=0, conaffinity=0, rgba=[0.8, 0.3, 0.3, 1])
     body.add_geom(name=f"object{slot}_box", type=mujoco.mjtGeom.mjGEOM_BOX, size=[s, s, s], **common)
     body.add_geom(
-        name=f"object{slot}_box45", type=mujoco.mjtGeom.mjGEOM_BOX, size=[s, s, s],
-        quat=[np.cos(np.pi / 8), 0, 0, np.sin(np.pi / 8)], **common,
+        name=f"object{slot}_box45",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        size=[s, s, s],
+        quat=[np.cos(np.pi / 8), 0, 0, np.sin(np.pi / 8)],
+        **common,
     )
     body.add_geom(name=f"object{slot}_sphere", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[s, 0, 0], **common)
     body.add_geom(name=f"object{slot}_cylinder", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[s, s, 0], **common)
@@ -100,7 +103,7 @@ def build_spec(objects_count: int, layout: Layout) -> mujoco.MjSpec:
     spec = mujoco.MjSpec.from_file(str(ASSETS / "scene.xml"))
     world = spec.worldbody
     static = [f"table{k}" for k in range(len(layout.tables))]
-    for name, box in zip(static, layout.tables):
+    for name, box in zip(static, layout.tables, strict=True):
         _add_box(world, name, box, [0.55, 0.45, 0.35, 1])
     for k, wall in enumerate(layout.bin_walls):
         _add_box(world, f"bin_wall{k}", wall, [0.3, 0.3, 0.35, 1])
@@ -129,7 +132,7 @@ def build_spec(objects_count: int, layout: Layout) -> mujoco.MjSpec:
     return spec
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def build_model(objects_count: int, layout: Layout) -> mujoco.MjModel:
     """Compiled model for `objects_count` object slots in `layout` (cached: both arguments are hashable)."""
     return build_spec(objects_count, layout).compile()

@@ -42,15 +42,16 @@ class ScriptState:
 def tcp_of(env: PandaSort, obs: jax.Array) -> jax.Array:
     """[O] observation -> [3] tool-centre position."""
     start = OBJECT_OBS_SIZE * env.objects_count
-    return obs[start:start + 3]
+    return obs[start : start + 3]
 
 
 def script_start(env: PandaSort, state: EnvState) -> ScriptState:
     return ScriptState(phase=jnp.int32(0), hold=tcp_of(env, state.obs), closing=jnp.int32(0))
 
 
-def scripted_action(env: PandaSort, obs: jax.Array, script: ScriptState, params: PandaSortParams,
-                    bin_xy: jax.Array, speed: float = 0.8) -> tuple[jax.Array, ScriptState]:
+def scripted_action(
+    env: PandaSort, obs: jax.Array, script: ScriptState, params: PandaSortParams, bin_xy: jax.Array, speed: float = 0.8
+) -> tuple[jax.Array, ScriptState]:
     """One step of the script for object 0: ([5] action, next script state). `speed` caps each axis (0..1)."""
     phase = script.phase
     obj, tcp = obs[0:3], tcp_of(env, obs)
@@ -62,8 +63,9 @@ def scripted_action(env: PandaSort, obs: jax.Array, script: ScriptState, params:
     cos4, sin4 = obs[OBJECT_RELATIVE_YAW]
     turn = jnp.where(phase < 2, jnp.arctan2(sin4, cos4) / 4.0, 0.0)
     move = jnp.clip(error / params.ee_step, -speed, speed)
-    action = jnp.concatenate([move, jnp.clip(turn / params.ee_yaw_step, -1.0, 1.0)[None],
-                              jnp.asarray(PHASE_GRIP)[phase][None]])
+    action = jnp.concatenate(
+        [move, jnp.clip(turn / params.ee_yaw_step, -1.0, 1.0)[None], jnp.asarray(PHASE_GRIP)[phase][None]]
+    )
     reached = jnp.asarray(MOVING_PHASES)[phase] & (jnp.linalg.norm(error) < REACHED) & (jnp.abs(turn) < 0.05)
     closing = script.closing + (phase == 2)
     next_phase = jnp.minimum(phase + (reached | ((phase == 2) & (closing > CLOSE_STEPS))), len(PHASE_NAMES) - 1)

@@ -21,7 +21,14 @@ from mujoco import mjx
 from jaxarm.envs.base import Env, EnvSpec, Transition
 from jaxarm.envs.panda.robot import HOME_QPOS, ik_arm_targets, solve_arm_posture, tcp_pose_at
 from jaxarm.envs.peg_insert.model import (
-    HOLE_FLOOR, HOLE_NOMINAL, PEG_LENGTH, PEG_RADIUS, PegIds, build_model, hole_walls, resolve_ids,
+    HOLE_FLOOR,
+    HOLE_NOMINAL,
+    PEG_LENGTH,
+    PEG_RADIUS,
+    PegIds,
+    build_model,
+    hole_walls,
+    resolve_ids,
 )
 from jaxarm.envs.peg_insert.params import PegInsertParams, default_params
 
@@ -118,7 +125,8 @@ class PegInsert(Env[PegInsertParams, PegInsertSim]):
         geoms = data.contact.geom
         pair = {self.ids.table_geom, self.ids.peg_geom}
         is_table = ((geoms[:, 0] == min(pair)) & (geoms[:, 1] == max(pair))) | (
-            (geoms[:, 0] == max(pair)) & (geoms[:, 1] == min(pair)))
+            (geoms[:, 0] == max(pair)) & (geoms[:, 1] == min(pair))
+        )
         return jnp.any(is_table & (data.contact.dist < 0.0))
 
     def peg_tip(self, data: mjx.Data) -> jax.Array:
@@ -136,10 +144,14 @@ class PegInsert(Env[PegInsertParams, PegInsertSim]):
         tip_velocity = jacp.T @ sim.qvel
         nominal = jnp.array([*HOLE_NOMINAL, HOLE_FLOOR])
         lead = (sim.tcp_target - data.site_xpos[self.ids.robot.tcp_site]) / params.max_lead
-        return jnp.concatenate([
-            (self.hole_bottom(sim) - tip) / POSITION_SCALE, tip_velocity / POSITION_SCALE, lead,
-            (tip - nominal) / POSITION_SCALE,
-        ]).astype(jnp.float32)
+        return jnp.concatenate(
+            [
+                (self.hole_bottom(sim) - tip) / POSITION_SCALE,
+                tip_velocity / POSITION_SCALE,
+                lead,
+                (tip - nominal) / POSITION_SCALE,
+            ]
+        ).astype(jnp.float32)
 
     # --- the contract -------------------------------------------------------------------------------
 
@@ -152,16 +164,26 @@ class PegInsert(Env[PegInsertParams, PegInsertSim]):
         qpos = self._data0.qpos.at[robot.arm_qpos].set(arm_q).at[robot.finger_qpos].set(fingers)
         zero = jnp.zeros((), jnp.float32)
         sim = PegInsertSim(
-            qpos=qpos, qvel=jnp.zeros_like(self._data0.qvel), qacc_warmstart=jnp.zeros_like(self._data0.qacc_warmstart),
-            ctrl=jnp.concatenate([arm_q, fingers]), tcp_target=jnp.zeros(3), hole=hole, initial_distance=zero,
+            qpos=qpos,
+            qvel=jnp.zeros_like(self._data0.qvel),
+            qacc_warmstart=jnp.zeros_like(self._data0.qacc_warmstart),
+            ctrl=jnp.concatenate([arm_q, fingers]),
+            tcp_target=jnp.zeros(3),
+            hole=hole,
+            initial_distance=zero,
             distance=zero,
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
         distance = jnp.linalg.norm(self.peg_tip(data) - self.hole_bottom(sim))
         sim = sim.replace(tcp_target=data.site_xpos[robot.tcp_site], initial_distance=distance, distance=distance)
-        info = PegInsertInfo(progress=zero, bonus=zero, distance=distance, inserted=jnp.zeros((), jnp.bool_),
-                             table_contact=jnp.zeros((), jnp.bool_))
+        info = PegInsertInfo(
+            progress=zero,
+            bonus=zero,
+            distance=distance,
+            inserted=jnp.zeros((), jnp.bool_),
+            table_contact=jnp.zeros((), jnp.bool_),
+        )
         return sim, self._observe(model, data, sim, params), info
 
     def _transition(self, sim, action, params):
@@ -170,8 +192,9 @@ class PegInsert(Env[PegInsertParams, PegInsertSim]):
         data = self.kinematics(model, sim)
         tcp = data.site_xpos[robot.tcp_site]
         target = jnp.clip(sim.tcp_target + action * params.ee_step, tcp - params.max_lead, tcp + params.max_lead)
-        arm_ctrl = ik_arm_targets(model, data, robot, target, self.tcp_rotation, params.ik_damping,
-                                  params.ik_posture_gain, self.start_qpos)
+        arm_ctrl = ik_arm_targets(
+            model, data, robot, target, self.tcp_rotation, params.ik_damping, params.ik_posture_gain, self.start_qpos
+        )
         data = data.replace(ctrl=jnp.concatenate([arm_ctrl, sim.ctrl[7:]]))
 
         def substep(_, carry):
@@ -180,16 +203,18 @@ class PegInsert(Env[PegInsertParams, PegInsertSim]):
             return data, touched | self.table_contact(data)
 
         data, touched = jax.lax.fori_loop(0, self.substeps, substep, (data, jnp.zeros((), jnp.bool_)))
-        next_sim = sim.replace(qpos=data.qpos, qvel=data.qvel, qacc_warmstart=data.qacc_warmstart, ctrl=data.ctrl,
-                               tcp_target=target)
+        next_sim = sim.replace(
+            qpos=data.qpos, qvel=data.qvel, qacc_warmstart=data.qacc_warmstart, ctrl=data.ctrl, tcp_target=target
+        )
         data = self.kinematics(model, next_sim)
         distance = jnp.linalg.norm(self.peg_tip(data) - self.hole_bottom(next_sim))
         next_sim = next_sim.replace(distance=distance)
         inserted = distance < params.insert_distance
         progress = params.progress_weight * (sim.distance - distance) / sim.initial_distance
         bonus = params.success_bonus * inserted
-        info = PegInsertInfo(progress=progress, bonus=bonus, distance=distance, inserted=inserted,
-                             table_contact=touched)
+        info = PegInsertInfo(
+            progress=progress, bonus=bonus, distance=distance, inserted=inserted, table_contact=touched
+        )
         return Transition(
             sim=next_sim,
             obs=self._observe(model, data, next_sim, params),

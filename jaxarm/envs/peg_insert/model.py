@@ -69,10 +69,14 @@ def hole_walls(clearance) -> tuple:
     z = HOLE_FLOOR + h
     offset = half_width + t
     ones = jnp.ones_like(jnp.asarray(half_width))
-    centres = jnp.stack([
-        jnp.stack([offset, 0.0 * ones, z * ones]), jnp.stack([-offset, 0.0 * ones, z * ones]),
-        jnp.stack([0.0 * ones, offset, z * ones]), jnp.stack([0.0 * ones, -offset, z * ones]),
-    ])
+    centres = jnp.stack(
+        [
+            jnp.stack([offset, 0.0 * ones, z * ones]),
+            jnp.stack([-offset, 0.0 * ones, z * ones]),
+            jnp.stack([0.0 * ones, offset, z * ones]),
+            jnp.stack([0.0 * ones, -offset, z * ones]),
+        ]
+    )
     long_wall = jnp.stack([t * ones, half_width + 2 * t, h * ones])
     short_wall = jnp.stack([half_width, t * ones, h * ones])
     return centres, jnp.stack([long_wall, long_wall, short_wall, short_wall])
@@ -82,9 +86,16 @@ def _add_peg(spec: mujoco.MjSpec) -> None:
     hand = spec.body("hand")
     peg = hand.add_body(name="peg")
     top, tip = TCP_IN_HAND - 0.035, TCP_IN_HAND + PEG_LENGTH
-    peg.add_geom(name="peg", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[PEG_RADIUS, 0, 0],
-                 fromto=[0, 0, top, 0, 0, tip - PEG_RADIUS], mass=0.05, contype=0, conaffinity=0,
-                 rgba=[0.85, 0.6, 0.15, 1])
+    peg.add_geom(
+        name="peg",
+        type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+        size=[PEG_RADIUS, 0, 0],
+        fromto=[0, 0, top, 0, 0, tip - PEG_RADIUS],
+        mass=0.05,
+        contype=0,
+        conaffinity=0,
+        rgba=[0.85, 0.6, 0.15, 1],
+    )
     peg.add_site(name="peg_tip", pos=[0, 0, tip], size=[0.004, 0, 0], rgba=[1, 0, 0, 1])
 
 
@@ -94,7 +105,7 @@ def _add_block(spec: mujoco.MjSpec, clearance: float) -> None:
     common = dict(type=mujoco.mjtGeom.mjGEOM_BOX, contype=0, conaffinity=0, rgba=[0.45, 0.5, 0.6, 1])
     block.add_geom(name="hole_floor", pos=[0, 0, HOLE_FLOOR / 2], size=[outer, outer, HOLE_FLOOR / 2], **common)
     centres, halves = (np.asarray(array) for array in hole_walls(np.float32(clearance)))
-    for name, centre, half in zip(WALL_NAMES, centres, halves):
+    for name, centre, half in zip(WALL_NAMES, centres, halves, strict=True):
         block.add_geom(name=name, pos=centre, size=half, **common)
 
 
@@ -109,7 +120,7 @@ def build_spec(clearance: float) -> mujoco.MjSpec:
     return spec
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def build_model(clearance: float = 0.001) -> mujoco.MjModel:
     """Compiled model with the walls at `clearance` (the env replaces them per env from its params)."""
     return build_spec(clearance).compile()
@@ -125,6 +136,8 @@ def resolve_ids(model: mujoco.MjModel) -> PegIds:
         table_geom=model.geom("table").id,
         block_body=model.body("block").id,
         wall_geoms=np.array([model.geom(name).id for name in WALL_NAMES]),
-        block_pairs=np.array([k for k in range(model.npair)
-                              if {int(model.pair_geom1[k]), int(model.pair_geom2[k])} & block_geoms], dtype=np.int64),
+        block_pairs=np.array(
+            [k for k in range(model.npair) if {int(model.pair_geom1[k]), int(model.pair_geom2[k])} & block_geoms],
+            dtype=np.int64,
+        ),
     )

@@ -11,8 +11,9 @@ from jaxarm.envs.peg_insert.model import hole_walls
 from jaxarm.envs.peg_insert.params import PegInsertParams
 
 
-def render_frame(env: PegInsert, state: EnvState, params: PegInsertParams, height: int = 240, width: int = 320,
-                 camera: str = "front") -> np.ndarray:
+def render_frame(
+    env: PegInsert, state: EnvState, params: PegInsertParams, height: int = 240, width: int = 320, camera: str = "front"
+) -> np.ndarray:
     """A non-batched EnvState of `env` -> [height, width, 3] uint8 RGB frame, the hole where it was."""
     model = copy.copy(env.mj_model)  # the hole moves and resizes per episode; the env's model stays as built
     centres, halves = (np.asarray(array) for array in hole_walls(params.clearance))
