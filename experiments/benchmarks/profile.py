@@ -55,8 +55,8 @@ def leaf_events(events: list) -> list:
     ordered = sorted(events, key=lambda event: (event.start_ns, -event.duration_ns))
     return [
         event
-        for event, following in zip(ordered, ordered[1:] + [None], strict=True)
-        if following is None or following.start_ns >= event.start_ns + event.duration_ns
+        for index, event in enumerate(ordered)
+        if index + 1 == len(ordered) or ordered[index + 1].start_ns >= event.start_ns + event.duration_ns
     ]
 
 

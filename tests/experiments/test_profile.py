@@ -32,6 +32,7 @@ def test_only_innermost_events_count():
 
     loop, body_a, body_b, after = event(0, 100), event(10, 20), event(40, 50), event(100, 5)
     assert profile.leaf_events([after, body_b, loop, body_a]) == [body_a, body_b, after]
+    assert profile.leaf_events([]) == []  # a profile line with no XLA ops
 
 
 def test_a_small_ppo_run_books_time_to_every_phase():
