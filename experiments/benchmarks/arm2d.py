@@ -85,7 +85,9 @@ def main(argv: Sequence[str]) -> None:
         type=int,
         help="env steps per timed call, at most (default: 2e7 on a CPU, 2e9 on an accelerator)",
     )
-    parser.add_argument("--unroll", type=int, default=8, help="env steps per scan iteration (8: see BENCHMARKS.md)")
+    parser.add_argument(
+        "--unroll", type=int, default=8, help="env steps per scan iteration (8 ran 1.4x faster than 1 on an H200)"
+    )
     add_out_argument(parser)
     args = parser.parse_args(argv)
     max_env_steps = args.max_env_steps or default_max_env_steps(jax.default_backend())

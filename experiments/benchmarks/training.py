@@ -14,9 +14,8 @@ ours bootstraps from the pre-reset observation; brax shuffles whole unrolls into
 Each learner runs the budget in `PARTS` equal parts (ours: calls of one program compiled ahead of time; brax:
 training epochs). The fastest part after the first gives the steady rate; everything else in the wall clock
 counts as compilation, set-up and one-off costs. So a one-off cost outside the first part cannot pass for
-training: until 2026-11-24 brax compiled its training epoch a second time, on its second call, because our
-`device_put_replicated` shim laid the state out on a mesh axis named otherwise than brax's pmap axis (fixed in
-`jaxarm.interop.brax_compat`; 3.97 s of compilation in epoch two of arm2d on the CPU, 84 s on the sorter).
+training: a learner that compiles again on a later call (as brax did when handed a state on a mesh axis other
+than its pmap axis, see `jaxarm.interop.brax_compat`) has that compilation booked as one-off, not as training.
 Evaluation is jaxarm's `evaluate` on the same fresh episodes of the preset's evaluation env for both,
 with deterministic policies (tanh of the Gaussian's mean), outside the timings.
 
