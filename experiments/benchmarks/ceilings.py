@@ -31,6 +31,7 @@ from experiments.benchmarks.arm2d import (
     numpy_steps_per_second,
     scan_length,
 )
+from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import time_jitted
 from experiments.sweep import init_members
 from jaxarm import envs
@@ -143,9 +144,14 @@ def two_link_steps_per_second(num_envs: int, steps: int, rotation: bool, unroll:
     return num_envs * steps / best
 
 
-def print_arithmetic(config_name: str, seeds: int) -> None:
-    """The PPO part: XLA's matmul rate, one seed's rate, the bound for `seeds` seeds and their measured time."""
+def print_arithmetic(config_name: str, seeds: int) -> dict[str, float]:
+    """The PPO part: XLA's matmul rate, one seed's rate, the bound for `seeds` seeds and their measured time.
+
+    Returns the printed figures by name.
+    """
     config = configs.get(config_name)
+    if not isinstance(config, PPOConfig):
+        raise ValueError(f"{config_name} is not a PPO preset: the ceilings count a PPO update's matmuls")
     env, _ = config.make_env()
     peak = matmul_flops_per_second()
     flops = ppo_update_flops(config, env.spec.observation_size, env.spec.action_size)
@@ -162,10 +168,24 @@ def print_arithmetic(config_name: str, seeds: int) -> None:
         f"measured {many * 1e3:,.0f} ms = {many / one:.1f}x",
         flush=True,
     )
+    return {
+        "matmul_gflop_per_second": peak / 1e9,
+        "update_gflop": flops / 1e9,
+        "one_seed_update_ms": one * 1e3,
+        "one_seed_gflop_per_second": flops / one / 1e9,
+        "one_seed_share_of_matmul_rate": share,
+        "seeds": seeds,
+        "seeds_bound_x_one_seed": seeds * share,
+        "seeds_update_ms": many * 1e3,
+        "seeds_measured_x_one_seed": many / one,
+    }
 
 
-def print_arm2d(sizes: Sequence[int], steps: int, unroll: int) -> None:
-    """The arm2d part: the full env and the two-link maths at each size, as multiples of the numpy reference."""
+def print_arm2d(sizes: Sequence[int], steps: int, unroll: int) -> tuple[float, list[dict[str, float]]]:
+    """The arm2d part: the full env and the two-link maths at each size, as multiples of the numpy reference.
+
+    Returns (the numpy reference's env steps/s, one dict of env steps/s per printed row).
+    """
     reference = numpy_steps_per_second(None)
     print(
         f"numpy reference, single env: {reference:,.0f} steps/s; goal {GOAL_RATIO:,}x = "
@@ -174,6 +194,7 @@ def print_arm2d(sizes: Sequence[int], steps: int, unroll: int) -> None:
     print("| envs | full env (auto-reset, statistics) | two-link maths, XLA sin/cos | two-link maths, rotation |")
     print("|---:|---:|---:|---:|")
     max_env_steps = default_max_env_steps(jax.default_backend())
+    rows = []
     for size in sizes:
         length = scan_length(size, steps, max_env_steps)
         rates = (
@@ -184,9 +205,19 @@ def print_arm2d(sizes: Sequence[int], steps: int, unroll: int) -> None:
         print(
             f"| {size:,} | " + " | ".join(f"{rate:.3g} ({rate / reference:,.0f}x)" for rate in rates) + " |", flush=True
         )
+        full, trigonometry, rotation = rates
+        rows.append(
+            {
+                "envs": size,
+                "full_env_steps_per_second": full,
+                "two_link_trigonometry_steps_per_second": trigonometry,
+                "two_link_rotation_steps_per_second": rotation,
+            }
+        )
+    return reference, rows
 
 
-def main(argv=None) -> None:
+def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench ceilings", description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="ppo_arm2d", help="PPO preset whose update is counted and timed")
     parser.add_argument("--seeds", type=int, default=64, help="seeds vmapped in the measured sweep update")
@@ -195,7 +226,18 @@ def main(argv=None) -> None:
         "--steps", type=int, default=1000, help="arm2d steps per timed scan (capped as in the arm2d suite)"
     )
     parser.add_argument("--unroll", type=int, default=8, help="arm2d env steps per scan iteration")
+    add_out_argument(parser)
     args = parser.parse_args(argv)
     print(f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; numpy {np.__version__}")
-    print_arithmetic(args.config, args.seeds)
-    print_arm2d([int(text) for text in args.sizes.split(",")], args.steps, args.unroll)
+    arithmetic = print_arithmetic(args.config, args.seeds)
+    reference, rows = print_arm2d([int(text) for text in args.sizes.split(",")], args.steps, args.unroll)
+    write_record(
+        args.out,
+        "ceilings",
+        argv,
+        rows,
+        config=args.config,
+        arithmetic=arithmetic,
+        numpy_single_env_steps_per_second=reference,
+        goal_env_steps_per_second=GOAL_RATIO * reference,
+    )

@@ -7,10 +7,12 @@ of the env layer around the physics.
 """
 
 import argparse
+from collections.abc import Sequence
 
 import jax
 from mujoco import mjx
 
+from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import time_jitted
 from jaxarm import envs
 
@@ -50,7 +52,7 @@ def bare_mjx_rates(env, num_envs: int, physics_steps: int, repeats: int) -> tupl
     return num_envs * physics_steps / best, compile_seconds
 
 
-def main(argv=None) -> None:
+def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench panda_sort", description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="panda_sort", help="registered panda_sort variant")
     parser.add_argument(
@@ -60,6 +62,7 @@ def main(argv=None) -> None:
     )
     parser.add_argument("--steps", type=int, default=20, help="env steps per timed scan")
     parser.add_argument("--repeats", type=int, default=2, help="timed repeats; the best is reported")
+    add_out_argument(parser)
     args = parser.parse_args(argv)
     env = envs.make(args.env)
     print(
@@ -72,6 +75,7 @@ def main(argv=None) -> None:
         "| compile s (env) | compile s (bare) |"
     )
     print("|---:|---:|---:|---:|---:|---:|---:|")
+    rows = []
     for size in (int(text) for text in args.sizes.split(",")):
         rate, env_compile = env_rates(env, size, args.steps, args.repeats)
         bare, bare_compile = bare_mjx_rates(env, size, args.steps * env.substeps, args.repeats)
@@ -81,3 +85,24 @@ def main(argv=None) -> None:
             f"| {env_compile:.1f} | {bare_compile:.1f} |",
             flush=True,
         )
+        rows.append(
+            {
+                "envs": size,
+                "env_steps_per_second": rate,
+                "physics_steps_per_second": physics,
+                "bare_mjx_physics_steps_per_second": bare,
+                "env_over_bare": physics / bare,
+                "compile_seconds_env": env_compile,
+                "compile_seconds_bare": bare_compile,
+            }
+        )
+    write_record(
+        args.out,
+        "panda_sort",
+        argv,
+        rows,
+        env=args.env,
+        objects=env.objects_count,
+        substeps=env.substeps,
+        contact_pairs=env.mj_model.npair,
+    )

@@ -18,10 +18,12 @@ import dataclasses
 import glob
 import re
 import tempfile
+from collections.abc import Sequence
 
 import jax
 
 from experiments import configs
+from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import compile_updates, timed
 from jaxarm.agents.common.config import apply_overrides
 
@@ -55,8 +57,8 @@ def leaf_events(events: list) -> list:
     ordered = sorted(events, key=lambda event: (event.start_ns, -event.duration_ns))
     return [
         event
-        for event, following in zip(ordered, ordered[1:] + [None], strict=True)
-        if following is None or following.start_ns >= event.start_ns + event.duration_ns
+        for index, event in enumerate(ordered)
+        if index + 1 == len(ordered) or ordered[index + 1].start_ns >= event.start_ns + event.duration_ns
     ]
 
 
@@ -77,7 +79,8 @@ def device_ops(profile_path: str):
 
 def phase_times(ops, names: dict[str, str], phases: tuple[str, ...]) -> list[PhaseTime]:
     """Busy time per phase (in `phases` order, `UNATTRIBUTED` last) of `(hlo op, seconds)` pairs."""
-    seconds, counts = collections.Counter(), collections.Counter()
+    seconds: collections.defaultdict[str, float] = collections.defaultdict(float)
+    counts: collections.defaultdict[str, int] = collections.defaultdict(int)
     for hlo_op, duration in ops:
         phase = phase_of(names.get(hlo_op, ""), phases)
         seconds[phase] += duration
@@ -111,12 +114,13 @@ def format_table(wall: float, times: list[PhaseTime], num_updates: int) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> None:
+def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench profile", description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="ppo_arm2d", help="preset name")
     parser.add_argument("--updates", type=int, default=4, help="updates in the profiled program")
     parser.add_argument("--phases", default="collect,advantages,sgd", help="named scopes to book time to")
     parser.add_argument("overrides", nargs="*", help="config overrides key=value")
+    add_out_argument(parser)
     args = parser.parse_args(argv)
     if args.updates < 1:
         parser.error(f"--updates must be at least 1, not {args.updates}")
@@ -129,3 +133,21 @@ def main(argv=None) -> None:
     )
     wall, times = profile_updates(config, args.updates, phases)
     print(format_table(wall, times, args.updates))
+    rows = [
+        {
+            "phase": phase_time.phase,
+            "busy_ms_per_update": phase_time.seconds / args.updates * 1e3,
+            "ops_per_update": phase_time.ops / args.updates,
+        }
+        for phase_time in times
+    ]
+    write_record(
+        args.out,
+        "profile",
+        argv,
+        rows,
+        config=args.config,
+        overrides=args.overrides,
+        updates=args.updates,
+        wall_ms_per_update=wall / args.updates * 1e3,
+    )

@@ -17,7 +17,7 @@ many there are (multi-device runs come later). The figure goes to `--plot`.
 import argparse
 import dataclasses
 import pathlib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import jax
 import matplotlib
@@ -26,6 +26,7 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from experiments.benchmarks.record import add_out_argument, write_record  # noqa: E402
 from experiments.benchmarks.timing import compile_updates, env_seconds, timed  # noqa: E402
 from experiments.benchmarks.training import base_ppo_config  # noqa: E402
 from jaxarm import envs  # noqa: E402
@@ -91,7 +92,7 @@ def sweep(sizes: list[int], measure: Measure, target_steps: int, max_seconds: fl
     The previous size's rate sizes each call to at most half of `max_seconds`; the sweep stops before a size
     whose smallest call (`min_units`) would still take longer than `max_seconds`.
     """
-    rows = []
+    rows: list[tuple[int, float, float]] = []
     for size in sizes:
         per_unit = measure.steps_per_unit(size)
         budget = target_steps if not rows else min(target_steps, rows[-1][1] * max_seconds / 2)
@@ -145,7 +146,7 @@ def plot(curves: dict[str, list[tuple[int, float, float]]], path: pathlib.Path, 
     plt.close(fig)
 
 
-def main(argv=None) -> None:
+def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench scaling", description=__doc__.splitlines()[0])
     parser.add_argument("--envs", default="arm2d,panda_sort", help="env names; unregistered ones are skipped")
     parser.add_argument("--env-sizes", default="1,16,256,1024,4096,16384,65536", help="env counts for env stepping")
@@ -153,6 +154,7 @@ def main(argv=None) -> None:
     parser.add_argument("--max-seconds", type=float, default=45.0, help="longest predicted timed call per size")
     parser.add_argument("--quick", action="store_true", help="CPU smoke run: fewer steps, calls under 5 s")
     parser.add_argument("--plot", default="benchmarks_scaling.png", help="where the PNG goes")
+    add_out_argument(parser)
     args = parser.parse_args(argv)
     target_steps = 200_000 if args.quick else 4_000_000
     max_seconds = min(args.max_seconds, 5.0) if args.quick else args.max_seconds
@@ -175,11 +177,22 @@ def main(argv=None) -> None:
 
     print("\n| env | measurement | parallel envs | env steps/s | compile s |")
     print("|---|---|---:|---:|---:|")
+    records = []
     for label, rows in curves.items():
         name, measurement = label.split(": ")
         for size, rate, compile_seconds in rows:
             print(f"| {name} | {measurement} | {size:,} | {rate:,.0f} | {compile_seconds:.1f} |")
+            records.append(
+                {
+                    "env": name,
+                    "measurement": measurement,
+                    "envs": size,
+                    "env_steps_per_second": rate,
+                    "compile_seconds": compile_seconds,
+                }
+            )
 
+    breakdowns = {}
     for name in env_names:
         config = base_ppo_config(name)
         if not any(size >= config.num_envs for size, _, _ in curves[f"{name}: PPO training"]):
@@ -191,7 +204,9 @@ def main(argv=None) -> None:
         for phase, milliseconds in breakdown:
             share = "" if phase.startswith(" ") else f"{milliseconds / breakdown[0][1]:.0%}"
             print(f"| {phase} | {milliseconds:.1f} | {share} |")
+        breakdowns[name] = [{"phase": phase.strip(), "ms_per_update": ms} for phase, ms in breakdown]
 
     path = pathlib.Path(args.plot)
     plot(curves, path, f"jaxarm throughput on {device} ({jax.device_count()} device(s), 1 used)")
     print(f"\nplot: {path.resolve()}")
+    write_record(args.out, "scaling", argv, records, breakdown_at_preset=breakdowns, plot=str(path))

@@ -14,9 +14,8 @@ ours bootstraps from the pre-reset observation; brax shuffles whole unrolls into
 Each learner runs the budget in `PARTS` equal parts (ours: calls of one program compiled ahead of time; brax:
 training epochs). The fastest part after the first gives the steady rate; everything else in the wall clock
 counts as compilation, set-up and one-off costs. So a one-off cost outside the first part cannot pass for
-training: until 2026-11-24 brax compiled its training epoch a second time, on its second call, because our
-`device_put_replicated` shim laid the state out on a mesh axis named otherwise than brax's pmap axis (fixed in
-`jaxarm.interop.brax_compat`; 3.97 s of compilation in epoch two of arm2d on the CPU, 84 s on the sorter).
+training: a learner that compiles again on a later call (as brax did when handed a state on a mesh axis other
+than its pmap axis, see `jaxarm.interop.brax_compat`) has that compilation booked as one-off, not as training.
 Evaluation is jaxarm's `evaluate` on the same fresh episodes of the preset's evaluation env for both,
 with deterministic policies (tanh of the Gaussian's mean), outside the timings.
 
@@ -35,12 +34,14 @@ import argparse
 import dataclasses
 import functools
 import time
+from collections.abc import Sequence
 
 import flax.linen as nn
 import jax
 import numpy as np
 
 from experiments import configs
+from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import env_seconds
 from jaxarm import envs
 from jaxarm.agents.common.evaluate import evaluate
@@ -89,11 +90,10 @@ def base_ppo_config(env_name: str) -> PPOConfig:
     """Our PPO preset for `env_name`: `ppo_<env_name>`, else the first PPO preset (by name) on that env,
     else PPOConfig's defaults on it."""
     preset = f"ppo_{env_name}"
-    if preset in configs.names():
-        return configs.get(preset)
-    matching = (configs.get(name) for name in configs.names())
+    names = [preset] if preset in configs.names() else []
+    candidates = (configs.get(name) for name in [*names, *configs.names()])
     return next(
-        (config for config in matching if isinstance(config, PPOConfig) and config.env == env_name),
+        (config for config in candidates if isinstance(config, PPOConfig) and config.env == env_name),
         PPOConfig(env=env_name),
     )
 
@@ -232,23 +232,48 @@ def env_stepping_seconds(config: PPOConfig) -> float:
     return seconds / updates
 
 
-def ceiling_line(config: PPOConfig, ours: Result, brax: Result, env_seconds_per_update: float) -> str:
+def ceiling_figures(config: PPOConfig, ours: Result, brax: Result, env_seconds_per_update: float) -> dict[str, float]:
     """What each learner costs beyond stepping the envs, and the most any learner could run at against brax.
 
     A learner that cost nothing would take `env_seconds_per_update` per update: brax's steady update time over
     that is the ceiling on the throughput ratio. The learners' own costs are their steady update times less it.
+    Times are in milliseconds per update.
     """
     ours_update, brax_update = (result.train_seconds / config.num_updates for result in (ours, brax))
-    env_rate = config.env_steps_per_update / env_seconds_per_update
+    return {
+        "env_ms": env_seconds_per_update * 1e3,
+        "env_steps_per_second": config.env_steps_per_update / env_seconds_per_update,
+        "ours_update_ms": ours_update * 1e3,
+        "brax_update_ms": brax_update * 1e3,
+        "ours_learner_ms": (ours_update - env_seconds_per_update) * 1e3,
+        "brax_learner_ms": (brax_update - env_seconds_per_update) * 1e3,
+        "ceiling_vs_brax": brax_update / env_seconds_per_update,
+        "ours_vs_brax": brax_update / ours_update,
+    }
+
+
+def ceiling_line(config: PPOConfig, ours: Result, brax: Result, env_seconds_per_update: float) -> str:
+    """`ceiling_figures` in words."""
+    figures = ceiling_figures(config, ours, brax, env_seconds_per_update)
     return (
         f"env stepping alone ({config.num_envs:,} envs × {config.rollout_length} steps per update, no learner): "
-        f"{env_seconds_per_update * 1e3:.1f} ms per update, {env_rate:,.0f} env steps/s. "
-        f"Steady update: ours {ours_update * 1e3:.1f} ms, brax {brax_update * 1e3:.1f} ms; beyond the env stepping "
-        f"our learner costs {(ours_update - env_seconds_per_update) * 1e3:.1f} ms, brax's "
-        f"{(brax_update - env_seconds_per_update) * 1e3:.1f} ms. Ceiling: a learner that cost nothing would run at "
-        f"{brax_update / env_seconds_per_update:.2f}× brax's steady rate; "
-        f"ours runs at {brax_update / ours_update:.2f}×."
+        f"{figures['env_ms']:.1f} ms per update, {figures['env_steps_per_second']:,.0f} env steps/s. "
+        f"Steady update: ours {figures['ours_update_ms']:.1f} ms, brax {figures['brax_update_ms']:.1f} ms; beyond "
+        f"the env stepping our learner costs {figures['ours_learner_ms']:.1f} ms, brax's "
+        f"{figures['brax_learner_ms']:.1f} ms. Ceiling: a learner that cost nothing would run at "
+        f"{figures['ceiling_vs_brax']:.2f}× brax's steady rate; ours runs at {figures['ours_vs_brax']:.2f}×."
     )
+
+
+def result_row(name: str, result: Result) -> dict:
+    """One learner's figures for the suite's JSON record: the run's fields and the steady-rate split."""
+    return {
+        "learner": name,
+        **dataclasses.asdict(result),
+        "train_seconds": result.train_seconds,
+        "compile_seconds": result.compile_seconds,
+        "steps_per_second": result.steps_per_second,
+    }
 
 
 def format_parts(result: Result) -> str:
@@ -295,7 +320,7 @@ def format_table(ours: Result, brax: Result) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> None:
+def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench training", description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="arm2d", help=f"registered env name ({', '.join(envs.names())})")
     parser.add_argument("--env-steps", type=int, help="env-step budget of each learner (default: the preset's)")
@@ -319,6 +344,7 @@ def main(argv=None) -> None:
         default="both",
         help="run one learner alone (its line, no table): for budgets one call cannot hold both",
     )
+    add_out_argument(parser)
     args = parser.parse_args(argv)
     if args.env not in envs.names():
         parser.error(f"unknown env {args.env!r}; registered: {', '.join(envs.names())}")
@@ -355,6 +381,23 @@ def main(argv=None) -> None:
             f"return {result.return_mean:.1f}",
             flush=True,
         )
+    ceiling = {}
     if len(results) == 2:
-        print(format_table(results["jaxarm"], results["brax"]))
-        print(ceiling_line(config, results["jaxarm"], results["brax"], env_stepping_seconds(config)), flush=True)
+        ours, brax_result = results["jaxarm"], results["brax"]
+        env_seconds_per_update = env_stepping_seconds(config)
+        print(format_table(ours, brax_result))
+        print(ceiling_line(config, ours, brax_result, env_seconds_per_update), flush=True)
+        ceiling = ceiling_figures(config, ours, brax_result, env_seconds_per_update)
+    write_record(
+        args.out,
+        "training",
+        argv,
+        [result_row(name, result) for name, result in results.items()],
+        env=config.env,
+        num_envs=config.num_envs,
+        rollout_length=config.rollout_length,
+        num_updates=config.num_updates,
+        brax_version=brax.__version__,
+        brax_learning_rate=args.brax_learning_rate,
+        ceiling=ceiling,
+    )

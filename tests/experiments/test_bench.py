@@ -1,9 +1,13 @@
-"""The benchmarks' arithmetic and options: equal parts, the steady rate, scan lengths, one learner alone (the
-runs themselves are benchmarks)."""
+"""The benchmarks' arithmetic and options: equal parts, the steady rate, scan lengths, one learner alone, the
+JSON record each suite writes beside its markdown (the runs themselves are benchmarks)."""
 
+import json
+import math
+
+import jax
 import pytest
 
-from experiments.benchmarks import training
+from experiments.benchmarks import arm2d, record, scaling, training
 from experiments.benchmarks.arm2d import default_max_env_steps, scan_length
 from experiments.benchmarks.training import PARTS, Result, ppo_config
 
@@ -34,13 +38,63 @@ def test_arm2d_scan_length_keeps_cpu_calls_short_and_gpu_calls_long():
     assert scan_length(1 << 30, 1000, cpu) == 10
 
 
-def test_one_learner_alone_prints_its_line_and_no_table(capsys):
-    training.main(
-        ["--env", "arm2d", "--num-envs", "64", "--env-steps", "8192", "--eval-episodes", "4", "--learners", "jaxarm"]
-    )
+def read_record(directory, suite: str, argv: list[str]) -> dict:
+    """The suite's JSON record, checked for the fields every suite writes."""
+    written = json.loads((directory / f"{suite}.json").read_text())
+    assert written["suite"] == suite
+    assert written["device"] == jax.devices()[0].device_kind
+    assert written["command"] == record.command_line(suite, argv)
+    assert written["date"].startswith("20")
+    return written
+
+
+def test_one_learner_alone_prints_its_line_and_no_table(capsys, tmp_path):
+    argv = ["--env", "arm2d", "--num-envs", "64", "--env-steps", "8192", "--eval-episodes", "4"]
+    argv += ["--learners", "jaxarm", "--out", str(tmp_path)]
+    training.main(argv)
     out = capsys.readouterr().out
     assert "jaxarm PPO:" in out and "env steps/s at the steady rate" in out
     assert "brax PPO" not in out and "| jaxarm PPO | brax PPO |" not in out
+    written = read_record(tmp_path, "training", argv)
+    (row,) = written["rows"]
+    assert row["learner"] == "jaxarm" and row["env_steps"] == 8192
+    assert len(row["part_seconds"]) == training.PARTS and row["steps_per_second"] > 0
+    assert 0.0 <= row["success_rate"] <= 1.0
+    assert written["ceiling"] == {}  # brax did not run
+
+
+def test_record_writes_unmeasured_figures_as_null(tmp_path):
+    path = record.write_record(tmp_path / "new", "suite", ["--flag", "a b"], [{"rate": math.nan, "envs": 2}])
+    written = json.loads(path.read_text())
+    assert written["rows"] == [{"rate": None, "envs": 2}]
+    assert written["command"] == "python -m experiments.bench suite --flag 'a b'"
+
+
+def test_arm2d_suite_writes_its_table_rows(capsys, tmp_path):
+    argv = ["--sizes", "1,16", "--steps", "20", "--out", str(tmp_path)]
+    arm2d.main(argv)
+    out = capsys.readouterr().out
+    written = read_record(tmp_path, "arm2d", argv)
+    assert [row["envs"] for row in written["rows"]] == [1, 16]
+    for row in written["rows"]:
+        assert row["env_steps_per_second"] > 0 and row["env_steps_per_second_without_auto_reset"] > 0
+        assert f"| {row['envs']:,} | {row['env_steps_per_second']:,.3g} |" in out
+    assert written["numpy_single_env_steps_per_second"] > 0
+
+
+def test_scaling_suite_writes_its_curves(tmp_path):
+    argv = ["--envs", "arm2d", "--env-sizes", "1,16", "--ppo-sizes", "16", "--quick"]
+    argv += ["--plot", str(tmp_path / "scaling.png"), "--out", str(tmp_path)]
+    scaling.main(argv)
+    written = read_record(tmp_path, "scaling", argv)
+    assert [(row["measurement"], row["envs"]) for row in written["rows"]] == [
+        ("env stepping", 1),
+        ("env stepping", 16),
+        ("PPO training", 16),
+    ]
+    assert all(row["env_steps_per_second"] > 0 for row in written["rows"])
+    assert written["breakdown_at_preset"] == {}  # the preset's 1,024 envs were not reached
+    assert (tmp_path / "scaling.png").exists()
 
 
 def test_ceiling_line_books_each_learner_beyond_the_env_stepping():

@@ -1,5 +1,7 @@
 """The ceilings suite: its FLOP counts by hand, its two versions of the two-link maths agreeing, and a small run."""
 
+import json
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -7,6 +9,7 @@ import numpy as np
 from experiments import configs
 from experiments.benchmarks import ceilings
 from jaxarm import envs
+from jaxarm.agents.ppo import PPOConfig
 from jaxarm.envs.arm2d.env import link_end_positions
 
 
@@ -20,7 +23,9 @@ def test_ppo_update_flops_of_the_arm2d_preset():
     # ~3 forward passes of both nets per sample.
     policy, value = 2 * (9 * 64 + 64 * 64 + 64 * 4), 2 * (9 * 64 + 64 * 64 + 64 * 1)
     expected = 16_384 * (policy + 2 * value) + 16_384 * 4 * 3 * (policy + value)
-    assert ceilings.ppo_update_flops(configs.get("ppo_arm2d"), 9, 2) == expected == 4_271_898_624
+    config = configs.get("ppo_arm2d")
+    assert isinstance(config, PPOConfig)
+    assert ceilings.ppo_update_flops(config, 9, 2) == expected == 4_271_898_624
 
 
 def test_both_versions_of_the_two_link_maths_hold_the_goal_as_the_env_does():
@@ -61,8 +66,16 @@ def test_both_versions_of_the_two_link_maths_hold_the_goal_as_the_env_does():
     )
 
 
-def test_suite_prints_the_bound_and_the_table(capsys):
-    ceilings.main(["--seeds", "2", "--sizes", "64", "--steps", "20"])
+def test_suite_prints_the_bound_and_the_table_and_writes_them(capsys, tmp_path):
+    ceilings.main(["--seeds", "2", "--sizes", "64", "--steps", "20", "--out", str(tmp_path)])
     out = capsys.readouterr().out
     assert "GFLOP/s" in out and "2 seeds: at least" in out
     assert "| 64 |" in out and out.count("x)") == 3
+    written = json.loads((tmp_path / "ceilings.json").read_text())
+    (row,) = written["rows"]
+    assert row["envs"] == 64
+    assert f"{row['two_link_rotation_steps_per_second']:.3g} (" in out
+    arithmetic = written["arithmetic"]
+    assert arithmetic["seeds"] == 2 and arithmetic["update_gflop"] == 4_271_898_624 / 1e9
+    assert f"measured {arithmetic['seeds_update_ms']:,.0f} ms" in out
+    assert written["goal_env_steps_per_second"] == ceilings.GOAL_RATIO * written["numpy_single_env_steps_per_second"]

@@ -1,5 +1,6 @@
 """The profile suite books each op to the learner phase its name stack names, counting nested ops once."""
 
+import json
 import types
 
 from experiments import configs
@@ -32,6 +33,7 @@ def test_only_innermost_events_count():
 
     loop, body_a, body_b, after = event(0, 100), event(10, 20), event(40, 50), event(100, 5)
     assert profile.leaf_events([after, body_b, loop, body_a]) == [body_a, body_b, after]
+    assert profile.leaf_events([]) == []  # a profile line with no XLA ops
 
 
 def test_a_small_ppo_run_books_time_to_every_phase():
@@ -44,3 +46,15 @@ def test_a_small_ppo_run_books_time_to_every_phase():
         assert by_phase[phase].ops > 0 and by_phase[phase].seconds > 0, phase
     table = profile.format_table(wall, times, num_updates=2)
     assert "| sgd |" in table and "| wall clock |" in table
+
+
+def test_suite_writes_its_phases(capsys, tmp_path):
+    argv = ["--updates", "1", "--out", str(tmp_path), "num_envs=16", "rollout_length=4", "num_minibatches=2"]
+    profile.main(argv)
+    out = capsys.readouterr().out
+    written = json.loads((tmp_path / "profile.json").read_text())
+    assert [row["phase"] for row in written["rows"]] == [*PHASES, profile.UNATTRIBUTED]
+    assert written["overrides"] == ["num_envs=16", "rollout_length=4", "num_minibatches=2"]
+    assert written["wall_ms_per_update"] > 0
+    sgd = written["rows"][PHASES.index("sgd")]
+    assert f"| sgd | {sgd['busy_ms_per_update']:.2f} |" in out
