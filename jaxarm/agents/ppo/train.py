@@ -139,7 +139,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
             updates=jnp.zeros((), jnp.int32),
         )
 
-    def collect(state: PPOState, key) -> tuple[EnvState, Rollout]:
+    def collect(state: PPOState, key) -> tuple[EnvState, Rollout, EpisodeSummary]:
         def env_step(env_state, step_key):
             dist_params = policy_params_of(state.params, state.normalizer, env_state.obs)
             raw_action = action_dist.sample_no_postprocessing(dist_params, step_key)
