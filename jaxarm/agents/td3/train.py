@@ -7,12 +7,16 @@ by one actor step and one Polyak step of both target networks. Hyper-parameters 
 data, so `jax.vmap(make_train(trainer))(keys, hparams)` trains seeds × hyper-parameters at once.
 """
 
+from collections.abc import Mapping
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import optax
 from flax import struct
 
 from jaxarm.agents.common import replay
+from jaxarm.agents.common.networks import apply_module
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.td3.config import TD3Config, TD3HParams
 from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, polyak_update, smoothed_target_action
@@ -39,8 +43,7 @@ class Experience:
     terminated: jax.Array
 
 
-@struct.dataclass
-class TD3State:
+class TD3State(struct.PyTreeNode):
     """The whole learner state (checkpointed as one pytree).
 
     Attributes:
@@ -57,10 +60,10 @@ class TD3State:
       updates: [] int32, updates done so far.
     """
 
-    actor_params: dict
-    critic_params: dict
-    target_actor_params: dict
-    target_critic_params: dict
+    actor_params: Mapping[str, Any]
+    critic_params: Mapping[str, Any]
+    target_actor_params: Mapping[str, Any]
+    target_critic_params: Mapping[str, Any]
     actor_opt_state: optax.OptState
     critic_opt_state: optax.OptState
     replay: replay.ReplayState
@@ -101,7 +104,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         return spec.action_low + (action + 1.0) * (0.5 * (spec.action_high - spec.action_low))
 
     def act(state: TD3State, obs: jax.Array) -> jax.Array:
-        return to_env_action(actor.apply(state.actor_params, obs))
+        return to_env_action(apply_module(actor, state.actor_params, obs))
 
     def init(key: jax.Array, hparams: TD3HParams) -> TD3State:
         del hparams  # nothing in the initial state depends on them
@@ -134,7 +137,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             env_state, env_steps = carry
             noise_key, random_key = jax.random.split(step_key)
             shape = (config.num_envs, action_size)
-            policy = actor.apply(state.actor_params, env_state.obs)
+            policy = apply_module(actor, state.actor_params, env_state.obs)
             noisy = jnp.clip(policy + hparams.exploration_noise * jax.random.normal(noise_key, shape), -1.0, 1.0)
             random = jax.random.uniform(random_key, shape, minval=-1.0, maxval=1.0)
             action = jnp.where(env_steps < config.learning_starts, random, noisy)
@@ -158,7 +161,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     def critic_step(carry, inputs, hparams: TD3HParams, target_actor_params, target_critic_params):
         critic_params, opt_state = carry
         batch, noise_key = inputs
-        next_action = actor.apply(target_actor_params, batch.next_obs)
+        next_action = apply_module(actor, target_actor_params, batch.next_obs)
         if config.target_smoothing:
             noise = hparams.target_noise * jax.random.normal(noise_key, next_action.shape)
             next_action = smoothed_target_action(next_action, noise, hparams.target_noise_clip)
@@ -175,7 +178,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
 
     def actor_step(params, opt_state, critic_params, obs, hparams: TD3HParams):
         def loss_fn(actor_params):
-            q = apply_critics(critic, critic_params, obs, actor.apply(actor_params, obs))
+            q = apply_critics(critic, critic_params, obs, apply_module(actor, actor_params, obs))
             return actor_loss(q[0])
 
         loss, grads = jax.value_and_grad(loss_fn)(params)
