@@ -14,10 +14,11 @@ import optax
 from brax.training.acme import running_statistics, specs
 from flax import struct
 
+from jaxarm.agents.common.config import HParams
 from jaxarm.agents.common.permutation import random_permutation
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.ppo import losses
-from jaxarm.agents.ppo.config import PPOConfig, PPOHParams
+from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.agents.ppo.networks import NetworkParams, make_networks
 from jaxarm.envs import AutoReset, EnvState, VmapEnv, compiler_options
 
@@ -79,7 +80,7 @@ class Rollout:
     final_obs: jax.Array
 
 
-def make_optimizer(hparams: PPOHParams, learning_rate) -> optax.GradientTransformation:
+def make_optimizer(hparams: HParams, learning_rate) -> optax.GradientTransformation:
     """Built inside the compiled update from dynamic values; its state does not depend on them."""
     return optax.chain(optax.clip_by_global_norm(hparams.max_grad_norm), optax.adam(learning_rate, eps=1e-5))
 
@@ -94,7 +95,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
     action_dist = networks.action_dist
     obs_size = env.spec.observation_size
 
-    def init(key, hparams: PPOHParams) -> PPOState:
+    def init(key, hparams: HParams) -> PPOState:
         policy_key, value_key, env_key, run_key = jax.random.split(key, 4)
         params = networks.init(policy_key, value_key, obs_size)
         return PPOState(
@@ -143,7 +144,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         total = policy_loss + hparams.value_coef * value_loss - hparams.entropy_coef * entropy
         return total, losses.LossTerms(policy_loss, value_loss, entropy, approx_kl, clip_fraction)
 
-    def advantage_samples(state: PPOState, rollout: Rollout, hparams: PPOHParams):
+    def advantage_samples(state: PPOState, rollout: Rollout, hparams: HParams):
         """(normaliser updated with the rollout's observations, [T·B] training samples with GAE targets)."""
         normalizer = state.normalizer
         if config.normalize_observations:
@@ -162,7 +163,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets)
         return normalizer, jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
 
-    def sgd_epochs(params, opt_state, normalizer, samples: Samples, hparams: PPOHParams, learning_rate, key):
+    def sgd_epochs(params, opt_state, normalizer, samples: Samples, hparams: HParams, learning_rate, key):
         """`num_epochs` passes of `num_minibatches` clipped-surrogate steps over freshly shuffled `samples`.
 
         Returns ((params, opt_state), (loss terms, grad norms)), the last two [num_epochs, num_minibatches].
@@ -186,7 +187,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
 
         return jax.lax.scan(epoch, (params, opt_state), jax.random.split(key, config.num_epochs))
 
-    def update(state: PPOState, hparams: PPOHParams) -> tuple[PPOState, PPOMetrics]:
+    def update(state: PPOState, hparams: HParams) -> tuple[PPOState, PPOMetrics]:
         collect_key, shuffle_key, next_key = jax.random.split(state.key, 3)
         with jax.named_scope("collect"):
             env_state, rollout, episodes = collect(state, collect_key)

@@ -3,7 +3,7 @@
 One `update`: step all `num_envs` envs `rollout_length` times (uniform random actions before
 `learning_starts`, then the actor plus Gaussian noise), add the transitions to the on-device replay
 buffer, then run `grad_steps_per_update` gradient steps in blocks of `policy_delay` critic steps followed
-by one actor step and one Polyak step of both target networks. Hyper-parameters arrive as `TD3HParams`
+by one actor step and one Polyak step of both target networks. Hyper-parameters arrive as `HParams`
 data, so `jax.vmap(make_train(trainer))(keys, hparams)` trains seeds × hyper-parameters at once.
 """
 
@@ -16,9 +16,10 @@ import optax
 from flax import struct
 
 from jaxarm.agents.common import replay
+from jaxarm.agents.common.config import HParams
 from jaxarm.agents.common.networks import apply_module
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
-from jaxarm.agents.td3.config import TD3Config, TD3HParams
+from jaxarm.agents.td3.config import TD3Config
 from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, polyak_update, smoothed_target_action
 from jaxarm.agents.td3.networks import Actor, Critic, apply_critics, init_critics
 from jaxarm.envs import AutoReset, EnvState, VmapEnv, compiler_options
@@ -106,7 +107,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     def act(state: TD3State, obs: jax.Array) -> jax.Array:
         return to_env_action(apply_module(actor, state.actor_params, obs))
 
-    def init(key: jax.Array, hparams: TD3HParams) -> TD3State:
+    def init(key: jax.Array, hparams: HParams) -> TD3State:
         del hparams  # nothing in the initial state depends on them
         actor_key, critic_key, env_key, state_key = jax.random.split(key, 4)
         obs = jnp.zeros(spec.observation_shape, jnp.float32)
@@ -130,7 +131,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             updates=jnp.zeros((), jnp.int32),
         )
 
-    def collect(state: TD3State, hparams: TD3HParams, key: jax.Array):
+    def collect(state: TD3State, hparams: HParams, key: jax.Array):
         """Steps the envs `rollout_length` times; returns (env state, env steps, experience [T*B], states [T, B])."""
 
         def env_step(carry, step_key):
@@ -158,7 +159,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         flat = jax.tree.map(lambda leaf: leaf.reshape(-1, *leaf.shape[2:]), experience)
         return env_state, env_steps, flat, states
 
-    def critic_step(carry, inputs, hparams: TD3HParams, target_actor_params, target_critic_params):
+    def critic_step(carry, inputs, hparams: HParams, target_actor_params, target_critic_params):
         critic_params, opt_state = carry
         batch, noise_key = inputs
         next_action = apply_module(actor, target_actor_params, batch.next_obs)
@@ -176,7 +177,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         updates, opt_state = optax.adam(hparams.critic_learning_rate).update(grads, opt_state, critic_params)
         return (optax.apply_updates(critic_params, updates), opt_state), (loss, jnp.mean(q))
 
-    def actor_step(params, opt_state, critic_params, obs, hparams: TD3HParams):
+    def actor_step(params, opt_state, critic_params, obs, hparams: HParams):
         def loss_fn(actor_params):
             q = apply_critics(critic, critic_params, obs, apply_module(actor, actor_params, obs))
             return actor_loss(q[0])
@@ -185,7 +186,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         updates, opt_state = optax.adam(hparams.actor_learning_rate).update(grads, opt_state, params)
         return optax.apply_updates(params, updates), opt_state, loss
 
-    def delayed_block(state: TD3State, key: jax.Array, hparams: TD3HParams):
+    def delayed_block(state: TD3State, key: jax.Array, hparams: HParams):
         """`policy_delay` critic steps, then one actor step and one target step; returns (state, losses)."""
         sample_key, noise_key = jax.random.split(key)
         batches = replay.sample(state.replay, sample_key, config.policy_delay * config.batch_size)
@@ -212,19 +213,19 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         )
         return state, (jnp.mean(critic_losses), loss, jnp.mean(q_means))
 
-    def learn(state: TD3State, key: jax.Array, hparams: TD3HParams):
+    def learn(state: TD3State, key: jax.Array, hparams: HParams):
         blocks = config.grad_steps_per_update // config.policy_delay
         state, (critic_losses, actor_losses, q_means) = jax.lax.scan(
             lambda carry, block_key: delayed_block(carry, block_key, hparams), state, jax.random.split(key, blocks)
         )
         return state, (jnp.mean(critic_losses), jnp.mean(actor_losses), jnp.mean(q_means))
 
-    def skip_learning(state: TD3State, key: jax.Array, hparams: TD3HParams):
+    def skip_learning(state: TD3State, key: jax.Array, hparams: HParams):
         del key, hparams
         zero = jnp.zeros((), jnp.float32)
         return state, (zero, zero, zero)
 
-    def update(state: TD3State, hparams: TD3HParams) -> tuple[TD3State, TD3Metrics]:
+    def update(state: TD3State, hparams: HParams) -> tuple[TD3State, TD3Metrics]:
         key, collect_key, learn_key = jax.random.split(state.key, 3)
         env_state, env_steps, experience, states = collect(state, hparams, collect_key)
         state = state.replace(
