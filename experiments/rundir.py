@@ -51,7 +51,7 @@ def write_config(run_dir: pathlib.Path, config: RunConfig, preset: str) -> None:
 
 
 def read_config(run_dir: pathlib.Path) -> tuple[RunConfig, str]:
-    """The config saved in `run_dir` and its preset name; ValueError if missing or unreadable."""
+    """The config saved in `run_dir` (validated) and its preset name; ValueError if missing, unreadable or invalid."""
     path = run_dir / "config.json"
     if not path.exists():
         raise ValueError(f"{run_dir} is not a run directory: no config.json")
@@ -64,9 +64,11 @@ def read_config(run_dir: pathlib.Path) -> tuple[RunConfig, str]:
             name: _as_tuples(value) if typing.get_origin(hints[name]) is tuple else value
             for name, value in data.items()
         }
-        return cls(**fields), preset
+        config = cls(**fields)
     except (json.JSONDecodeError, KeyError, TypeError) as error:
         raise ValueError(f"{path} is corrupt or from another version: {error}") from None
+    config.validate()
+    return config, preset
 
 
 def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig):

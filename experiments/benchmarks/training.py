@@ -90,7 +90,9 @@ def base_ppo_config(env_name: str) -> PPOConfig:
     else PPOConfig's defaults on it."""
     preset = f"ppo_{env_name}"
     if preset in configs.names():
-        return configs.get(preset)
+        named = configs.get(preset)
+        if isinstance(named, PPOConfig):
+            return named
     matching = (configs.get(name) for name in configs.names())
     return next(
         (config for config in matching if isinstance(config, PPOConfig) and config.env == env_name),
@@ -114,7 +116,7 @@ def ppo_config(env_name: str, num_envs: int | None, env_steps: int | None) -> PP
         total_env_steps=num_updates * steps_per_update,
         updates_per_chunk=num_updates // PARTS,
     )
-    config.check()
+    config.validate()
     if num_envs % config.num_minibatches:
         raise ValueError(f"num_envs={num_envs} must divide by num_minibatches={config.num_minibatches} for brax")
     return config

@@ -1,4 +1,4 @@
-"""Named run presets: `get(name)` returns a config, `names()` and `describe()` list them.
+"""Named run presets: `get(name)` returns a validated config, `names()` and `describe()` list them.
 
 A preset is a function returning a frozen config, registered with `@preset`; modules beside this one
 define them (one module per learner). The learner is chosen by the config's type (`AGENT`).
@@ -41,11 +41,13 @@ def describe() -> dict[str, str]:
 
 
 def get(name: str) -> RunConfig:
-    """The preset `name`; ValueError naming the closest preset for an unknown name."""
+    """The preset `name`, validated; ValueError naming the closest preset for an unknown name."""
     _load_all()
     if name not in _PRESETS:
         raise ValueError(f"unknown config {name!r}{closest_match_hint(name, _PRESETS)}; see --list")
-    return _PRESETS[name][0]()
+    config = _PRESETS[name][0]()
+    config.validate()
+    return config
 
 
 def make_trainer(config: RunConfig):

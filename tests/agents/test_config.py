@@ -1,9 +1,10 @@
-"""Run configs: the hyper-parameters a config declares dynamic."""
+"""Run configs: the hyper-parameters a config declares dynamic, and the presets' validity."""
 
 import jax
 import jax.numpy as jnp
 import pytest
 
+from experiments import configs
 from jaxarm.agents.common.config import HParams
 from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
@@ -24,3 +25,8 @@ def test_hparams_hold_the_fields_declared_dynamic_and_no_others(config_class, dy
         hparams.replace(**{static: jnp.float32(1.0)})
     with pytest.raises(AttributeError, match=static):
         getattr(hparams, static)
+
+
+def test_every_preset_is_valid():
+    for name in configs.names():
+        configs.get(name)  # validates

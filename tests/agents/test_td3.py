@@ -119,7 +119,7 @@ def test_ddpg_preset_is_one_critic_no_smoothing_no_delay():
 
 def test_config_rejects_a_delay_that_does_not_divide_the_gradient_steps():
     with pytest.raises(ValueError, match="multiple of policy_delay"):
-        TD3Config(policy_delay=2, grad_steps_per_update=3)
+        TD3Config(policy_delay=2, grad_steps_per_update=3).validate()
 
 
 # Probe envs with known answers

@@ -2,8 +2,10 @@
 
 A config is a frozen dataclass: static choices (sizes, counts, env) are plain fields; a field declared with
 `dynamic(default)` is a hyper-parameter `train` takes as data: `hparams()` gathers those fields into one
-`HParams` pytree, so seeds × hyper-parameters vmap. Env constructor kwargs and env params are (name, value)
-pairs set on the CLI as `env_kwargs.NAME=VALUE`, `env_params.NAME=VALUE` and `eval_env_params.NAME=VALUE`.
+`HParams` pytree, so seeds × hyper-parameters vmap. `validate()` is where a config's values are checked, once
+it is built from user input (a preset, overrides, a run directory's config.json). Env constructor kwargs and
+env params are (name, value) pairs set on the CLI as `env_kwargs.NAME=VALUE`, `env_params.NAME=VALUE` and
+`eval_env_params.NAME=VALUE`.
 """
 
 import ast
@@ -110,6 +112,19 @@ class RunConfig:
         """The dynamic fields as float32 scalars: the argument `train` takes, and vmaps over in sweeps."""
         return HParams(**{name: jnp.asarray(getattr(self, name), jnp.float32) for name in self.dynamic_fields()})
 
+    def validate(self) -> None:
+        """Raises ValueError on values no run can use (non-positive sizes, unknown env, bad env params).
+
+        Learners' configs extend this with their own checks (calling `super().validate()` first).
+        """
+        for field in ("num_envs", "total_env_steps", "updates_per_chunk", "checkpoint_every_updates", "eval_episodes"):
+            if getattr(self, field) <= 0:
+                raise ValueError(f"{field} must be positive, got {getattr(self, field)}")
+        try:
+            self.make_eval_env()
+        except (KeyError, ValueError, TypeError) as error:
+            raise ValueError(str(error).strip("\"'")) from None
+
     def whole_chunks(self, env_steps_per_update: int) -> int:
         """Updates in the run: `total_env_steps` rounded up to whole chunks of `updates_per_chunk`."""
         chunk_steps = env_steps_per_update * self.updates_per_chunk
@@ -187,16 +202,5 @@ def apply_overrides(config: RunConfig, overrides: Iterable[str]) -> RunConfig:
         except ValueError as error:
             raise ValueError(f"bad value for {key}: {error}") from None
         config = dataclasses.replace(config, **{key: value})
-    validate(config)
+    config.validate()
     return config
-
-
-def validate(config: RunConfig) -> None:
-    """Raises ValueError on values no run can use (non-positive sizes, unknown env, bad env params)."""
-    for field in ("num_envs", "total_env_steps", "updates_per_chunk", "checkpoint_every_updates", "eval_episodes"):
-        if getattr(config, field) <= 0:
-            raise ValueError(f"{field} must be positive, got {getattr(config, field)}")
-    try:
-        config.make_eval_env()
-    except (KeyError, ValueError, TypeError) as error:
-        raise ValueError(str(error).strip("\"'")) from None

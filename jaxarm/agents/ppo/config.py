@@ -64,8 +64,9 @@ class PPOConfig(RunConfig):
     def minibatch_size(self) -> int:
         return self.env_steps_per_update // self.num_minibatches
 
-    def check(self) -> None:
-        """Raises ValueError on sizes PPO cannot use."""
+    def validate(self) -> None:
+        """RunConfig's checks, and that each rollout splits into whole minibatches."""
+        super().validate()
         if self.env_steps_per_update % self.num_minibatches:
             raise ValueError(
                 f"rollout_length*num_envs={self.env_steps_per_update} must divide by "

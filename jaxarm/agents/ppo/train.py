@@ -87,7 +87,7 @@ def make_optimizer(hparams: HParams, learning_rate) -> optax.GradientTransformat
 
 def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
     """PPO for `config` (see the module docstring). `env`, `env_params` replace the config's env (probes)."""
-    config.check()
+    config.validate()
     if env is None:
         env, env_params = config.make_env()
     batch_env = VmapEnv(AutoReset(env), config.num_envs)

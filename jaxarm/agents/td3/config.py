@@ -64,7 +64,17 @@ class TD3Config(RunConfig):
     rollout_length: int = 1
     grad_steps_per_update: int = 4
 
-    def __post_init__(self):
+    @property
+    def env_steps_per_update(self) -> int:
+        return self.num_envs * self.rollout_length
+
+    @property
+    def num_updates(self) -> int:
+        return self.whole_chunks(self.env_steps_per_update)
+
+    def validate(self) -> None:
+        """RunConfig's checks, positive sizes, whole policy-delay blocks, and room for one update's steps."""
+        super().validate()
         for field in (
             "num_critics",
             "policy_delay",
@@ -84,11 +94,3 @@ class TD3Config(RunConfig):
             raise ValueError(
                 f"buffer_size ({self.buffer_size}) must hold one update's {self.env_steps_per_update} env steps"
             )
-
-    @property
-    def env_steps_per_update(self) -> int:
-        return self.num_envs * self.rollout_length
-
-    @property
-    def num_updates(self) -> int:
-        return self.whole_chunks(self.env_steps_per_update)

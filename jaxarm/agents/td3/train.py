@@ -90,6 +90,7 @@ class TD3Metrics:
 
 def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     """Builds the TD3 / DDPG trainer for `config`. `env`, `env_params` replace the config's env (probe envs)."""
+    config.validate()
     if env is None:
         env, env_params = config.make_env()
     batch_env = VmapEnv(AutoReset(env), config.num_envs)
