@@ -10,10 +10,9 @@ env params are (name, value) pairs set on the CLI as `env_kwargs.NAME=VALUE`, `e
 
 import ast
 import dataclasses
-import json
 import typing
 from collections.abc import Iterable
-from typing import Any, ClassVar
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -85,11 +84,10 @@ class RunConfig:
       checkpoint_every_updates: save the learner state at the first chunk end after this many updates.
       eval_episodes: fresh episodes for the final deterministic evaluation.
       seed: PRNG seed of the run.
-      init_from: run directory whose latest checkpoint initialises the networks (a warm start, PPO only;
-        the env maps the old observation onto its own: `Env.observation_source_index`); "" for none.
+      init_from: run directory whose latest checkpoint initialises the networks (a warm start, for learners
+        that have one, see `jaxarm.agents.registry`; the env maps the old observation onto its own:
+        `Env.observation_source_index`); "" for none.
     """
-
-    AGENT: ClassVar[str] = ""
 
     env: str = "arm2d"
     env_kwargs: Pairs = ()
@@ -139,9 +137,6 @@ class RunConfig:
         """Returns (env, env_params) that evaluations run on: the training env with `eval_env_params` applied."""
         env, env_params = self.make_env()
         return env, envs.override_params(env_params, dict(self.eval_env_params))
-
-    def to_json(self) -> str:
-        return json.dumps({"agent": self.AGENT, **dataclasses.asdict(self)}, indent=2, default=list)
 
 
 def parse_value(text: str, annotation) -> Any:

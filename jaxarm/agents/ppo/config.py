@@ -1,7 +1,6 @@
 """PPO's frozen config: static sizes and choices, and the dynamic hyper-parameters `train` takes as data."""
 
 import dataclasses
-from typing import ClassVar
 
 from jaxarm.agents.common.config import RunConfig, dynamic
 
@@ -30,8 +29,6 @@ class PPOConfig(RunConfig):
       max_grad_norm: global gradient-norm clip.
       reward_scale: rewards are multiplied by this before GAE.
     """
-
-    AGENT: ClassVar[str] = "ppo"
 
     rollout_length: int = 16
     num_minibatches: int = 8

@@ -5,7 +5,6 @@ experiments/configs/td3.py).
 """
 
 import dataclasses
-from typing import ClassVar
 
 from jaxarm.agents.common.config import RunConfig, dynamic
 
@@ -36,8 +35,6 @@ class TD3Config(RunConfig):
       rollout_length: steps of all `num_envs` envs collected per update.
       grad_steps_per_update: gradient (critic) steps per update; a multiple of `policy_delay`.
     """
-
-    AGENT: ClassVar[str] = "td3"
 
     num_envs: int = 16
     total_env_steps: int = 200_000
