@@ -1,7 +1,7 @@
 """A run directory: its config, metrics log, checkpoints and evaluation, shared by run, eval and sweep.
 
 Layout of `runs/<config>-<timestamp>/`:
-  config.json      the resolved config (with "agent" and "preset")
+  config.json      the resolved config (with "preset", and "agent": the learner's name in jaxarm.agents.registry)
   metrics.jsonl    one JSON row per update
   tensorboard/     TensorBoard event files
   checkpoints/     orbax checkpoints of the whole learner state, named by update count
@@ -14,30 +14,20 @@ import json
 import pathlib
 import time
 import typing
+from collections.abc import Callable
+from typing import Any
 
 import jax
 import numpy as np
 
-from experiments import configs
+from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.evaluate import evaluate
-from jaxarm.agents.ppo.warm_start import warm_start
 
 
 def new_run_dir(preset: str, root: str = "runs") -> pathlib.Path:
     return pathlib.Path(root) / f"{preset}-{time.strftime('%Y%m%d-%H%M%S')}"
-
-
-def config_classes() -> dict[str, type[RunConfig]]:
-    """Agent name -> its config class (every RunConfig subclass the presets use)."""
-    configs.names()  # imports every learner's presets, hence its config class
-    found, pending = {}, list(RunConfig.__subclasses__())
-    while pending:
-        cls = pending.pop()
-        found.setdefault(cls.AGENT, cls)
-        pending.extend(cls.__subclasses__())
-    return found
 
 
 def _as_tuples(value):
@@ -46,27 +36,29 @@ def _as_tuples(value):
 
 def write_config(run_dir: pathlib.Path, config: RunConfig, preset: str) -> None:
     run_dir.mkdir(parents=True, exist_ok=True)
-    data = {"preset": preset, "agent": config.AGENT, **dataclasses.asdict(config)}
+    data = {"preset": preset, "agent": registry.name_of(config), **dataclasses.asdict(config)}
     (run_dir / "config.json").write_text(json.dumps(data, indent=2))
 
 
 def read_config(run_dir: pathlib.Path) -> tuple[RunConfig, str]:
-    """The config saved in `run_dir` and its preset name; ValueError if missing or unreadable."""
+    """The config saved in `run_dir` (validated) and its preset name; ValueError if missing, unreadable or invalid."""
     path = run_dir / "config.json"
     if not path.exists():
         raise ValueError(f"{run_dir} is not a run directory: no config.json")
     try:
         data = json.loads(path.read_text())
         preset, agent = data.pop("preset"), data.pop("agent")
-        cls = config_classes()[agent]
+        cls = registry.get(agent).config_class
         hints = typing.get_type_hints(cls)
         fields = {
             name: _as_tuples(value) if typing.get_origin(hints[name]) is tuple else value
             for name, value in data.items()
         }
-        return cls(**fields), preset
-    except (json.JSONDecodeError, KeyError, TypeError) as error:
+        config = cls(**fields)
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
         raise ValueError(f"{path} is corrupt or from another version: {error}") from None
+    config.validate()
+    return config, preset
 
 
 def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig):
@@ -75,17 +67,21 @@ def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig):
     return checkpoint.restore(run_dir / "checkpoints", like)
 
 
-def warm_starter(config: RunConfig):
-    """fresh learner state -> the same with the networks and observation statistics of the latest checkpoint of
-    the run in `config.init_from` (see `jaxarm.agents.ppo.warm_start`). ValueError or CheckpointError when that
-    run cannot serve."""
+def warm_starter(config: RunConfig) -> Callable[[Any], Any]:
+    """fresh learner state -> the same warm-started from the latest checkpoint of the run in `config.init_from`,
+    by the learner's own warm start (`jaxarm.agents.registry.Learner.warm_start`). ValueError or CheckpointError
+    when that run cannot serve."""
     source_dir = pathlib.Path(config.init_from)
     source, _ = read_config(source_dir)
-    if (source.AGENT, config.AGENT) != ("ppo", "ppo"):
+    learner = registry.learner_for(config)
+    warm_start = learner.warm_start
+    if warm_start is None or registry.learner_for(source) is not learner:
+        with_warm_starts = [name for name, each in registry.LEARNERS.items() if each.warm_start is not None]
         raise ValueError(
-            f"init_from: warm starts exist for PPO only ({source_dir} is {source.AGENT}, this run {config.AGENT})"
+            f"init_from: warm starts exist for {', '.join(with_warm_starts)} only, from a run of the same learner "
+            f"({source_dir} is {registry.name_of(source)}, this run {registry.name_of(config)})"
         )
-    trained = restore_state(source_dir, configs.make_trainer(source), source)
+    trained = restore_state(source_dir, learner.make_trainer(source), source)
     index = config.make_env()[0].observation_source_index(source.make_env()[0])
     return lambda state: warm_start(state, trained, index)
 

@@ -1,6 +1,6 @@
 """Sweep seeds × hyper-parameters: `python -m experiments.sweep --config NAME --seeds N key=v1,v2 ...`.
 
-Dynamic hyper-parameters (the config's DYNAMIC_FIELDS) of every seed and value are vmapped into one
+Dynamic hyper-parameters (the config's fields declared `dynamic`) of every seed and value are vmapped into one
 compiled call; static choices (num_envs, sizes, ...) form separate groups, each compiled once. Writes
 results.csv and results.md (mean, std and 95% CI over seeds of final return and success, wall time) and
 curves.png (mean success rate and return over env steps with 95% CI bands) into the sweep directory.
@@ -34,13 +34,14 @@ class Grid:
 
 def parse_grid(base: RunConfig, assignments: list[str]) -> Grid:
     """Splits `key=v1,v2` assignments into static groups (cartesian product) and dynamic combinations."""
-    static, dynamic = [[]], [{}]
+    static: list[list[str]] = [[]]
+    dynamic: list[dict[str, float]] = [{}]
     for item in assignments:
         key, _, values = item.partition("=")
         options = [value for value in values.split(",") if value]
         if not options:
             raise ValueError(f"sweep assignment {item!r} has no values")
-        if key in base.DYNAMIC_FIELDS:
+        if key in base.dynamic_fields():
             parsed = [apply_overrides(base, [f"{key}={value}"]) for value in options]
             dynamic = [{**combo, key: getattr(config, key)} for combo in dynamic for config in parsed]
         else:

@@ -114,7 +114,7 @@ def ppo_config(env_name: str, num_envs: int | None, env_steps: int | None) -> PP
         total_env_steps=num_updates * steps_per_update,
         updates_per_chunk=num_updates // PARTS,
     )
-    config.check()
+    config.validate()
     if num_envs % config.num_minibatches:
         raise ValueError(f"num_envs={num_envs} must divide by num_minibatches={config.num_minibatches} for brax")
     return config

@@ -1,53 +1,32 @@
-"""Named run presets: `get(name)` returns a config, `names()` and `describe()` list them.
+"""Named run presets: `get(name)` returns a validated config, `names()` and `describe()` list them.
 
-A preset is a function returning a frozen config, registered with `@preset`; modules beside this one
-define them (one module per learner). The learner is chosen by the config's type (`AGENT`).
+A preset is a function returning a frozen config, registered with `@preset` (registry.py) in its learner's
+module of presets; each is imported below. The learner is the one `jaxarm.agents.registry` registers for
+the config's class.
 """
 
-import importlib
-from collections.abc import Callable
-
+# Importing a learner's preset module registers its presets.
+from experiments.configs import ppo, td3  # noqa: F401
+from experiments.configs.registry import PRESETS
 from jaxarm.agents.common.config import RunConfig
+from jaxarm.agents.registry import make_trainer
 from jaxarm.envs.registry import closest_match_hint
 
-_PRESETS: dict[str, tuple[Callable[[], RunConfig], str]] = {}
-_MODULES = ("ppo", "td3")
-
-
-def preset(description: str):
-    """Decorator registering a config function under its own name with a one-line description."""
-
-    def register(function: Callable[[], RunConfig]):
-        if function.__name__ in _PRESETS:
-            raise ValueError(f"preset {function.__name__!r} is defined twice")
-        _PRESETS[function.__name__] = (function, description)
-        return function
-
-    return register
-
-
-def _load_all() -> None:
-    for module in _MODULES:
-        importlib.import_module(f"experiments.configs.{module}")
+__all__ = ["describe", "get", "make_trainer", "names"]
 
 
 def names() -> list[str]:
-    _load_all()
-    return sorted(_PRESETS)
+    return sorted(PRESETS)
 
 
 def describe() -> dict[str, str]:
-    return {name: _PRESETS[name][1] for name in names()}
+    return {name: PRESETS[name].description for name in names()}
 
 
 def get(name: str) -> RunConfig:
-    """The preset `name`; ValueError naming the closest preset for an unknown name."""
-    _load_all()
-    if name not in _PRESETS:
-        raise ValueError(f"unknown config {name!r}{closest_match_hint(name, _PRESETS)}; see --list")
-    return _PRESETS[name][0]()
-
-
-def make_trainer(config: RunConfig):
-    """Builds the learner the config is for: `jaxarm.agents.<AGENT>.make_trainer(config)`."""
-    return importlib.import_module(f"jaxarm.agents.{config.AGENT}").make_trainer(config)
+    """The preset `name`, validated; ValueError naming the closest preset for an unknown name."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown config {name!r}{closest_match_hint(name, PRESETS)}; see --list")
+    config = PRESETS[name].make()
+    config.validate()
+    return config

@@ -2,7 +2,7 @@
 
 import dataclasses
 
-from experiments.configs import preset
+from experiments.configs.registry import preset
 from jaxarm.agents.common.config import with_pair
 from jaxarm.agents.ppo import PPOConfig
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE

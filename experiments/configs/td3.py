@@ -1,7 +1,7 @@
 """TD3 and DDPG presets (DDPG is TD3Config with one critic, no target smoothing, no policy delay)."""
 
-from experiments.configs import preset
 from experiments.configs.ppo import SORTER_ENV_PARAMS, SORTER_EVAL_ENV_PARAMS
+from experiments.configs.registry import preset
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
 

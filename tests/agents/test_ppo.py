@@ -6,12 +6,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from brax.training.acme import running_statistics
 
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import make_chunk_runner, make_train
-from jaxarm.agents.ppo import PPOConfig, make_trainer
-from jaxarm.agents.ppo.train import make_networks
+from jaxarm.agents.ppo import PPOConfig, make_networks, make_trainer
 from tests.agents.probe_envs import ConstantRewardEnv, TargetActionEnv
 
 TINY = PPOConfig(
@@ -95,8 +93,7 @@ PROBE = PPOConfig(
 
 def probe_value(config, state, obs):
     """V(obs) of a trained PPO state, through the same normaliser and network the learner uses."""
-    _, _, value_net = make_networks(config, 1)
-    return value_net.apply(state.params.value, running_statistics.normalize(obs, state.normalizer))[..., 0]
+    return make_networks(config, 1).value(state.params, state.normalizer, obs)
 
 
 @pytest.mark.parametrize("terminate, expected", [(True, 1.0), (False, 1.0 / (1.0 - 0.9))])

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from experiments.configs import td3 as td3_presets
+from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint, replay
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import make_train
@@ -112,14 +113,14 @@ def test_replay_stores_pre_reset_next_obs_and_truncation_is_not_termination():
 def test_ddpg_preset_is_one_critic_no_smoothing_no_delay():
     config = td3_presets.ddpg_arm2d()
     assert (config.num_critics, config.policy_delay, config.target_smoothing) == (1, 1, False)
-    assert config.AGENT == "td3" and config.hidden_sizes == (100,) and config.batch_size == 32
+    assert registry.name_of(config) == "td3" and config.hidden_sizes == (100,) and config.batch_size == 32
     state = make_trainer(config).init(jax.random.PRNGKey(0), config.hparams())
     assert all(leaf.shape[0] == 1 for leaf in jax.tree.leaves(state.critic_params))
 
 
 def test_config_rejects_a_delay_that_does_not_divide_the_gradient_steps():
     with pytest.raises(ValueError, match="multiple of policy_delay"):
-        TD3Config(policy_delay=2, grad_steps_per_update=3)
+        TD3Config(policy_delay=2, grad_steps_per_update=3).validate()
 
 
 # Probe envs with known answers

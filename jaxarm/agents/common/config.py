@@ -1,24 +1,71 @@
-"""Typed, frozen run configs shared by every learner, and their validated `key=value` overrides.
+"""Typed, frozen run configs shared by every learner, their hyper-parameter pytree, and validated overrides.
 
-A config is a frozen dataclass: static choices (sizes, counts, env) are plain fields; the fields named in
-`DYNAMIC_FIELDS` become a hyper-parameter pytree (`hparams()`) that `train` takes as an argument, so
-seeds × hyper-parameters vmap. Env constructor kwargs and env params are (name, value) pairs set on the
-CLI as `env_kwargs.NAME=VALUE`, `env_params.NAME=VALUE` and `eval_env_params.NAME=VALUE`.
+A config is a frozen dataclass: static choices (sizes, counts, env) are plain fields; a field declared with
+`dynamic(default)` is a hyper-parameter `train` takes as data: `hparams()` gathers those fields into one
+`HParams` pytree, so seeds × hyper-parameters vmap. `validate()` is where a config's values are checked, once
+it is built from user input (a preset, overrides, a run directory's config.json). Env constructor kwargs and
+env params are (name, value) pairs set on the CLI as `env_kwargs.NAME=VALUE`, `env_params.NAME=VALUE` and
+`eval_env_params.NAME=VALUE`.
 """
 
 import ast
 import dataclasses
-import json
 import typing
 from collections.abc import Iterable
-from typing import Any, ClassVar
+from typing import Any
 
+import jax
 import jax.numpy as jnp
 
 from jaxarm import envs
 from jaxarm.envs.registry import closest_match_hint
 
 Pairs = tuple[tuple[str, Any], ...]
+
+DYNAMIC = "dynamic"
+"""The metadata key `dynamic` sets on a config field."""
+
+
+def dynamic(default: float) -> float:
+    """Declares a config field as a dynamic hyper-parameter: a float `train` takes as data (in `HParams`)."""
+    return dataclasses.field(default=default, metadata={DYNAMIC: True})
+
+
+@jax.tree_util.register_pytree_with_keys_class
+class HParams:
+    """A config's dynamic hyper-parameters by name, e.g. `hparams.gamma`: float32 [] each ([S] under vmap).
+
+    One pytree type serves every learner: its names, the config's dynamic fields, are static structure and its
+    values the leaves, so `jax.vmap(train)(keys, hparams)` trains seeds × hyper-parameters at once.
+    """
+
+    def __init__(self, **values: Any) -> None:
+        self.__dict__.update(values)
+
+    def __getattr__(self, name: str) -> jax.Array:
+        # Reached only for names that are not hyper-parameters; declared so that type checkers accept the others.
+        raise AttributeError(f"no hyper-parameter {name!r} (there are {', '.join(self.__dict__)})")
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise dataclasses.FrozenInstanceError(f"cannot assign to {name!r}: HParams is immutable, use replace()")
+
+    def __repr__(self) -> str:
+        return f"HParams({', '.join(f'{name}={value!r}' for name, value in self.__dict__.items())})"
+
+    def replace(self, **changes: Any) -> "HParams":
+        """A copy with `changes` (name=value) applied; TypeError on a name that is not a hyper-parameter."""
+        unknown = set(changes) - set(self.__dict__)
+        if unknown:
+            raise TypeError(f"no hyper-parameters {sorted(unknown)} (there are {', '.join(self.__dict__)})")
+        return HParams(**{**self.__dict__, **changes})
+
+    def tree_flatten_with_keys(self):
+        children = [(jax.tree_util.GetAttrKey(name), value) for name, value in self.__dict__.items()]
+        return children, tuple(self.__dict__)
+
+    @classmethod
+    def tree_unflatten(cls, names: tuple[str, ...], values) -> "HParams":
+        return cls(**dict(zip(names, values, strict=True)))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,14 +84,10 @@ class RunConfig:
       checkpoint_every_updates: save the learner state at the first chunk end after this many updates.
       eval_episodes: fresh episodes for the final deterministic evaluation.
       seed: PRNG seed of the run.
-      init_from: run directory whose latest checkpoint initialises the networks (a warm start, PPO only;
-        the env maps the old observation onto its own: `Env.observation_source_index`); "" for none.
+      init_from: run directory whose latest checkpoint initialises the networks (a warm start, for learners
+        that have one, see `jaxarm.agents.registry`; the env maps the old observation onto its own:
+        `Env.observation_source_index`); "" for none.
     """
-
-    HPARAMS: ClassVar[type | None] = None
-    """The learner's hyper-parameter pytree class; its field names are the config's dynamic fields."""
-    DYNAMIC_FIELDS: ClassVar[tuple[str, ...]] = ()
-    AGENT: ClassVar[str] = ""
 
     env: str = "arm2d"
     env_kwargs: Pairs = ()
@@ -58,9 +101,27 @@ class RunConfig:
     seed: int = 0
     init_from: str = ""
 
-    def hparams(self):
-        """The dynamic fields as a pytree of float32 scalars (`HPARAMS`), the argument `train` vmaps over."""
-        return self.HPARAMS(**{name: jnp.asarray(getattr(self, name), jnp.float32) for name in self.DYNAMIC_FIELDS})
+    @classmethod
+    def dynamic_fields(cls) -> tuple[str, ...]:
+        """Names of the fields declared with `dynamic(...)`, in declaration order."""
+        return tuple(field.name for field in dataclasses.fields(cls) if field.metadata.get(DYNAMIC, False))
+
+    def hparams(self) -> HParams:
+        """The dynamic fields as float32 scalars: the argument `train` takes, and vmaps over in sweeps."""
+        return HParams(**{name: jnp.asarray(getattr(self, name), jnp.float32) for name in self.dynamic_fields()})
+
+    def validate(self) -> None:
+        """Raises ValueError on values no run can use (non-positive sizes, unknown env, bad env params).
+
+        Learners' configs extend this with their own checks (calling `super().validate()` first).
+        """
+        for field in ("num_envs", "total_env_steps", "updates_per_chunk", "checkpoint_every_updates", "eval_episodes"):
+            if getattr(self, field) <= 0:
+                raise ValueError(f"{field} must be positive, got {getattr(self, field)}")
+        try:
+            self.make_eval_env()
+        except (KeyError, ValueError, TypeError) as error:
+            raise ValueError(str(error).strip("\"'")) from None
 
     def whole_chunks(self, env_steps_per_update: int) -> int:
         """Updates in the run: `total_env_steps` rounded up to whole chunks of `updates_per_chunk`."""
@@ -76,9 +137,6 @@ class RunConfig:
         """Returns (env, env_params) that evaluations run on: the training env with `eval_env_params` applied."""
         env, env_params = self.make_env()
         return env, envs.override_params(env_params, dict(self.eval_env_params))
-
-    def to_json(self) -> str:
-        return json.dumps({"agent": self.AGENT, **dataclasses.asdict(self)}, indent=2, default=list)
 
 
 def parse_value(text: str, annotation) -> Any:
@@ -129,9 +187,8 @@ def apply_overrides(config: RunConfig, overrides: Iterable[str]) -> RunConfig:
         key, text = item.split("=", 1)
         group, _, name = key.partition(".")
         if name and group in ("env_kwargs", "env_params", "eval_env_params"):
-            config = dataclasses.replace(
-                config, **{group: with_pair(getattr(config, group), name, parse_literal(text))}
-            )
+            pairs: dict[str, Any] = {group: with_pair(getattr(config, group), name, parse_literal(text))}
+            config = dataclasses.replace(config, **pairs)
             continue
         if key not in fields:
             raise ValueError(f"unknown config key {key!r}{closest_match_hint(key, fields)}")
@@ -140,16 +197,5 @@ def apply_overrides(config: RunConfig, overrides: Iterable[str]) -> RunConfig:
         except ValueError as error:
             raise ValueError(f"bad value for {key}: {error}") from None
         config = dataclasses.replace(config, **{key: value})
-    validate(config)
+    config.validate()
     return config
-
-
-def validate(config: RunConfig) -> None:
-    """Raises ValueError on values no run can use (non-positive sizes, unknown env, bad env params)."""
-    for field in ("num_envs", "total_env_steps", "updates_per_chunk", "checkpoint_every_updates", "eval_episodes"):
-        if getattr(config, field) <= 0:
-            raise ValueError(f"{field} must be positive, got {getattr(config, field)}")
-    try:
-        config.make_eval_env()
-    except (KeyError, ValueError, TypeError) as error:
-        raise ValueError(str(error).strip("\"'")) from None

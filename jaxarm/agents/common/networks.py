@@ -1,8 +1,10 @@
 """Multi-layer perceptrons for policies, values and critics (flax.linen)."""
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any, cast
 
 import flax.linen as nn
+import jax
 import jax.numpy as jnp
 
 
@@ -23,3 +25,9 @@ class MLP(nn.Module):
         for size in self.hidden_sizes:
             x = act(nn.Dense(size, kernel_init=nn.initializers.orthogonal(jnp.sqrt(2.0)))(x))
         return nn.Dense(self.output_size, kernel_init=nn.initializers.orthogonal(self.output_scale))(x)
+
+
+def apply_module(module: nn.Module, variables: Mapping[str, Any], *inputs: jax.Array) -> jax.Array:
+    """`module.apply(variables, *inputs)`, typed as the array it is: flax types `apply` as perhaps also
+    returning mutated variables, which it does only when asked to (never in these learners)."""
+    return cast(jax.Array, module.apply(variables, *inputs))

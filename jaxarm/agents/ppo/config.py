@@ -1,42 +1,13 @@
-"""PPO's frozen config: static sizes as fields, dynamic hyper-parameters gathered by `hparams()`."""
+"""PPO's frozen config: static sizes and choices, and the dynamic hyper-parameters `train` takes as data."""
 
 import dataclasses
-from typing import ClassVar
 
-import jax.numpy as jnp
-from flax import struct
-
-from jaxarm.agents.common.config import RunConfig
-
-
-@struct.dataclass
-class PPOHParams:
-    """Dynamic hyper-parameters, scalars (or [S] under vmap over a sweep).
-
-    Attributes:
-      learning_rate: Adam step size (linearly annealed to 0 when `anneal_learning_rate`).
-      gamma: discount.
-      gae_lambda: GAE's λ.
-      clip_epsilon: PPO's ratio clip.
-      entropy_coef: weight of the entropy bonus.
-      value_coef: weight of the value loss.
-      max_grad_norm: global gradient-norm clip.
-      reward_scale: rewards are multiplied by this before GAE.
-    """
-
-    learning_rate: jnp.ndarray
-    gamma: jnp.ndarray
-    gae_lambda: jnp.ndarray
-    clip_epsilon: jnp.ndarray
-    entropy_coef: jnp.ndarray
-    value_coef: jnp.ndarray
-    max_grad_norm: jnp.ndarray
-    reward_scale: jnp.ndarray
+from jaxarm.agents.common.config import RunConfig, dynamic
 
 
 @dataclasses.dataclass(frozen=True)
 class PPOConfig(RunConfig):
-    """PPO run config.
+    """PPO run config. Fields declared `dynamic` reach `train` as data (`hparams()`), so sweeps vmap over them.
 
     Attributes (beyond RunConfig's):
       rollout_length: env steps per env between updates (T).
@@ -49,12 +20,15 @@ class PPOConfig(RunConfig):
       normalize_advantages: standardise advantages per minibatch.
       anneal_learning_rate: decay the learning rate linearly to 0 over the run.
       initial_log_std: initial policy standard deviation's log (pre-tanh).
-      learning_rate ... reward_scale: dynamic hyper-parameters, see PPOHParams.
+      learning_rate: Adam step size (linearly annealed to 0 when `anneal_learning_rate`).
+      gamma: discount.
+      gae_lambda: GAE's λ.
+      clip_epsilon: PPO's ratio clip.
+      entropy_coef: weight of the entropy bonus.
+      value_coef: weight of the value loss.
+      max_grad_norm: global gradient-norm clip.
+      reward_scale: rewards are multiplied by this before GAE.
     """
-
-    HPARAMS: ClassVar[type] = PPOHParams
-    DYNAMIC_FIELDS: ClassVar[tuple[str, ...]] = tuple(field.name for field in dataclasses.fields(PPOHParams))
-    AGENT: ClassVar[str] = "ppo"
 
     rollout_length: int = 16
     num_minibatches: int = 8
@@ -66,14 +40,14 @@ class PPOConfig(RunConfig):
     normalize_advantages: bool = True
     anneal_learning_rate: bool = True
     initial_log_std: float = 0.0
-    learning_rate: float = 3e-4
-    gamma: float = 0.99
-    gae_lambda: float = 0.95
-    clip_epsilon: float = 0.2
-    entropy_coef: float = 0.01
-    value_coef: float = 0.5
-    max_grad_norm: float = 0.5
-    reward_scale: float = 1.0
+    learning_rate: float = dynamic(3e-4)
+    gamma: float = dynamic(0.99)
+    gae_lambda: float = dynamic(0.95)
+    clip_epsilon: float = dynamic(0.2)
+    entropy_coef: float = dynamic(0.01)
+    value_coef: float = dynamic(0.5)
+    max_grad_norm: float = dynamic(0.5)
+    reward_scale: float = dynamic(1.0)
 
     @property
     def env_steps_per_update(self) -> int:
@@ -87,8 +61,9 @@ class PPOConfig(RunConfig):
     def minibatch_size(self) -> int:
         return self.env_steps_per_update // self.num_minibatches
 
-    def check(self) -> None:
-        """Raises ValueError on sizes PPO cannot use."""
+    def validate(self) -> None:
+        """RunConfig's checks, and that each rollout splits into whole minibatches."""
+        super().validate()
         if self.env_steps_per_update % self.num_minibatches:
             raise ValueError(
                 f"rollout_length*num_envs={self.env_steps_per_update} must divide by "

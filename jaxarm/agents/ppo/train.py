@@ -2,36 +2,28 @@
 
 One `update` collects `rollout_length` steps from every env with the stochastic policy, updates the
 observation normaliser, computes GAE (bootstrapping from the pre-reset observation on truncation, not on
-termination), and runs `num_epochs` × `num_minibatches` clipped-surrogate steps. Distributions (tanh-squashed
-Gaussian) and running statistics are brax's. The three phases run under the named scopes `collect`, `advantages`
-and `sgd`, which profiles show in every op's name (`python -m experiments.bench profile` sums time by them).
+termination), and runs `num_epochs` × `num_minibatches` clipped-surrogate steps. The policy and value
+functions are `PPONetworks` (networks.py); the tanh-squashed Gaussian and running statistics are brax's. The
+three phases run under the named scopes `collect`, `advantages` and `sgd`, which profiles show in every op's
+name (`python -m experiments.bench profile` sums time by them).
 """
 
 import jax
 import jax.numpy as jnp
 import optax
-from brax.training import distribution
 from brax.training.acme import running_statistics, specs
 from flax import struct
 
-from jaxarm.agents.common.networks import MLP
+from jaxarm.agents.common.config import HParams
 from jaxarm.agents.common.permutation import random_permutation
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.ppo import losses
-from jaxarm.agents.ppo.config import PPOConfig, PPOHParams
+from jaxarm.agents.ppo.config import PPOConfig
+from jaxarm.agents.ppo.networks import NetworkParams, make_networks
 from jaxarm.envs import AutoReset, EnvState, VmapEnv, compiler_options
 
 
-@struct.dataclass
-class NetworkParams:
-    """Parameters of the policy and value MLPs."""
-
-    policy: dict
-    value: dict
-
-
-@struct.dataclass
-class PPOState:
+class PPOState(struct.PyTreeNode):
     """The whole learner state, checkpointed as one pytree.
 
     Attributes:
@@ -88,47 +80,24 @@ class Rollout:
     final_obs: jax.Array
 
 
-def make_optimizer(hparams: PPOHParams, learning_rate) -> optax.GradientTransformation:
+def make_optimizer(hparams: HParams, learning_rate) -> optax.GradientTransformation:
     """Built inside the compiled update from dynamic values; its state does not depend on them."""
     return optax.chain(optax.clip_by_global_norm(hparams.max_grad_norm), optax.adam(learning_rate, eps=1e-5))
 
 
-def make_networks(config: PPOConfig, action_size: int):
-    """(tanh-Gaussian action distribution, policy MLP, value MLP) for `config`."""
-    action_dist = distribution.NormalTanhDistribution(event_size=action_size)
-    policy_net = MLP(config.policy_hidden_sizes, action_dist.param_size, config.activation, output_scale=0.01)
-    value_net = MLP(config.value_hidden_sizes, 1, config.activation)
-    return action_dist, policy_net, value_net
-
-
 def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
     """PPO for `config` (see the module docstring). `env`, `env_params` replace the config's env (probes)."""
-    config.check()
+    config.validate()
     if env is None:
         env, env_params = config.make_env()
     batch_env = VmapEnv(AutoReset(env), config.num_envs)
-    action_dist, policy_net, value_net = make_networks(config, env.spec.action_size)
+    networks = make_networks(config, env.spec.action_size)
+    action_dist = networks.action_dist
     obs_size = env.spec.observation_size
-    # brax's NormalTanhDistribution maps the raw scale through softplus; this offset sets the initial std.
-    scale_offset = float(jnp.log(jnp.expm1(jnp.exp(config.initial_log_std))))
 
-    def normalize(normalizer, obs):
-        if not config.normalize_observations:
-            return obs
-        return running_statistics.normalize(obs, normalizer)
-
-    def policy_params_of(params, normalizer, obs):
-        out = policy_net.apply(params.policy, normalize(normalizer, obs))
-        loc, raw_scale = jnp.split(out, 2, axis=-1)
-        return jnp.concatenate([loc, raw_scale + scale_offset], axis=-1)
-
-    def value_of(params, normalizer, obs):
-        return value_net.apply(params.value, normalize(normalizer, obs))[..., 0]
-
-    def init(key, hparams: PPOHParams) -> PPOState:
+    def init(key, hparams: HParams) -> PPOState:
         policy_key, value_key, env_key, run_key = jax.random.split(key, 4)
-        dummy = jnp.zeros((1, obs_size))
-        params = NetworkParams(policy=policy_net.init(policy_key, dummy), value=value_net.init(value_key, dummy))
+        params = networks.init(policy_key, value_key, obs_size)
         return PPOState(
             params=params,
             opt_state=make_optimizer(hparams, hparams.learning_rate).init(params),
@@ -139,9 +108,9 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
             updates=jnp.zeros((), jnp.int32),
         )
 
-    def collect(state: PPOState, key) -> tuple[EnvState, Rollout]:
+    def collect(state: PPOState, key) -> tuple[EnvState, Rollout, EpisodeSummary]:
         def env_step(env_state, step_key):
-            dist_params = policy_params_of(state.params, state.normalizer, env_state.obs)
+            dist_params = networks.policy_params(state.params, state.normalizer, env_state.obs)
             raw_action = action_dist.sample_no_postprocessing(dist_params, step_key)
             log_prob = action_dist.log_prob(dist_params, raw_action)
             next_state = batch_env.step(env_state, action_dist.postprocess(raw_action), env_params)
@@ -162,7 +131,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         return env_state, rollout, summarise_episodes(states)
 
     def minibatch_loss(params, normalizer, batch, hparams, key):
-        dist_params = policy_params_of(params, normalizer, batch.obs)
+        dist_params = networks.policy_params(params, normalizer, batch.obs)
         log_prob = action_dist.log_prob(dist_params, batch.raw_action)
         advantages = batch.advantage
         if config.normalize_advantages:
@@ -170,18 +139,18 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         policy_loss, approx_kl, clip_fraction = losses.clipped_policy_loss(
             log_prob, batch.log_prob, advantages, hparams.clip_epsilon
         )
-        value_loss = losses.value_loss(value_of(params, normalizer, batch.obs), batch.target)
+        value_loss = losses.value_loss(networks.value(params, normalizer, batch.obs), batch.target)
         entropy = jnp.mean(action_dist.entropy(dist_params, key))
         total = policy_loss + hparams.value_coef * value_loss - hparams.entropy_coef * entropy
         return total, losses.LossTerms(policy_loss, value_loss, entropy, approx_kl, clip_fraction)
 
-    def advantage_samples(state: PPOState, rollout: Rollout, hparams: PPOHParams):
+    def advantage_samples(state: PPOState, rollout: Rollout, hparams: HParams):
         """(normaliser updated with the rollout's observations, [T·B] training samples with GAE targets)."""
         normalizer = state.normalizer
         if config.normalize_observations:
             normalizer = running_statistics.update(normalizer, rollout.obs)
-        values = value_of(state.params, normalizer, rollout.obs)
-        next_values = value_of(state.params, normalizer, rollout.final_obs)
+        values = networks.value(state.params, normalizer, rollout.obs)
+        next_values = networks.value(state.params, normalizer, rollout.final_obs)
         advantages, targets = losses.gae(
             rollout.reward * hparams.reward_scale,
             values,
@@ -194,7 +163,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets)
         return normalizer, jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
 
-    def sgd_epochs(params, opt_state, normalizer, samples: Samples, hparams: PPOHParams, learning_rate, key):
+    def sgd_epochs(params, opt_state, normalizer, samples: Samples, hparams: HParams, learning_rate, key):
         """`num_epochs` passes of `num_minibatches` clipped-surrogate steps over freshly shuffled `samples`.
 
         Returns ((params, opt_state), (loss terms, grad norms)), the last two [num_epochs, num_minibatches].
@@ -218,7 +187,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
 
         return jax.lax.scan(epoch, (params, opt_state), jax.random.split(key, config.num_epochs))
 
-    def update(state: PPOState, hparams: PPOHParams) -> tuple[PPOState, PPOMetrics]:
+    def update(state: PPOState, hparams: HParams) -> tuple[PPOState, PPOMetrics]:
         collect_key, shuffle_key, next_key = jax.random.split(state.key, 3)
         with jax.named_scope("collect"):
             env_state, rollout, episodes = collect(state, collect_key)
@@ -251,7 +220,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
 
     def act(state: PPOState, obs):
         """Deterministic action: tanh of the Gaussian's mean."""
-        return action_dist.mode(policy_params_of(state.params, state.normalizer, obs))
+        return networks.deterministic_action(state.params, state.normalizer, obs)
 
     return Trainer(
         init=init,

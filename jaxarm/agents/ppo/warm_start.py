@@ -7,12 +7,16 @@ exactly as the trained one does on the shared inputs, and neutral statistics (me
 state, env state and counters stay those of the fresh learner.
 """
 
+from collections.abc import Mapping
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 from brax.training.types import UInt64
 
-from jaxarm.agents.ppo.train import NetworkParams, PPOState
+from jaxarm.agents.ppo.networks import NetworkParams
+from jaxarm.agents.ppo.train import PPOState
 
 FIRST_LAYER = "Dense_0"
 """Flax's name for an MLP's input layer."""
@@ -31,7 +35,7 @@ def sample_count(count) -> jax.Array:
     return jnp.float32(count)
 
 
-def transfer_network(trained: dict, fresh: dict, index: np.ndarray) -> dict:
+def transfer_network(trained: Mapping[str, Any], fresh: Mapping[str, Any], index: np.ndarray) -> dict[str, Any]:
     """A flax MLP's params: `trained`'s with the input layer's rows mapped to the new inputs.
 
     Raises ValueError where any other layer differs in shape from `fresh` (different hidden sizes).

@@ -1,32 +1,19 @@
-"""TD3's run config and its dynamic hyper-parameters. DDPG is this config with one critic, no target
-smoothing and no policy delay (see `ddpg_arm2d` in experiments/configs/td3.py)."""
+"""TD3's run config: static sizes and choices, and the dynamic hyper-parameters `train` takes as data.
+
+DDPG is this config with one critic, no target smoothing and no policy delay (see `ddpg_arm2d` in
+experiments/configs/td3.py).
+"""
 
 import dataclasses
-from typing import ClassVar
 
-import jax
-from flax import struct
-
-from jaxarm.agents.common.config import RunConfig
-
-
-@struct.dataclass
-class TD3HParams:
-    """Hyper-parameters `train` takes as data, [] float32 each (vmap adds axes). See `TD3Config`."""
-
-    actor_learning_rate: jax.Array
-    critic_learning_rate: jax.Array
-    gamma: jax.Array
-    tau: jax.Array
-    exploration_noise: jax.Array
-    target_noise: jax.Array
-    target_noise_clip: jax.Array
-    reward_scale: jax.Array
+from jaxarm.agents.common.config import RunConfig, dynamic
 
 
 @dataclasses.dataclass(frozen=True)
 class TD3Config(RunConfig):
     """TD3 / DDPG settings. Actions are in the actor's [-1, 1] units (mapped to the env's bounds on stepping).
+
+    Fields declared `dynamic` reach `train` as data (`hparams()`), so sweeps vmap over them.
 
     Attributes:
       actor_learning_rate: Adam step size of the actor.
@@ -49,23 +36,19 @@ class TD3Config(RunConfig):
       grad_steps_per_update: gradient (critic) steps per update; a multiple of `policy_delay`.
     """
 
-    HPARAMS: ClassVar[type] = TD3HParams
-    DYNAMIC_FIELDS: ClassVar[tuple[str, ...]] = tuple(field.name for field in dataclasses.fields(TD3HParams))
-    AGENT: ClassVar[str] = "td3"
-
     num_envs: int = 16
     total_env_steps: int = 200_000
     updates_per_chunk: int = 500
     checkpoint_every_updates: int = 2_500
 
-    actor_learning_rate: float = 1e-3
-    critic_learning_rate: float = 1e-3
-    gamma: float = 0.99
-    tau: float = 0.005
-    exploration_noise: float = 0.1
-    target_noise: float = 0.2
-    target_noise_clip: float = 0.5
-    reward_scale: float = 1.0
+    actor_learning_rate: float = dynamic(1e-3)
+    critic_learning_rate: float = dynamic(1e-3)
+    gamma: float = dynamic(0.99)
+    tau: float = dynamic(0.005)
+    exploration_noise: float = dynamic(0.1)
+    target_noise: float = dynamic(0.2)
+    target_noise_clip: float = dynamic(0.5)
+    reward_scale: float = dynamic(1.0)
 
     hidden_sizes: tuple[int, ...] = (256, 256)
     activation: str = "relu"
@@ -78,7 +61,17 @@ class TD3Config(RunConfig):
     rollout_length: int = 1
     grad_steps_per_update: int = 4
 
-    def __post_init__(self):
+    @property
+    def env_steps_per_update(self) -> int:
+        return self.num_envs * self.rollout_length
+
+    @property
+    def num_updates(self) -> int:
+        return self.whole_chunks(self.env_steps_per_update)
+
+    def validate(self) -> None:
+        """RunConfig's checks, positive sizes, whole policy-delay blocks, and room for one update's steps."""
+        super().validate()
         for field in (
             "num_critics",
             "policy_delay",
@@ -98,11 +91,3 @@ class TD3Config(RunConfig):
             raise ValueError(
                 f"buffer_size ({self.buffer_size}) must hold one update's {self.env_steps_per_update} env steps"
             )
-
-    @property
-    def env_steps_per_update(self) -> int:
-        return self.num_envs * self.rollout_length
-
-    @property
-    def num_updates(self) -> int:
-        return self.whole_chunks(self.env_steps_per_update)

@@ -1,12 +1,13 @@
 """TD3's deterministic tanh actor and its ensemble of Q critics (one set of params per critic, stacked)."""
 
 from collections.abc import Sequence
+from functools import partial
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from jaxarm.agents.common.networks import MLP
+from jaxarm.agents.common.networks import MLP, apply_module
 
 
 class Actor(nn.Module):
@@ -39,4 +40,4 @@ def init_critics(critic: Critic, key: jax.Array, num_critics: int, obs: jax.Arra
 
 def apply_critics(critic: Critic, params, obs: jax.Array, action: jax.Array) -> jax.Array:
     """Q of every critic: stacked params, obs [B, O], action [B, A] -> [num_critics, B]."""
-    return jax.vmap(critic.apply, in_axes=(0, None, None))(params, obs, action)
+    return jax.vmap(partial(apply_module, critic), in_axes=(0, None, None))(params, obs, action)

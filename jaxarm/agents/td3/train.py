@@ -3,9 +3,12 @@
 One `update`: step all `num_envs` envs `rollout_length` times (uniform random actions before
 `learning_starts`, then the actor plus Gaussian noise), add the transitions to the on-device replay
 buffer, then run `grad_steps_per_update` gradient steps in blocks of `policy_delay` critic steps followed
-by one actor step and one Polyak step of both target networks. Hyper-parameters arrive as `TD3HParams`
+by one actor step and one Polyak step of both target networks. Hyper-parameters arrive as `HParams`
 data, so `jax.vmap(make_train(trainer))(keys, hparams)` trains seeds × hyper-parameters at once.
 """
+
+from collections.abc import Mapping
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -13,8 +16,10 @@ import optax
 from flax import struct
 
 from jaxarm.agents.common import replay
+from jaxarm.agents.common.config import HParams
+from jaxarm.agents.common.networks import apply_module
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
-from jaxarm.agents.td3.config import TD3Config, TD3HParams
+from jaxarm.agents.td3.config import TD3Config
 from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, polyak_update, smoothed_target_action
 from jaxarm.agents.td3.networks import Actor, Critic, apply_critics, init_critics
 from jaxarm.envs import AutoReset, EnvState, VmapEnv, compiler_options
@@ -39,8 +44,7 @@ class Experience:
     terminated: jax.Array
 
 
-@struct.dataclass
-class TD3State:
+class TD3State(struct.PyTreeNode):
     """The whole learner state (checkpointed as one pytree).
 
     Attributes:
@@ -57,10 +61,10 @@ class TD3State:
       updates: [] int32, updates done so far.
     """
 
-    actor_params: dict
-    critic_params: dict
-    target_actor_params: dict
-    target_critic_params: dict
+    actor_params: Mapping[str, Any]
+    critic_params: Mapping[str, Any]
+    target_actor_params: Mapping[str, Any]
+    target_critic_params: Mapping[str, Any]
     actor_opt_state: optax.OptState
     critic_opt_state: optax.OptState
     replay: replay.ReplayState
@@ -86,6 +90,7 @@ class TD3Metrics:
 
 def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     """Builds the TD3 / DDPG trainer for `config`. `env`, `env_params` replace the config's env (probe envs)."""
+    config.validate()
     if env is None:
         env, env_params = config.make_env()
     batch_env = VmapEnv(AutoReset(env), config.num_envs)
@@ -101,9 +106,9 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         return spec.action_low + (action + 1.0) * (0.5 * (spec.action_high - spec.action_low))
 
     def act(state: TD3State, obs: jax.Array) -> jax.Array:
-        return to_env_action(actor.apply(state.actor_params, obs))
+        return to_env_action(apply_module(actor, state.actor_params, obs))
 
-    def init(key: jax.Array, hparams: TD3HParams) -> TD3State:
+    def init(key: jax.Array, hparams: HParams) -> TD3State:
         del hparams  # nothing in the initial state depends on them
         actor_key, critic_key, env_key, state_key = jax.random.split(key, 4)
         obs = jnp.zeros(spec.observation_shape, jnp.float32)
@@ -127,14 +132,14 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             updates=jnp.zeros((), jnp.int32),
         )
 
-    def collect(state: TD3State, hparams: TD3HParams, key: jax.Array):
+    def collect(state: TD3State, hparams: HParams, key: jax.Array):
         """Steps the envs `rollout_length` times; returns (env state, env steps, experience [T*B], states [T, B])."""
 
         def env_step(carry, step_key):
             env_state, env_steps = carry
             noise_key, random_key = jax.random.split(step_key)
             shape = (config.num_envs, action_size)
-            policy = actor.apply(state.actor_params, env_state.obs)
+            policy = apply_module(actor, state.actor_params, env_state.obs)
             noisy = jnp.clip(policy + hparams.exploration_noise * jax.random.normal(noise_key, shape), -1.0, 1.0)
             random = jax.random.uniform(random_key, shape, minval=-1.0, maxval=1.0)
             action = jnp.where(env_steps < config.learning_starts, random, noisy)
@@ -155,10 +160,10 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         flat = jax.tree.map(lambda leaf: leaf.reshape(-1, *leaf.shape[2:]), experience)
         return env_state, env_steps, flat, states
 
-    def critic_step(carry, inputs, hparams: TD3HParams, target_actor_params, target_critic_params):
+    def critic_step(carry, inputs, hparams: HParams, target_actor_params, target_critic_params):
         critic_params, opt_state = carry
         batch, noise_key = inputs
-        next_action = actor.apply(target_actor_params, batch.next_obs)
+        next_action = apply_module(actor, target_actor_params, batch.next_obs)
         if config.target_smoothing:
             noise = hparams.target_noise * jax.random.normal(noise_key, next_action.shape)
             next_action = smoothed_target_action(next_action, noise, hparams.target_noise_clip)
@@ -173,16 +178,16 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         updates, opt_state = optax.adam(hparams.critic_learning_rate).update(grads, opt_state, critic_params)
         return (optax.apply_updates(critic_params, updates), opt_state), (loss, jnp.mean(q))
 
-    def actor_step(params, opt_state, critic_params, obs, hparams: TD3HParams):
+    def actor_step(params, opt_state, critic_params, obs, hparams: HParams):
         def loss_fn(actor_params):
-            q = apply_critics(critic, critic_params, obs, actor.apply(actor_params, obs))
+            q = apply_critics(critic, critic_params, obs, apply_module(actor, actor_params, obs))
             return actor_loss(q[0])
 
         loss, grads = jax.value_and_grad(loss_fn)(params)
         updates, opt_state = optax.adam(hparams.actor_learning_rate).update(grads, opt_state, params)
         return optax.apply_updates(params, updates), opt_state, loss
 
-    def delayed_block(state: TD3State, key: jax.Array, hparams: TD3HParams):
+    def delayed_block(state: TD3State, key: jax.Array, hparams: HParams):
         """`policy_delay` critic steps, then one actor step and one target step; returns (state, losses)."""
         sample_key, noise_key = jax.random.split(key)
         batches = replay.sample(state.replay, sample_key, config.policy_delay * config.batch_size)
@@ -209,19 +214,19 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         )
         return state, (jnp.mean(critic_losses), loss, jnp.mean(q_means))
 
-    def learn(state: TD3State, key: jax.Array, hparams: TD3HParams):
+    def learn(state: TD3State, key: jax.Array, hparams: HParams):
         blocks = config.grad_steps_per_update // config.policy_delay
         state, (critic_losses, actor_losses, q_means) = jax.lax.scan(
             lambda carry, block_key: delayed_block(carry, block_key, hparams), state, jax.random.split(key, blocks)
         )
         return state, (jnp.mean(critic_losses), jnp.mean(actor_losses), jnp.mean(q_means))
 
-    def skip_learning(state: TD3State, key: jax.Array, hparams: TD3HParams):
+    def skip_learning(state: TD3State, key: jax.Array, hparams: HParams):
         del key, hparams
         zero = jnp.zeros((), jnp.float32)
         return state, (zero, zero, zero)
 
-    def update(state: TD3State, hparams: TD3HParams) -> tuple[TD3State, TD3Metrics]:
+    def update(state: TD3State, hparams: HParams) -> tuple[TD3State, TD3Metrics]:
         key, collect_key, learn_key = jax.random.split(state.key, 3)
         env_state, env_steps, experience, states = collect(state, hparams, collect_key)
         state = state.replace(
