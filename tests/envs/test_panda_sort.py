@@ -25,6 +25,7 @@ from jaxarm.envs.panda_sort import (  # noqa: E402
     SHAPE_SPHERE,
     PandaSort,
 )
+from jaxarm.envs.panda_sort.curriculum import place_in_hand  # noqa: E402
 from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE  # noqa: E402
 from jaxarm.envs.panda_sort.scripted import script_start, scripted_action  # noqa: E402
 
@@ -235,7 +236,7 @@ def curriculum_start(env, state, params, shape: int, held: bool):
     """`state` re-placed for a held (or grasp-ready) start of object 0 as `shape` (the arm as reset left it)."""
     sim = state.sim.replace(shape=jnp.array([shape], jnp.int32))
     data = env.kinematics(env.episode_model(sim, params), sim)
-    sim = env._place_in_hand(sim, data, jnp.int32(0), jnp.bool_(held), jnp.bool_(not held), jnp.bool_(False))
+    sim = place_in_hand(env.ids, sim, data, jnp.int32(0), jnp.bool_(held), jnp.bool_(not held), jnp.bool_(False))
     return state.replace(sim=sim.replace(potential=env.shaping_potential(data, sim, params)))
 
 
@@ -454,8 +455,6 @@ def test_random_actions_stay_finite_with_per_env_randomised_params():
 
 
 def test_render_frame_is_an_rgb_image(env, params, reset):
-    from jaxarm.envs.panda_sort.render import render_frame
-
-    frame = render_frame(env, reset(jax.random.key(7), params), height=120, width=160)
+    frame = env.render(reset(jax.random.key(7), params), params, height=120, width=160)
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
     assert frame.std() > 5.0, "a blank frame"

@@ -141,8 +141,6 @@ def test_going_too_far_from_the_hole_terminates(env, params, reset, step):
 
 
 def test_render_frame_is_an_rgb_image(env, params, reset):
-    from jaxarm.envs.peg_insert.render import render_frame
-
-    frame = render_frame(env, reset(jax.random.key(6), params), params, height=120, width=160)
+    frame = env.render(reset(jax.random.key(6), params), params, height=120, width=160)
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
     assert frame.std() > 5.0, "a blank frame"

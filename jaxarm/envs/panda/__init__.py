@@ -1,1 +1,2 @@
-"""The Franka Panda model and its end-effector control, shared by the MJX arm envs."""
+"""The Franka Panda shared by the MJX arm envs: its model and control (robot.py), drawing (render.py), and
+`PandaBase` (base.py), the base class every Panda task subclasses."""

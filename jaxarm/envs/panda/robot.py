@@ -21,6 +21,8 @@ HOME_QPOS = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], np.float32)
 """Arm posture of the Panda's "ready" pose: tool centre 0.49 m above the table, pointing down."""
 FINGER_OPEN = 0.04
 """Finger joint travel when fully open (each finger; the gap is twice this)."""
+PAD_ABOVE_TCP = 0.003
+"""The finger pads' centre is this far above the tool centre."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -88,7 +90,9 @@ def solve_arm_posture(
     return arm_q.astype(np.float32)
 
 
-def damped_least_squares(jacobian: jax.Array, error: jax.Array, damping) -> tuple[jax.Array, jax.Array]:
+def damped_least_squares(
+    jacobian: jax.Array | np.ndarray, error: jax.Array | np.ndarray, damping
+) -> tuple[jax.Array, jax.Array]:
     """[6, J] Jacobian, [6] task error -> ([J] joint step, [J, J] null-space projector).
 
     dq = Jᵀ(JJᵀ + λ²I)⁻¹ e; the projector I − Jᵀ(JJᵀ + λ²I)⁻¹J passes posture motions the task does not
@@ -101,9 +105,27 @@ def damped_least_squares(jacobian: jax.Array, error: jax.Array, damping) -> tupl
     return step, projector
 
 
-def rotation_error(rotation: jax.Array, target: jax.Array) -> jax.Array:
+def rotation_error(rotation: jax.Array | np.ndarray, target: jax.Array | np.ndarray) -> jax.Array:
     """[3, 3] current and target rotation matrices -> [3] world-frame axis·angle error (small-angle form)."""
     return 0.5 * jnp.sum(jnp.cross(rotation.T, target.T), axis=0)
+
+
+def yaw_of_rotation(rotation: jax.Array) -> jax.Array:
+    """[..., 3, 3] rotation matrices -> [...] heading of their x axis in the horizontal plane (radians)."""
+    return jnp.arctan2(rotation[..., 1, 0], rotation[..., 0, 0])
+
+
+def yaw_of_quaternion(quat: jax.Array) -> jax.Array:
+    """[..., 4] unit quaternions (w, x, y, z) -> [...] heading of the rotated x axis (radians)."""
+    w, x, y, z = jnp.moveaxis(quat, -1, 0)
+    return jnp.arctan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))
+
+
+def rotation_about_z(angle: jax.Array) -> jax.Array:
+    """[] angle -> [3, 3] rotation about the vertical."""
+    c, s = jnp.cos(angle), jnp.sin(angle)
+    zero, one = jnp.zeros_like(angle), jnp.ones_like(angle)
+    return jnp.stack([jnp.stack([c, -s, zero]), jnp.stack([s, c, zero]), jnp.stack([zero, zero, one])])
 
 
 def tcp_jacobian(model: mjx.Model, data: mjx.Data, ids: PandaIds) -> jax.Array:
@@ -117,7 +139,7 @@ def ik_arm_targets(
     data: mjx.Data,
     ids: PandaIds,
     tcp_target: jax.Array,
-    tcp_rotation: jax.Array,
+    tcp_rotation: jax.Array | np.ndarray,
     damping,
     posture_gain,
     posture: np.ndarray,

@@ -1,6 +1,6 @@
 """Where things stand on the table: tables, bins, the spawn region and the optional blocker bar.
 
-One frozen `Layout` is the single source of these numbers: `model.py` builds geoms from it and `env.py`
+One frozen `Layout` is the single source of these numbers: `model.py` builds geoms from it and `reward.py`
 scores objects against it, so the two can never disagree. Coordinates are metres in the world frame;
 the robot base is at the origin on the near edge of the table, the table top is z = 0.
 """
@@ -69,6 +69,7 @@ def _bin_row(x_first: float, y: float, pitch: float = 0.15) -> tuple[tuple[float
 
 def make_layout(blocker: bool = False, tosser: bool = False) -> Layout:
     """The default scene, optionally with a blocker bar or with the bins on a second table across a gap."""
+    tables: tuple[BoxGeom, ...]
     if tosser:
         # Objects on the near table (y < 0.22), bins on a second table beyond a 15 cm gap; the bins are
         # shifted towards the robot in x so that they stay within the Panda's 0.85 m reach.

@@ -13,7 +13,7 @@ from flax import struct
 class PandaSortParams:
     """Task, action and randomisation parameters (scalars unless noted).
 
-    The shaping terms pay changes of potentials (see env.py), so their weights set how strongly each stage
+    The shaping terms pay changes of potentials (see reward.py), so their weights set how strongly each stage
     pulls without creating any reward for lingering; by default one object's stages are worth 1 each.
 
     Attributes:

@@ -12,7 +12,8 @@ import jax.numpy as jnp
 from flax import struct
 
 from jaxarm.envs.base import EnvState
-from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE, OBJECT_RELATIVE_YAW, PAD_ABOVE_TCP, PandaSort
+from jaxarm.envs.panda.robot import PAD_ABOVE_TCP
+from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE, OBJECT_RELATIVE_YAW, PandaSort
 from jaxarm.envs.panda_sort.params import PandaSortParams
 
 PHASE_NAMES = ("above", "down", "close", "lift", "to bin", "open")

@@ -14,12 +14,13 @@ tool target − tool centre (÷ max_lead), tip − nominal hole bottom (÷ 0.1 m
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 from flax import struct
 from mujoco import mjx
 
-from jaxarm.envs.base import Env, EnvSpec, Transition
-from jaxarm.envs.panda.robot import HOME_QPOS, ik_arm_targets, solve_arm_posture, tcp_pose_at
+from jaxarm.envs.base import EnvSpec, Transition
+from jaxarm.envs.panda.base import PandaBase
 from jaxarm.envs.peg_insert.model import (
     HOLE_FLOOR,
     HOLE_NOMINAL,
@@ -31,17 +32,15 @@ from jaxarm.envs.peg_insert.model import (
     resolve_ids,
 )
 from jaxarm.envs.peg_insert.params import PegInsertParams, default_params
+from jaxarm.envs.peg_insert.render import place_block
 
-CONTROL_DT = 0.04
-"""Seconds of simulated time per env step."""
 START_TIP_HEIGHT = 0.15
 """The peg tip starts this high above the table (10 cm above the block), over the nominal hole."""
 POSITION_SCALE = 0.1
 """Metres per observation unit of positions and velocities (per second)."""
 
 
-@struct.dataclass
-class PegInsertSim:
+class PegInsertSim(struct.PyTreeNode):
     """Physics and task state of one env.
 
     Attributes:
@@ -65,8 +64,7 @@ class PegInsertSim:
     distance: jax.Array
 
 
-@struct.dataclass
-class PegInsertInfo:
+class PegInsertInfo(struct.PyTreeNode):
     """Per-step diagnostics (scalars): the two reward terms, the distance, and why an episode may end."""
 
     progress: jax.Array
@@ -76,29 +74,16 @@ class PegInsertInfo:
     table_contact: jax.Array
 
 
-class PegInsert(Env[PegInsertParams, PegInsertSim]):
+class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     """The Panda inserting a peg held in its hand into a square hole shifted at random every episode."""
 
-    uses_mjx = True
-
     def __init__(self):
-        self.mj_model = build_model()
-        self.ids: PegIds = resolve_ids(self.mj_model)
-        self.substeps = int(round(CONTROL_DT / self.mj_model.opt.timestep))
-        self.mjx_model = mjx.put_model(self.mj_model)
-        self._data0 = mjx.make_data(self.mj_model)
-        self.tcp_rotation = tcp_pose_at(self.mj_model, self.ids.robot, HOME_QPOS)[1]
-        start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
-        self.start_qpos = solve_arm_posture(self.mj_model, self.ids.robot, start_tcp, self.tcp_rotation)
+        mj_model = build_model()
+        super().__init__(mj_model, resolve_ids(mj_model), np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH]))
         self.spec = EnvSpec(observation_shape=(12,), action_shape=(3,))
 
     def default_params(self) -> PegInsertParams:
         return default_params()
-
-    def render(self, state, params: PegInsertParams) -> np.ndarray:
-        from jaxarm.envs.peg_insert.render import render_frame
-
-        return render_frame(self, state, params)
 
     # --- physics ------------------------------------------------------------------------------------
 
@@ -115,10 +100,8 @@ class PegInsert(Env[PegInsertParams, PegInsertSim]):
             pair_friction=model.pair_friction.at[ids.block_pairs, :2].set(params.friction),
         )
 
-    def kinematics(self, model: mjx.Model, sim: PegInsertSim) -> mjx.Data:
-        """mjx.Data at the sim's state with positions and com-frame quantities (for Jacobians)."""
-        data = self._data0.replace(qpos=sim.qpos, qvel=sim.qvel, ctrl=sim.ctrl, qacc_warmstart=sim.qacc_warmstart)
-        return mjx.com_pos(model, mjx.kinematics(model, data))
+    def _pose_for_drawing(self, model: mujoco.MjModel, sim: PegInsertSim, params: PegInsertParams) -> None:
+        place_block(model, self.ids, np.asarray(sim.hole), np.asarray(params.clearance))
 
     def table_contact(self, data: mjx.Data) -> jax.Array:
         """[] bool: the peg penetrates the table top (from the contacts of the last collision pass)."""
@@ -161,12 +144,12 @@ class PegInsert(Env[PegInsertParams, PegInsertSim]):
         robot = self.ids.robot
         arm_q = self.start_qpos + jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
         fingers = jnp.full((2,), PEG_RADIUS)
-        qpos = self._data0.qpos.at[robot.arm_qpos].set(arm_q).at[robot.finger_qpos].set(fingers)
+        resting = self.resting(arm_q, fingers)
         zero = jnp.zeros((), jnp.float32)
         sim = PegInsertSim(
-            qpos=qpos,
-            qvel=jnp.zeros_like(self._data0.qvel),
-            qacc_warmstart=jnp.zeros_like(self._data0.qacc_warmstart),
+            qpos=resting.qpos,
+            qvel=resting.qvel,
+            qacc_warmstart=resting.qacc_warmstart,
             ctrl=jnp.concatenate([arm_q, fingers]),
             tcp_target=jnp.zeros(3),
             hole=hole,
@@ -192,9 +175,7 @@ class PegInsert(Env[PegInsertParams, PegInsertSim]):
         data = self.kinematics(model, sim)
         tcp = data.site_xpos[robot.tcp_site]
         target = jnp.clip(sim.tcp_target + action * params.ee_step, tcp - params.max_lead, tcp + params.max_lead)
-        arm_ctrl = ik_arm_targets(
-            model, data, robot, target, self.tcp_rotation, params.ik_damping, params.ik_posture_gain, self.start_qpos
-        )
+        arm_ctrl = self.ik_targets(model, data, target, self.home_tcp_rotation, params)
         data = data.replace(ctrl=jnp.concatenate([arm_ctrl, sim.ctrl[7:]]))
 
         def substep(_, carry):

@@ -1,0 +1,156 @@
+"""`PandaBase`: what every Panda task in MJX needs, once: its model on the device, ids, timing, IK, drawing.
+
+A task builds its scene (an MjModel with the Panda of `robot.py` in it) and resolves its ids, whose `robot`
+field holds the `PandaIds`; its env subclasses `PandaBase` and keeps only what is its own: the per-episode
+model (`episode_model`), reset, transition, observation and reward, and how its per-episode geometry is
+drawn (`_pose_for_drawing`). Nothing here knows about a task, and no task module is imported here.
+"""
+
+import abc
+import copy
+from typing import Generic, NamedTuple, Protocol, TypeVar
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from mujoco import mjx
+
+from jaxarm.envs.base import Env, EnvState
+from jaxarm.envs.panda.render import render_qpos
+from jaxarm.envs.panda.robot import HOME_QPOS, PandaIds, ik_arm_targets, solve_arm_posture, tcp_pose_at
+
+CONTROL_DT = 0.04
+"""Seconds of simulated time per env step, in every Panda task."""
+
+
+class PandaSimState(Protocol):
+    """What `PandaBase` reads of a task's sim state: the physics that persists between steps."""
+
+    @property
+    def qpos(self) -> jax.Array: ...
+
+    @property
+    def qvel(self) -> jax.Array: ...
+
+    @property
+    def ctrl(self) -> jax.Array: ...
+
+    @property
+    def qacc_warmstart(self) -> jax.Array: ...
+
+
+class IkParams(Protocol):
+    """What `PandaBase.ik_targets` reads of a task's params (scalars)."""
+
+    @property
+    def ik_damping(self) -> jax.Array: ...
+
+    @property
+    def ik_posture_gain(self) -> jax.Array: ...
+
+
+class TaskIds(Protocol):
+    """A task's ids: whatever it resolves for itself, with the robot's under `robot`."""
+
+    @property
+    def robot(self) -> PandaIds: ...
+
+
+class RestingPhysics(NamedTuple):
+    """The physics arrays of a robot at rest: qpos [nq], qvel [nv] and the solver's warm start [nv]."""
+
+    qpos: jax.Array
+    qvel: jax.Array
+    qacc_warmstart: jax.Array
+
+
+ParamsT = TypeVar("ParamsT", bound=IkParams)
+SimT = TypeVar("SimT", bound=PandaSimState)
+IdsT = TypeVar("IdsT", bound=TaskIds)
+
+
+class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
+    """Base of the Panda envs: the compiled scene, its MJX copy and the robot's control, shared by every task.
+
+    Args:
+      mj_model: the task's compiled scene.
+      ids: the task's ids, resolved in `mj_model`.
+      start_tcp: [3] tool-centre position of the arm's start posture (`start_qpos`), pointing down; the IK's
+        null space pulls the arm towards that posture.
+
+    Attributes:
+      mj_model: the compiled scene as built (drawing poses a copy of it).
+      ids: the task's ids; `ids.robot` the robot's.
+      substeps: physics steps per env step (`CONTROL_DT` over the model's timestep).
+      mjx_model: `mj_model` on the device; tasks replace its per-episode fields in `episode_model`.
+      home_tcp_rotation: [3, 3] tool-centre orientation at HOME_QPOS (pointing down, yaw 0).
+      start_qpos: [7] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
+    """
+
+    uses_mjx = True
+
+    def __init__(self, mj_model: mujoco.MjModel, ids: IdsT, start_tcp: np.ndarray):
+        self.mj_model = mj_model
+        self.ids = ids
+        self.substeps = int(round(CONTROL_DT / mj_model.opt.timestep))
+        self.mjx_model = mjx.put_model(mj_model)
+        self._data0 = mjx.make_data(mj_model)
+        self.home_tcp_rotation = tcp_pose_at(mj_model, ids.robot, HOME_QPOS)[1]
+        self.start_qpos = self.solve_posture(start_tcp)
+
+    def solve_posture(self, tcp_position: np.ndarray) -> np.ndarray:
+        """Outside jit: [7] arm joints putting the tool centre at `tcp_position` [3] in `home_tcp_rotation`."""
+        return solve_arm_posture(self.mj_model, self.ids.robot, tcp_position, self.home_tcp_rotation)
+
+    @abc.abstractmethod
+    def episode_model(self, sim: SimT, params: ParamsT) -> mjx.Model:
+        """`mjx_model` with this episode's (sim's) and the params' per-env fields replaced."""
+
+    def resting(self, arm_q: jax.Array | np.ndarray, fingers: jax.Array | float) -> RestingPhysics:
+        """The model's initial qpos with the arm at `arm_q` [7] and the fingers at `fingers` (each), at rest."""
+        robot = self.ids.robot
+        return RestingPhysics(
+            qpos=self._data0.qpos.at[robot.arm_qpos].set(arm_q).at[robot.finger_qpos].set(fingers),
+            qvel=jnp.zeros_like(self._data0.qvel),
+            qacc_warmstart=jnp.zeros_like(self._data0.qacc_warmstart),
+        )
+
+    def kinematics(self, model: mjx.Model, sim: PandaSimState) -> mjx.Data:
+        """mjx.Data at the sim's state with positions, orientations and com-frame quantities (for Jacobians)."""
+        data = self._data0.replace(qpos=sim.qpos, qvel=sim.qvel, ctrl=sim.ctrl, qacc_warmstart=sim.qacc_warmstart)
+        return mjx.com_pos(model, mjx.kinematics(model, data))
+
+    def ik_targets(
+        self,
+        model: mjx.Model,
+        data: mjx.Data,
+        tcp_target: jax.Array,
+        tcp_rotation: jax.Array | np.ndarray,
+        params: ParamsT,
+    ) -> jax.Array:
+        """[7] arm joint targets moving the tool centre towards `tcp_target` [3] in `tcp_rotation` [3, 3]: one
+        damped least-squares step with the params' damping, pulled towards `start_qpos` in its null space."""
+        return ik_arm_targets(
+            model,
+            data,
+            self.ids.robot,
+            tcp_target,
+            tcp_rotation,
+            params.ik_damping,
+            params.ik_posture_gain,
+            self.start_qpos,
+        )
+
+    def render(
+        self, state: EnvState[SimT], params: ParamsT, height: int = 240, width: int = 320, camera: str = "front"
+    ) -> np.ndarray:
+        """One (non-batched) state -> [height, width, 3] uint8 RGB frame seen from `camera` (outside jit)."""
+        model = copy.copy(self.mj_model)  # the episode's geometry is drawn on a copy; the env's stays as built
+        self._pose_for_drawing(model, state.sim, params)
+        return render_qpos(model, np.asarray(state.sim.qpos), height, width, camera)
+
+    @abc.abstractmethod
+    def _pose_for_drawing(self, model: mujoco.MjModel, sim: SimT, params: ParamsT) -> None:
+        """Writes the episode's geometry (what `episode_model` replaces per env) into `model`, a copy of
+        `mj_model` about to be drawn."""

@@ -1,0 +1,86 @@
+"""The sorter's training start states (curricula), drawn per episode at reset; evaluation uses none of them.
+
+With the params' probabilities an episode starts with its focus object (any slot) held between the closed
+fingers, or grasp-ready: on the table right under the tool, between the open fingers of the lowered arm, or
+(half of those) below them at a random height. Independently, each other object may start presorted: in its
+own bin, out of play. Everything else starts as a plain episode: every object on the table, the arm raised.
+"""
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from mujoco import mjx
+
+from jaxarm.envs.panda.robot import FINGER_OPEN, PAD_ABOVE_TCP, yaw_of_quaternion, yaw_of_rotation
+from jaxarm.envs.panda_sort.model import ModelIds
+from jaxarm.envs.panda_sort.objects import GRIP_HALF_WIDTH
+from jaxarm.envs.panda_sort.params import PandaSortParams
+from jaxarm.envs.panda_sort.sim import PandaSortSim
+
+
+class StartDraw(NamedTuple):
+    """The curricula's choices for one episode.
+
+    Attributes:
+      focus: [] int32 the slot of the curricula's object.
+      presorted: [N] bool, the object starts in its own bin (never the focus object).
+      held: [] bool, the focus object starts between the closed fingers.
+      ready: [] bool, the focus object starts under the open fingers (grasp-ready, or hovering below them).
+      hover: [] bool, a grasp-ready start with the hand raised over the object.
+      blend: [] where the arm starts between the grasp posture (0) and the start posture (1), in joint space.
+    """
+
+    focus: jax.Array
+    presorted: jax.Array
+    held: jax.Array
+    ready: jax.Array
+    hover: jax.Array
+    blend: jax.Array
+
+
+def draw_start(start_key: jax.Array, objects_key: jax.Array, objects_count: int, params: PandaSortParams) -> StartDraw:
+    """Draws the episode's start: the hand's from `start_key`, the focus slot and the presorted objects from
+    `objects_key`."""
+    focus_key, presort_key = jax.random.split(objects_key)
+    # The curricula's object: any slot, so the policy meets held and grasp-ready starts in every input slot.
+    focus = jax.random.randint(focus_key, (), 0, objects_count)
+    others = jnp.arange(objects_count) != focus
+    presorted = (jax.random.uniform(presort_key, (objects_count,)) < params.presorted_prob) & others
+    draw, height_draw = jax.random.uniform(start_key, (2,))
+    held = draw < params.held_start_prob
+    ready = ~held & (draw < params.held_start_prob + params.ready_start_prob)
+    # Half the grasp-ready starts hover over the object instead, at a random height: the posture halfway
+    # (in joint space) between the low and the start one keeps the tool pointing down within 1.5 cm of the
+    # same vertical; from 0.4 of the way up (11 cm, ±1.5 cm of posture noise) the pads clear the tallest object.
+    hover = ready & (height_draw >= 0.5)
+    blend = jnp.where(hover, 0.4 + 1.2 * (height_draw - 0.5), jnp.where(ready, 0.0, 1.0))
+    return StartDraw(focus=focus, presorted=presorted, held=held, ready=ready, hover=hover, blend=blend)
+
+
+def place_in_hand(
+    ids: ModelIds,
+    sim: PandaSortSim,
+    data: mjx.Data,
+    focus: jax.Array,
+    held: jax.Array,
+    ready: jax.Array,
+    hover: jax.Array,
+) -> PandaSortSim:
+    """Curriculum starts for object `focus` (an int32 slot), with `data` the kinematics of `sim`. Where `held`:
+    between the closed fingers at the tool centre, faces towards the pads. Where `ready`: on the table under
+    the tool centre, between the open fingers (faces towards the pads) or, where also `hover`, below them at
+    the yaw it was drawn with. Elsewhere `sim` is returned unchanged."""
+    robot = ids.robot
+    pose_idx = jnp.asarray(ids.object_qpos)[focus] + jnp.arange(7)
+    own_quat = sim.qpos[pose_idx[3:]]
+    yaw = jnp.where(hover, yaw_of_quaternion(own_quat), yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3)))
+    tcp = data.site_xpos[robot.tcp_site]
+    height = jnp.where(held, tcp[2] + PAD_ABOVE_TCP, sim.size[focus] + 0.001)
+    pose = jnp.concatenate([tcp[:2], height[None], jnp.stack([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])])
+    grip = jnp.asarray(GRIP_HALF_WIDTH)[sim.shape[focus]] * sim.size[focus]
+    fingers = jnp.where(held, grip, FINGER_OPEN)
+    qpos = sim.qpos.at[pose_idx].set(pose).at[robot.finger_qpos].set(fingers)
+    ctrl = sim.ctrl.at[7:].set(jnp.where(held, 0.0, FINGER_OPEN))
+    moved = held | ready
+    return sim.replace(qpos=jnp.where(moved, qpos, sim.qpos), ctrl=jnp.where(moved, ctrl, sim.ctrl))

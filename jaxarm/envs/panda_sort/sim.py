@@ -1,0 +1,33 @@
+"""The sorter's per-env state: the physics that persists between steps and the episode's objects."""
+
+import jax
+from flax import struct
+
+
+class PandaSortSim(struct.PyTreeNode):
+    """Physics and task state of one env (N = objects_count).
+
+    Attributes:
+      qpos: [nq] generalized positions (arm 7, fingers 2, then 7 per object: position, quaternion).
+      qvel: [nv] generalized velocities (arm 7, fingers 2, then 6 per object: linear world, angular local).
+      qacc_warmstart: [nv] the solver's warm start.
+      ctrl: [9] actuator targets (arm joints, then the two fingers).
+      shape: [N] int32 SHAPE_* of each object.
+      size: [N] half-size / radius of each object (metres).
+      colour: [N, 3] RGB of each object; drawn only, never observed, unrelated to the shape.
+      outcome: [N] int32 IN_PLAY, IN_CORRECT_BIN, IN_WRONG_BIN or ON_FLOOR (reward.py).
+      target: [] int32 the slot being worked on: the curricula's object at reset; when it leaves play, the
+        in-play object nearest the tool centre. Used only by envs built with `target_first`.
+      potential: [4] weighted shaping potentials (reach, grasp, lift, carry) of the current state.
+    """
+
+    qpos: jax.Array
+    qvel: jax.Array
+    qacc_warmstart: jax.Array
+    ctrl: jax.Array
+    shape: jax.Array
+    size: jax.Array
+    colour: jax.Array
+    outcome: jax.Array
+    target: jax.Array
+    potential: jax.Array
