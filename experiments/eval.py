@@ -12,6 +12,7 @@ import sys
 import imageio.v2 as imageio
 import jax
 import numpy as np
+import numpy.typing as npt
 
 from experiments import configs, rundir
 from jaxarm.agents.common import checkpoint
@@ -57,7 +58,9 @@ def main(argv=None) -> int:
     )
     if args.video:
         env, env_params = config.make_eval_env()
-        frames = episode_frames(env, env_params, trainer, state, jax.random.PRNGKey(args.seed + 1), 3)
+        frames: list[npt.ArrayLike] = [
+            *episode_frames(env, env_params, trainer, state, jax.random.PRNGKey(args.seed + 1), 3)
+        ]
         imageio.mimsave(run_dir / "video.gif", frames, duration=0.04, loop=0)
         print(f"wrote {run_dir / 'video.gif'} ({len(frames)} frames)")
     return 0

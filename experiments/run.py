@@ -12,6 +12,7 @@ import json
 import pathlib
 import sys
 import time
+from collections.abc import Callable
 
 import jax
 import numpy as np
@@ -100,7 +101,7 @@ def train(config, preset: str, run_dir: pathlib.Path, resume: bool, stop_after_s
         done_updates, wall_offset = 0, 0.0
     if jax.device_count() > 1:
         state = data_parallel(state, data_mesh())
-    runners = {}
+    runners: dict[int, Callable] = {}
     writer = SummaryWriter(str(run_dir / "tensorboard"))
     last_saved = done_updates
     start = time.perf_counter()

@@ -2,7 +2,7 @@
 
 from jaxarm._runtime import compiler_options
 from jaxarm.envs.base import Env, EnvSpec, EnvState, EpisodeStats, Transition, check_action
-from jaxarm.envs.registry import describe, make, names, override_params, register
+from jaxarm.envs.registry import describe, families, make, names, override_params, register
 from jaxarm.envs.wrappers import AutoReset, VmapEnv, Wrapper
 
 __all__ = [
@@ -17,6 +17,7 @@ __all__ = [
     "check_action",
     "compiler_options",
     "describe",
+    "families",
     "make",
     "names",
     "override_params",

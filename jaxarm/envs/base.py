@@ -19,7 +19,7 @@ poison a learner's batch.
 
 import abc
 import dataclasses
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, Protocol, TypeVar
 
 import jax
 import jax.numpy as jnp
@@ -29,7 +29,14 @@ from flax import struct
 DIVERGENCE_LIMIT = 1e6
 """Observations beyond this magnitude count as a diverged simulation (see the module docstring)."""
 
-Params = TypeVar("Params")
+
+class HasEpisodeLimit(Protocol):
+    """What the base class reads from every env's params: the time limit, in env steps."""
+
+    max_episode_steps: jax.Array
+
+
+Params = TypeVar("Params", bound=HasEpisodeLimit)
 Sim = TypeVar("Sim")
 
 
@@ -87,8 +94,7 @@ class EpisodeStats:
         )
 
 
-@struct.dataclass
-class EnvState(Generic[Sim]):
+class EnvState(struct.PyTreeNode, Generic[Sim]):
     """Everything an env carries between steps. Shapes are per env; vmapped envs add a leading [B].
 
     Attributes:

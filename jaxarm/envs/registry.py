@@ -53,6 +53,14 @@ def describe() -> dict[str, str]:
     return {name: _REGISTRY[name].description for name in names()}
 
 
+def families() -> dict[str, list[str]]:
+    """Env class ("package.module:Class") -> the names registered for it, sorted: the variants of one env."""
+    grouped: dict[str, list[str]] = {}
+    for name in names():
+        grouped.setdefault(_REGISTRY[name].target, []).append(name)
+    return grouped
+
+
 def make(name: str, **kwargs):
     """Builds the registered env `name`; `kwargs` override its static constructor arguments."""
     if name not in _REGISTRY:

@@ -26,8 +26,9 @@ BRAX_PMAP_AXIS = "i"
 """The axis name every brax 0.14 trainer pmaps over (`_PMAP_AXIS_NAME` in its PPO, SAC and APG)."""
 
 
-def device_put_replicated(tree, devices: Sequence[jax.Device]):
-    """`tree` with every leaf stacked [len(devices), ...] and slice i placed on `devices[i]`."""
+def device_put_replicated(x, devices: Sequence[jax.Device]):
+    """`x` (a pytree) with every leaf stacked [len(devices), ...] and slice i placed on `devices[i]`. The
+    parameters are named as jax's own (jax < 0.10) were, so that the shim stands in for it exactly."""
     devices = list(devices)
     if not devices:
         raise ValueError("device_put_replicated needs a non-empty sequence of devices")
@@ -37,7 +38,7 @@ def device_put_replicated(tree, devices: Sequence[jax.Device]):
         leaf = jnp.asarray(leaf)
         return jax.device_put(jnp.broadcast_to(leaf[None], (len(devices),) + leaf.shape), sharding)
 
-    return jax.tree.map(replicate, tree)
+    return jax.tree.map(replicate, x)
 
 
 def install_device_put_replicated() -> bool:

@@ -1,4 +1,10 @@
-"""The contract every registered env must keep (jit, vmap, spec, purity, time limit, auto-reset)."""
+"""The contract every registered env must keep (jit, vmap, spec, purity, time limit, auto-reset).
+
+The whole contract runs on one env of each class (the first name of each of `envs.families()`); every other
+registered name, a variant of one of those classes built with other constructor arguments, is reset and stepped
+under jit and vmap and checked for its spec and finite values. Variants share their class's code, and MJX
+programs take minutes each to compile on a 2-core CPU.
+"""
 
 import warnings
 
@@ -14,21 +20,26 @@ CHEAP_NUM_ENVS = 1024
 MJX_NUM_ENVS = 16
 """MJX envs compile for minutes on the 2-core CPU, and jaxlib 0.10.2's CPU runtime deadlocked on them at
 >= 256 envs; every MJX env therefore runs one 16-env rollout, shared by the tests below."""
+VARIANT_NUM_ENVS = 4
+VARIANT_STEPS = 2
+
+FULL_CONTRACT = [names[0] for names in envs.families().values()]
+VARIANTS = [name for names in envs.families().values() for name in names[1:]]
 
 
-def contract_num_envs(name: str) -> int:
-    return MJX_NUM_ENVS if name.startswith(("panda", "peg")) else CHEAP_NUM_ENVS
+def contract_num_envs(env) -> int:
+    return MJX_NUM_ENVS if env.uses_mjx else CHEAP_NUM_ENVS
 
 
 def random_actions(key, env, shape):
     return jax.random.uniform(key, shape + env.spec.action_shape, minval=-1.0, maxval=1.0)
 
 
-@pytest.fixture(scope="module", params=envs.names())
+@pytest.fixture(scope="module", params=FULL_CONTRACT)
 def env_case(request):
-    """(env, params, batch size, jitted rollout) per registered env, compiled once per module."""
+    """(env, params, batch size, jitted rollout) per env class, compiled once per module."""
     env = envs.make(request.param)
-    num_envs = contract_num_envs(request.param)
+    num_envs = contract_num_envs(env)
     run = jax.jit(lambda params, key: rollout(env, params, key, num_envs, ROLLOUT_STEPS))
     return env, env.default_params(), num_envs, run
 
@@ -40,9 +51,9 @@ def env_and_params(env_case):
 
 @pytest.fixture(scope="module")
 def jitted_steps(env_case):
-    """(jit(env.step), jit(AutoReset(env).step)): one compile each per env."""
+    """(jit(env.reset), jit(env.step), jit(AutoReset(env).step)): one compile each per env."""
     env = env_case[0]
-    return jax.jit(env.step), jax.jit(envs.AutoReset(env).step)
+    return jax.jit(env.reset), jax.jit(env.step), jax.jit(envs.AutoReset(env).step)
 
 
 def rollout(env, params, key, num_envs, steps):
@@ -59,15 +70,32 @@ def rollout(env, params, key, num_envs, steps):
     return states
 
 
-def test_spec_shapes_and_finite_values_under_jit_and_vmap(env_case):
-    env, params, num_envs, run = env_case
-    states = run(params, jax.random.key(0))
-    assert states.obs.shape == (ROLLOUT_STEPS, num_envs, *env.spec.observation_shape)
-    assert states.reward.shape == (ROLLOUT_STEPS, num_envs)
+def assert_spec_shapes_and_finite(env, states, steps: int, num_envs: int) -> None:
+    """`states` [steps, num_envs] match `env.spec`, and every float in them is finite."""
+    assert states.obs.shape == (steps, num_envs, *env.spec.observation_shape)
+    assert states.reward.shape == (steps, num_envs)
     assert states.terminated.dtype == jnp.bool_ and states.truncated.dtype == jnp.bool_
     for leaf in jax.tree.leaves(states):
         if jnp.issubdtype(leaf.dtype, jnp.floating):
             assert np.all(np.isfinite(np.asarray(leaf)))
+
+
+def test_every_registered_env_is_covered():
+    assert sorted(FULL_CONTRACT + VARIANTS) == envs.names()
+    assert {"arm2d", "panda_sort", "peg_insert"} <= set(FULL_CONTRACT)
+
+
+@pytest.mark.parametrize("name", VARIANTS)
+def test_variant_resets_and_steps_under_jit_and_vmap(name):
+    env = envs.make(name)
+    run = jax.jit(lambda params, key: rollout(env, params, key, VARIANT_NUM_ENVS, VARIANT_STEPS))
+    states = run(env.default_params(), jax.random.key(0))
+    assert_spec_shapes_and_finite(env, states, VARIANT_STEPS, VARIANT_NUM_ENVS)
+
+
+def test_spec_shapes_and_finite_values_under_jit_and_vmap(env_case):
+    env, params, num_envs, run = env_case
+    assert_spec_shapes_and_finite(env, run(params, jax.random.key(0)), ROLLOUT_STEPS, num_envs)
 
 
 def test_same_key_same_trajectory(env_case):
@@ -82,9 +110,9 @@ def test_same_key_same_trajectory(env_case):
 
 def test_time_limit_truncates_and_auto_reset_keeps_final_obs(env_and_params, jitted_steps):
     env, params = env_and_params
-    plain_step, step = jitted_steps
+    reset, plain_step, step = jitted_steps
     params = envs.override_params(params, {"max_episode_steps": 3})
-    state = env.reset(jax.random.key(3), params)
+    state = reset(jax.random.key(3), params)
     zero = jnp.zeros(env.spec.action_shape)
     for _ in range(2):
         state = step(state, zero, params)
@@ -101,8 +129,8 @@ def test_time_limit_truncates_and_auto_reset_keeps_final_obs(env_and_params, jit
 
 def test_nan_actions_are_zeroed_and_counted(env_and_params, jitted_steps):
     env, params = env_and_params
-    plain_step, _ = jitted_steps
-    state = env.reset(jax.random.key(5), params)
+    reset, plain_step, _ = jitted_steps
+    state = reset(jax.random.key(5), params)
     nan_step = plain_step(state, jnp.full(env.spec.action_shape, jnp.nan), params)
     zero_step = plain_step(state, jnp.zeros(env.spec.action_shape), params)
     np.testing.assert_array_equal(nan_step.obs, zero_step.obs)

@@ -4,9 +4,8 @@ Each notebook is executed by nbclient in a fresh kernel ("python3": jupyter_clie
 interpreter running the tests) whose working directory and TMPDIR are the test's temporary directory, so
 whatever a notebook writes (run directories, sweep tables) lands there and is cleaned up.
 
-Compiling dominates the notebooks' run time (MJX alone takes 1-2 minutes on 2 CPU cores), so the kernels share
-JAX's persistent compilation cache in pytest's cache directory (.pytest_cache, cleared by --cache-clear):
-on a busy 2-core machine a first run takes 4-5 minutes (about 2 minutes of CPU time), later runs about 1.5.
+Compiling dominates the notebooks' run time (MJX alone takes 1-2 minutes on 2 CPU cores), so the kernels inherit
+the test session's persistent compilation cache (tests/conftest.py) and read back what the other tests compiled.
 """
 
 import pathlib
@@ -48,10 +47,9 @@ def test_notebook_has_one_parameters_cell(path):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("path", notebook_paths(), ids=lambda path: path.stem)
-def test_notebook_runs_with_its_default_parameters(path, tmp_path, monkeypatch, request):
-    # The kernel inherits these: the notebooks' tempfile directories go to tmp_path, compiled programs persist.
+def test_notebook_runs_with_its_default_parameters(path, tmp_path, monkeypatch):
+    # The kernel inherits the environment: the notebooks' tempfile directories go to tmp_path.
     monkeypatch.setenv("TMPDIR", str(tmp_path))
-    monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR", str(request.config.cache.mkdir("jax-compilation-cache")))
     notebook = nbformat.read(path, as_version=4)
     client = NotebookClient(
         notebook, timeout=CELL_TIMEOUT_S, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}
