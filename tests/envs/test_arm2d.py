@@ -7,7 +7,7 @@ import pytest
 
 from jaxarm import envs
 from jaxarm.envs.arm2d import GOAL_FIXED, GOAL_UNIFORM_REACHABLE, GOAL_UNIFORM_WORLD, Arm2d, Arm2dSim
-from jaxarm.envs.arm2d.env import goal_reachable
+from jaxarm.envs.arm2d.arm import goal_reachable
 from jaxarm.envs.arm2d.numpy_reference import ClassicArm
 
 
@@ -49,7 +49,7 @@ def test_parity_with_numpy_reference_on_random_action_sequences(num_links):
 
 
 def env_finger(angles, params):
-    from jaxarm.envs.arm2d.env import link_end_positions
+    from jaxarm.envs.arm2d.arm import link_end_positions
 
     return link_end_positions(jnp.asarray(angles), params)[-1]
 

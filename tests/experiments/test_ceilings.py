@@ -10,7 +10,7 @@ from experiments import configs
 from experiments.benchmarks import ceilings
 from jaxarm import envs
 from jaxarm.agents.ppo import PPOConfig
-from jaxarm.envs.arm2d.env import link_end_positions
+from jaxarm.envs.arm2d.arm import link_end_positions
 
 
 def test_mlp_flops_counts_two_per_multiply_add():

@@ -3,7 +3,7 @@
 import numpy as np
 from PIL import Image, ImageDraw
 
-from jaxarm.envs.arm2d.env import Arm2dParams, Arm2dSim, link_end_positions
+from jaxarm.envs.arm2d.arm import Arm2dParams, Arm2dSim, link_end_positions
 
 
 def draw_frame(sim: Arm2dSim, params: Arm2dParams, size: int = 256) -> np.ndarray:
