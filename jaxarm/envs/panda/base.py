@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from jaxarm.envs.base import Env, EnvState
+from jaxarm.envs.base import Env, EnvState, HasEpisodeLimit
 from jaxarm.envs.panda.render import render_qpos
 from jaxarm.envs.panda.robot import HOME_QPOS, PandaIds, ik_arm_targets, solve_arm_posture, tcp_pose_at
 
@@ -40,8 +40,8 @@ class PandaSimState(Protocol):
     def qacc_warmstart(self) -> jax.Array: ...
 
 
-class IkParams(Protocol):
-    """What `PandaBase.ik_targets` reads of a task's params (scalars)."""
+class IkParams(HasEpisodeLimit, Protocol):
+    """What `PandaBase` reads of a task's params (scalars): the time limit and the IK's settings."""
 
     @property
     def ik_damping(self) -> jax.Array: ...
