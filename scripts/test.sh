@@ -1,16 +1,28 @@
 #!/usr/bin/env bash
-# Sets up .venv (scripts/setup.sh) and runs the whole test suite on 2 workers.
+# Sets up .venv (scripts/setup.sh), checks style and types (scripts/lint.sh), then runs the tests on 2 workers.
+#
+#   bash scripts/test.sh           # the whole suite: what CI runs
+#   bash scripts/test.sh --quick   # the quick tier for the inner loop: every test not marked slow
+#
+# Further arguments go to pytest. Compiled programs persist in .jax-cache/ (tests/conftest.py), so a second run
+# on the same checkout compiles little.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh || exit 1
-# MuJoCo renders offscreen through Mesa's software EGL where there is no GPU (eval videos, the sorter's
-# render test); CI machines run as root and have apt.
+bash scripts/lint.sh || exit 1
+# MuJoCo renders offscreen through Mesa's software EGL where there is no GPU (eval videos, the Panda envs'
+# render tests); CI machines run as root and have apt.
 if ! ldconfig -p | grep -q libEGL_mesa; then
   { apt-get update -qq && apt-get install -y -qq libegl1 libegl-mesa0 libgl1-mesa-dri; } >/dev/null \
     || echo "could not install Mesa EGL: rendering tests will fail" >&2
 fi
 export MUJOCO_GL="${MUJOCO_GL:-egl}"
-.venv/bin/python -m pytest -n 2 --durations=15 "$@"
+tier=()
+if [ "${1:-}" = "--quick" ]; then
+  tier=(-m "not slow")
+  shift
+fi
+.venv/bin/python -m pytest -n 2 --durations=10 "${tier[@]}" "$@"
 status=$?
 if [ "$status" -eq 5 ]; then
   echo "pytest collected no tests: the suite is broken" >&2
