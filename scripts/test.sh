@@ -2,10 +2,11 @@
 # Sets up .venv (scripts/setup.sh), checks style and types (scripts/lint.sh), then runs the tests on 2 workers.
 #
 #   bash scripts/test.sh           # the whole suite: what CI runs
-#   bash scripts/test.sh --quick   # the quick tier for the inner loop: every test not marked slow
+#   bash scripts/test.sh --quick   # the quick tier for the inner loop: every test marked neither slow nor mjx
 #
 # Further arguments go to pytest. Compiled programs persist in .jax-cache/ (tests/conftest.py), so a second run
-# on the same checkout compiles little.
+# on the same checkout compiles little; tests marked xdist_group (the MJX envs', tests/envs/compiled.py) stay in
+# one worker with the programs they share.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh || exit 1
@@ -19,10 +20,10 @@ fi
 export MUJOCO_GL="${MUJOCO_GL:-egl}"
 tier=()
 if [ "${1:-}" = "--quick" ]; then
-  tier=(-m "not slow")
+  tier=(-m "not slow and not mjx")
   shift
 fi
-.venv/bin/python -m pytest -n 2 --durations=10 "${tier[@]}" "$@"
+.venv/bin/python -m pytest -n 2 --dist loadgroup --durations=10 "${tier[@]}" "$@"
 status=$?
 if [ "$status" -eq 5 ]; then
   echo "pytest collected no tests: the suite is broken" >&2

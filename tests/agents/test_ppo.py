@@ -37,6 +37,7 @@ def test_whole_run_equals_the_chunked_run():
         np.testing.assert_allclose(whole, chunked, rtol=1e-5, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_vmap_over_seeds_and_hyper_parameters():
     trainer = make_trainer(TINY)
     seeds, rates = jnp.meshgrid(jnp.arange(2), jnp.array([1e-4, 1e-2]), indexing="ij")

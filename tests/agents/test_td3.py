@@ -168,6 +168,7 @@ def test_actor_learns_observation_dependent_target_action():
 # Whole runs
 
 
+@pytest.mark.slow
 def test_vmap_over_seeds_and_learning_rates():
     config = TD3Config(num_envs=4, learning_starts=32, total_env_steps=160, grad_steps_per_update=2, **SMALL)
     trainer = make_trainer(config)

@@ -2,8 +2,9 @@
 
 The whole contract runs on one env of each class (the first name of each of `envs.families()`); every other
 registered name, a variant of one of those classes built with other constructor arguments, is reset and stepped
-under jit and vmap and checked for its spec and finite values. Variants share their class's code, and MJX
-programs take minutes each to compile on a 2-core CPU.
+under jit and checked for its spec and finite values. Variants share their class's code, and MJX programs take
+a minute or more each to compile on a 2-core CPU: the jitted reset and step come from `compiled`, shared with
+the envs' own test files, in the same xdist worker as those files' tests (`same_worker`).
 """
 
 import warnings
@@ -14,17 +15,36 @@ import numpy as np
 import pytest
 
 from jaxarm import envs
+from tests.envs.compiled import compiled, same_worker
 
 ROLLOUT_STEPS = 8
 CHEAP_NUM_ENVS = 1024
 MJX_NUM_ENVS = 16
 """MJX envs compile for minutes on the 2-core CPU, and jaxlib 0.10.2's CPU runtime deadlocked on them at
 >= 256 envs; every MJX env therefore runs one 16-env rollout, shared by the tests below."""
-VARIANT_NUM_ENVS = 4
-VARIANT_STEPS = 2
 
 FULL_CONTRACT = [names[0] for names in envs.families().values()]
 VARIANTS = [name for names in envs.families().values() for name in names[1:]]
+SHARES_PROGRAMS_WITH = {"panda_sort": "panda_sort", "panda_sort3": "panda_sort", "peg_insert": "peg_insert"}
+"""Env -> the xdist group of the test file that compiles the same programs (test_panda_sort.py steps
+panda_sort3 too); other envs' programs are compiled here alone and may run in any worker."""
+
+
+def with_worker_group(names: list[str]) -> list:
+    """`names` as pytest params, each marked to run beside the tests that share its programs, and as `mjx` where
+    it compiles MJX programs."""
+    return [
+        pytest.param(name, marks=[*worker_group(name), *([pytest.mark.mjx] if uses_mjx(name) else [])])
+        for name in names
+    ]
+
+
+def worker_group(name: str) -> list:
+    return [same_worker(SHARES_PROGRAMS_WITH[name])] if name in SHARES_PROGRAMS_WITH else []
+
+
+def uses_mjx(name: str) -> bool:
+    return name.startswith(("panda", "peg"))
 
 
 def contract_num_envs(env) -> int:
@@ -35,13 +55,14 @@ def random_actions(key, env, shape):
     return jax.random.uniform(key, shape + env.spec.action_shape, minval=-1.0, maxval=1.0)
 
 
-@pytest.fixture(scope="module", params=FULL_CONTRACT)
+@pytest.fixture(scope="module", params=with_worker_group(FULL_CONTRACT))
 def env_case(request):
-    """(env, params, batch size, jitted rollout) per env class, compiled once per module."""
-    env = envs.make(request.param)
+    """(env, params, batch size, jitted rollout, the env's shared programs) per env class."""
+    shared = compiled(request.param)
+    env = shared.env
     num_envs = contract_num_envs(env)
     run = jax.jit(lambda params, key: rollout(env, params, key, num_envs, ROLLOUT_STEPS))
-    return env, env.default_params(), num_envs, run
+    return env, shared.params, num_envs, run, shared
 
 
 @pytest.fixture(scope="module")
@@ -51,9 +72,9 @@ def env_and_params(env_case):
 
 @pytest.fixture(scope="module")
 def jitted_steps(env_case):
-    """(jit(env.reset), jit(env.step), jit(AutoReset(env).step)): one compile each per env."""
-    env = env_case[0]
-    return jax.jit(env.reset), jax.jit(env.step), jax.jit(envs.AutoReset(env).step)
+    """(jit(env.reset), jit(env.step), jit(AutoReset(env).step)): one compile each per env and process."""
+    shared = env_case[-1]
+    return shared.reset, shared.step, jax.jit(envs.AutoReset(shared.env).step)
 
 
 def rollout(env, params, key, num_envs, steps):
@@ -83,23 +104,27 @@ def assert_spec_shapes_and_finite(env, states, steps: int, num_envs: int) -> Non
 def test_every_registered_env_is_covered():
     assert sorted(FULL_CONTRACT + VARIANTS) == envs.names()
     assert {"arm2d", "panda_sort", "peg_insert"} <= set(FULL_CONTRACT)
+    assert [uses_mjx(name) for name in envs.names()] == [envs.make(name).uses_mjx for name in envs.names()]
 
 
-@pytest.mark.parametrize("name", VARIANTS)
-def test_variant_resets_and_steps_under_jit_and_vmap(name):
-    env = envs.make(name)
-    run = jax.jit(lambda params, key: rollout(env, params, key, VARIANT_NUM_ENVS, VARIANT_STEPS))
-    states = run(env.default_params(), jax.random.key(0))
-    assert_spec_shapes_and_finite(env, states, VARIANT_STEPS, VARIANT_NUM_ENVS)
+@pytest.mark.parametrize("name", with_worker_group(VARIANTS))
+def test_variant_resets_and_steps_under_jit(name):
+    shared = compiled(name)
+    reset_key, action_key = jax.random.split(jax.random.key(0))
+    state = shared.step(
+        shared.reset(reset_key, shared.params), random_actions(action_key, shared.env, ()), shared.params
+    )
+    states = jax.tree.map(lambda leaf: leaf[None, None], state)  # one step of one env
+    assert_spec_shapes_and_finite(shared.env, states, 1, 1)
 
 
 def test_spec_shapes_and_finite_values_under_jit_and_vmap(env_case):
-    env, params, num_envs, run = env_case
+    env, params, num_envs, run, _ = env_case
     assert_spec_shapes_and_finite(env, run(params, jax.random.key(0)), ROLLOUT_STEPS, num_envs)
 
 
 def test_same_key_same_trajectory(env_case):
-    _, params, _, run = env_case
+    _, params, _, run, _ = env_case
     first = run(params, jax.random.key(7))
     second = run(params, jax.random.key(7))
     other = run(params, jax.random.key(8))

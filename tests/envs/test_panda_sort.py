@@ -28,6 +28,7 @@ from jaxarm.envs.panda_sort import (  # noqa: E402
 from jaxarm.envs.panda_sort.curriculum import place_in_hand  # noqa: E402
 from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE  # noqa: E402
 from jaxarm.envs.panda_sort.scripted import script_start, scripted_action  # noqa: E402
+from tests.envs.compiled import compiled, same_worker  # noqa: E402
 
 # Craig (modified) DH parameters of the Franka Panda as published by Franka Emika.
 DH_A = [0.0, 0.0, 0.0, 0.0825, -0.0825, 0.0, 0.088]
@@ -59,9 +60,14 @@ def dh_hand_pose(q: np.ndarray) -> np.ndarray:
     return pose @ dh_transform(0.0, FLANGE_D, 0.0, HAND_YAW)
 
 
+pytestmark = same_worker("panda_sort")  # panda_sort3 too: the contract test groups it with panda_sort
+
+
 @pytest.fixture(scope="module")
 def env():
-    return PandaSort(objects_count=1)
+    env = compiled("panda_sort").env
+    assert isinstance(env, PandaSort) and env.objects_count == 1
+    return env
 
 
 @pytest.fixture(scope="module")
@@ -70,16 +76,16 @@ def params(env):
 
 
 @pytest.fixture(scope="module")
-def reset(env):
-    return jax.jit(env.reset)
+def reset():
+    return compiled("panda_sort").reset
 
 
 class JittedStep:
-    """jit(env.step), with the env and the jitted scripted policy beside it (one compile each per module)."""
+    """jit(env.step), with the env and the jitted scripted policy beside it (one compile each per process)."""
 
     def __init__(self, env):
         self.env = env
-        self._step = jax.jit(env.step)
+        self._step = compiled("panda_sort").step
         self.script = jax.jit(lambda obs, script, params, bin_xy: scripted_action(env, obs, script, params, bin_xy))
 
     def __call__(self, state, action, params):
@@ -167,6 +173,7 @@ def test_hand_pose_matches_published_dh_kinematics(env, q):
     np.testing.assert_allclose(data.site_xpos[env.ids.robot.tcp_site], tcp, atol=1e-3)
 
 
+@pytest.mark.mjx
 @pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])
 def test_dropped_object_comes_to_rest_on_the_table(env, params, reset, step, shape):
     size = 0.03
@@ -177,6 +184,7 @@ def test_dropped_object_comes_to_rest_on_the_table(env, params, reset, step, sha
     assert int(state.info.in_play_count) == 1
 
 
+@pytest.mark.mjx
 def test_frictionless_bin_walls_still_stop_an_object_thrown_at_them(env, params, reset, step):
     size = 0.025
     wall_outside = env.layout.bin_centers[0][1] - env.layout.bin_half - 2 * env.layout.bin_wall_half_thickness
@@ -195,6 +203,7 @@ def test_frictionless_bin_walls_still_stop_an_object_thrown_at_them(env, params,
 
 
 # The largest cube turned 45 degrees is wider across its corners than the open fingers: the hand must turn.
+@pytest.mark.mjx
 @pytest.mark.parametrize(
     "shape, size, yaw",
     [
@@ -220,6 +229,7 @@ def test_scripted_pick_and_place_scores_500_exactly_once(env, params, reset, ste
     assert not np.any(terms.correct_bin) and not np.any(terms.wrong_bin)
 
 
+@pytest.mark.mjx
 def test_scripted_placement_in_another_bin_scores_200_once(env, params, reset, step):
     size = 0.025
     first = with_object(env, reset(jax.random.key(0), params), SHAPE_CUBE, size, [0.45, 0.0, size + 0.001, 1, 0, 0, 0])
@@ -240,6 +250,7 @@ def curriculum_start(env, state, params, shape: int, held: bool):
     return state.replace(sim=sim.replace(potential=env.shaping_potential(data, sim, params)))
 
 
+@pytest.mark.mjx
 @pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])
 def test_a_held_start_puts_the_object_between_the_fingers_and_it_stays_there(env, params, reset, step, shape):
     held = params.replace(held_start_prob=jnp.float32(1.0))
@@ -252,6 +263,7 @@ def test_a_held_start_puts_the_object_between_the_fingers_and_it_stays_there(env
     assert float(object_position(resting)[2]) < 0.05, "without a held start the object rests on the table"
 
 
+@pytest.mark.mjx
 @pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])
 def test_a_grasp_ready_start_closes_on_the_object_and_lifts_it(env, params, reset, step, shape):
     ready = params.replace(ready_start_prob=jnp.float32(1.0), size_scale_low=jnp.float32(1.5))  # the largest
@@ -266,12 +278,12 @@ def test_a_grasp_ready_start_closes_on_the_object_and_lifts_it(env, params, rese
 
 @pytest.fixture(scope="module")
 def env3():
-    return envs.make("panda_sort3")
+    return compiled("panda_sort3").env
 
 
 @pytest.fixture(scope="module")
-def step3(env3):
-    return jax.jit(env3.step)
+def step3():
+    return compiled("panda_sort3").step
 
 
 def listed_objects(env, obs: np.ndarray) -> np.ndarray:
@@ -279,17 +291,20 @@ def listed_objects(env, obs: np.ndarray) -> np.ndarray:
     return obs[..., : env.objects_count * OBJECT_OBS_SIZE].reshape(*obs.shape[:-1], env.objects_count, OBJECT_OBS_SIZE)
 
 
-def batched_resets(env, params, seed: int, count: int = 64):
-    """`count` jitted resets -> (states, [count, N, 3] object positions, [count, 3] tool centres)."""
-    states = jax.jit(jax.vmap(lambda key: env.reset(key, params)))(jax.random.split(jax.random.key(seed), count))
+def batched_resets(params, seed: int, count: int = 64):
+    """`count` jitted resets of panda_sort3 -> (states, [count, N, 3] object positions, [count, 3] tool centres)."""
+    sorter3 = compiled("panda_sort3")
+    env = sorter3.env
+    states = sorter3.batched_reset(jax.random.split(jax.random.key(seed), count), params)
     positions = np.asarray(states.sim.qpos[:, env.ids.object_qpos[:, None] + np.arange(3)])
     at = env.objects_count * OBJECT_OBS_SIZE
     return states, positions, np.asarray(states.obs[:, at : at + 3])
 
 
+@pytest.mark.mjx
 def test_grasp_ready_starts_keep_other_objects_clear_of_the_hand(env3):
     params = env3.default_params().replace(ready_start_prob=jnp.float32(1.0))
-    _, positions, tcp = batched_resets(env3, params, seed=11)
+    _, positions, tcp = batched_resets(params, seed=11)
     offsets = np.linalg.norm(positions[:, :, :2] - tcp[:, None, :2], axis=-1)  # [64, 3]
     focus = offsets.argmin(axis=1)
     assert offsets.min(axis=1).max() < 1e-5, "one object sits right under the tool"
@@ -301,12 +316,13 @@ def test_grasp_ready_starts_keep_other_objects_clear_of_the_hand(env3):
     assert np.all(tcp[~low, 2] > 0.085) and tcp[~low, 2].max() > 0.2, "the others hover over it"
 
 
+@pytest.mark.mjx
 def test_presorted_starts_leave_one_object_in_play_worth_its_own_placement(env3):
     params = env3.default_params()
     weights = np.array([params.reach_weight, params.grasp_weight, params.lift_weight, params.carry_weight])
     presorted = params.replace(presorted_prob=jnp.float32(1.0))
-    full, _, _ = batched_resets(env3, params, seed=12, count=16)
-    states, positions, _ = batched_resets(env3, presorted, seed=12, count=16)
+    full, _, _ = batched_resets(params, seed=12, count=16)
+    states, positions, _ = batched_resets(presorted, seed=12, count=16)
     assert np.all(np.asarray(full.info.in_play_count) == 3), "by default every object starts in play"
     assert np.all(np.asarray(states.info.in_play_count) == 1) and np.all(np.asarray(states.info.correct_count) == 2)
     out = np.asarray(states.sim.outcome) == IN_CORRECT_BIN  # [16, 3]
@@ -340,20 +356,22 @@ def test_a_one_object_observation_maps_onto_the_target_of_three(env, env3):
         env3.observation_source_index(envs.make("arm2d"))
 
 
+@pytest.mark.mjx
 @pytest.mark.slow
 def test_a_presorted_episode_succeeds_when_its_last_object_lands_in_its_bin(env3, step3):
     params = env3.default_params().replace(presorted_prob=jnp.float32(1.0))
-    state = jax.jit(env3.reset)(jax.random.key(13), params)
+    state = compiled("panda_sort3").reset(jax.random.key(13), params)
     focus = int(np.argmin(np.asarray(state.sim.outcome) == IN_CORRECT_BIN))
     state, terms = run_steps(step3, drop_into_own_bin(env3, state, focus), params, [np.zeros(5)] * 20)
     assert list(terms.correct_bin[terms.correct_bin != 0]) == [500.0], "only the in-play object earns a placement"
     assert int(state.info.correct_count) == 3 and bool(state.episode.success) and bool(state.terminated)
 
 
+@pytest.mark.mjx
 @pytest.mark.slow
 def test_the_target_is_listed_first_shaped_alone_and_handed_on_to_the_nearest_object(env3, step3):
     params = env3.default_params()
-    state = jax.jit(env3.reset)(jax.random.key(14), params)
+    state = compiled("panda_sort3").reset(jax.random.key(14), params)
 
     def check_target_listed_and_shaped(state) -> tuple[int, np.ndarray, np.ndarray]:
         """Asserts the target's row comes first and its reach alone is shaped; (target, [3, 3] object
@@ -383,6 +401,7 @@ def test_the_target_is_listed_first_shaped_alone_and_handed_on_to_the_nearest_ob
     assert second == in_play[np.argmin(np.linalg.norm(positions[in_play] - tcp, axis=-1))], "not the nearest"
 
 
+@pytest.mark.mjx
 @pytest.mark.parametrize("shape", [SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE])
 def test_each_shape_dropped_into_its_bin_scores_500_once(env, params, reset, step, shape):
     size = 0.025
@@ -393,6 +412,7 @@ def test_each_shape_dropped_into_its_bin_scores_500_once(env, params, reset, ste
     assert int(state.info.correct_count) == 1 and bool(state.episode.success) and bool(state.terminated)
 
 
+@pytest.mark.mjx
 def test_wrong_bin_scores_200_once_and_the_object_leaves_play(env, params, reset, step):
     size = 0.025
     sphere_bin = env.layout.bin_centers[SHAPE_SPHERE]
@@ -403,6 +423,7 @@ def test_wrong_bin_scores_200_once_and_the_object_leaves_play(env, params, reset
     np.testing.assert_array_equal(np.asarray(state.obs[:OBJECT_OBS_SIZE]), 0.0)
 
 
+@pytest.mark.mjx
 def test_object_pushed_off_the_table_costs_50_once(env, params, reset, step):
     size = 0.025
     state = with_object(
@@ -418,12 +439,14 @@ def test_object_pushed_off_the_table_costs_50_once(env, params, reset, step):
     assert int(state.info.floor_count) == 1 and bool(state.terminated)
 
 
+@pytest.mark.mjx
 def test_in_play_objects_never_score_and_the_bin_counts_are_consistent(env, params, reset, step):
     state, terms = run_steps(step, reset(jax.random.key(5), params), params, [np.zeros(5)] * 5)
     assert not np.any(terms.correct_bin) and not np.any(terms.wrong_bin) and not np.any(terms.floor)
     assert int(state.info.in_play_count) == 1 and int(state.sim.outcome[0]) != IN_CORRECT_BIN
 
 
+@pytest.mark.mjx
 @pytest.mark.slow
 def test_random_actions_stay_finite_with_per_env_randomised_params():
     env = envs.make("panda_sort3")
@@ -454,6 +477,7 @@ def test_random_actions_stay_finite_with_per_env_randomised_params():
     assert np.all(np.isfinite(np.asarray(obs))) and np.all(np.isfinite(np.asarray(reward)))
 
 
+@pytest.mark.mjx
 def test_render_frame_is_an_rgb_image(env, params, reset):
     frame = env.render(reset(jax.random.key(7), params), params, height=120, width=160)
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8

@@ -16,13 +16,19 @@ import pytest  # noqa: E402
 from jaxarm.envs.peg_insert import PegInsert  # noqa: E402
 from jaxarm.envs.peg_insert.env import POSITION_SCALE, START_TIP_HEIGHT  # noqa: E402
 from jaxarm.envs.peg_insert.model import HOLE_DEPTH, HOLE_FLOOR, HOLE_NOMINAL, PEG_RADIUS  # noqa: E402
+from tests.envs.compiled import compiled, same_worker  # noqa: E402
 
 BLOCK_TOP = HOLE_FLOOR + HOLE_DEPTH
 
 
+pytestmark = [same_worker("peg_insert"), pytest.mark.mjx]
+
+
 @pytest.fixture(scope="module")
 def env():
-    return PegInsert()
+    env = compiled("peg_insert").env
+    assert isinstance(env, PegInsert)
+    return env
 
 
 @pytest.fixture(scope="module")
@@ -31,13 +37,13 @@ def params(env):
 
 
 @pytest.fixture(scope="module")
-def reset(env):
-    return jax.jit(env.reset)
+def reset():
+    return compiled("peg_insert").reset
 
 
 @pytest.fixture(scope="module")
-def step(env):
-    return jax.jit(env.step)
+def step():
+    return compiled("peg_insert").step
 
 
 def tip_to_hole(state) -> np.ndarray:

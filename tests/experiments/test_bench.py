@@ -48,6 +48,7 @@ def read_record(directory, suite: str, argv: list[str]) -> dict:
     return written
 
 
+@pytest.mark.slow
 def test_one_learner_alone_prints_its_line_and_no_table(capsys, tmp_path):
     argv = ["--env", "arm2d", "--num-envs", "64", "--env-steps", "8192", "--eval-episodes", "4"]
     argv += ["--learners", "jaxarm", "--out", str(tmp_path)]
@@ -70,6 +71,7 @@ def test_record_writes_unmeasured_figures_as_null(tmp_path):
     assert written["command"] == "python -m experiments.bench suite --flag 'a b'"
 
 
+@pytest.mark.slow
 def test_arm2d_suite_writes_its_table_rows(capsys, tmp_path):
     argv = ["--sizes", "1,16", "--steps", "20", "--out", str(tmp_path)]
     arm2d.main(argv)
@@ -82,6 +84,7 @@ def test_arm2d_suite_writes_its_table_rows(capsys, tmp_path):
     assert written["numpy_single_env_steps_per_second"] > 0
 
 
+@pytest.mark.slow
 def test_scaling_suite_writes_its_curves(tmp_path):
     argv = ["--envs", "arm2d", "--env-sizes", "1,16", "--ppo-sizes", "16", "--quick"]
     argv += ["--plot", str(tmp_path / "scaling.png"), "--out", str(tmp_path)]

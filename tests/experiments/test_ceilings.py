@@ -5,6 +5,7 @@ import json
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from experiments import configs
 from experiments.benchmarks import ceilings
@@ -66,6 +67,7 @@ def test_both_versions_of_the_two_link_maths_hold_the_goal_as_the_env_does():
     )
 
 
+@pytest.mark.slow
 def test_suite_prints_the_bound_and_the_table_and_writes_them(capsys, tmp_path):
     ceilings.main(["--seeds", "2", "--sizes", "64", "--steps", "20", "--out", str(tmp_path)])
     out = capsys.readouterr().out

@@ -3,6 +3,8 @@
 import json
 import types
 
+import pytest
+
 from experiments import configs
 from experiments.benchmarks import profile
 from jaxarm.agents.common.config import apply_overrides
@@ -48,6 +50,7 @@ def test_a_small_ppo_run_books_time_to_every_phase():
     assert "| sgd |" in table and "| wall clock |" in table
 
 
+@pytest.mark.slow
 def test_suite_writes_its_phases(capsys, tmp_path):
     argv = ["--updates", "1", "--out", str(tmp_path), "num_envs=16", "rollout_length=4", "num_minibatches=2"]
     profile.main(argv)

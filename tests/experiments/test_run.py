@@ -76,6 +76,7 @@ def test_evaluation_runs_on_the_eval_env_params_and_reports_the_final_info(tmp_p
     assert any(name.startswith("final_info/") for name in result)
 
 
+@pytest.mark.slow
 def test_eval_cli_rewrites_eval_json_and_draws_a_video(finished_run):
     assert eval_cli.main([str(finished_run), "--episodes", "7", "--video"]) == 0
     assert json.loads((finished_run / "eval.json").read_text())["episodes"] == 7
@@ -94,6 +95,7 @@ def test_cli_errors_are_one_line_and_name_the_closest(capsys, tmp_path):
     assert not (tmp_path / "a").exists()
 
 
+@pytest.mark.slow
 def test_resume_after_sigkill_matches_an_uninterrupted_run(finished_run, tmp_path):
     run_dir = tmp_path / "killed"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -143,6 +145,7 @@ def test_corrupt_or_mismatched_checkpoint_gives_a_clear_error(finished_run, tmp_
     assert not (corrupt / "eval.json").exists()
 
 
+@pytest.mark.slow
 def test_a_warm_start_begins_from_the_trained_networks_and_statistics(finished_run, tmp_path, capsys):
     config, _ = rundir.read_config(finished_run)
     trained = final_params(finished_run)
