@@ -70,13 +70,6 @@ def env_and_params(env_case):
     return env_case[:2]
 
 
-@pytest.fixture(scope="module")
-def jitted_steps(env_case):
-    """(jit(env.reset), jit(env.step), jit(AutoReset(env).step)): one compile each per env and process."""
-    shared = env_case[-1]
-    return shared.reset, shared.step, jax.jit(envs.AutoReset(shared.env).step)
-
-
 def rollout(env, params, key, num_envs, steps):
     """Runs `steps` random-action steps of a vmapped auto-reset env; returns the stacked states."""
     batch = envs.VmapEnv(envs.AutoReset(env), num_envs)
@@ -133,29 +126,28 @@ def test_same_key_same_trajectory(env_case):
     assert not np.array_equal(first.obs, other.obs)
 
 
-def test_time_limit_truncates_and_auto_reset_keeps_final_obs(env_and_params, jitted_steps):
-    env, params = env_and_params
-    reset, plain_step, step = jitted_steps
-    params = envs.override_params(params, {"max_episode_steps": 3})
-    state = reset(jax.random.key(3), params)
-    zero = jnp.zeros(env.spec.action_shape)
-    for _ in range(2):
-        state = step(state, zero, params)
-        assert not bool(state.done)
-    plain_last = plain_step(state, zero, params)
-    state = step(state, zero, params)
-    if bool(plain_last.terminated):
-        pytest.skip("the task terminated on the time-limit step with zero actions")
-    assert bool(state.truncated) and not bool(state.terminated)
-    np.testing.assert_allclose(state.final_obs, plain_last.obs, rtol=1e-5, atol=1e-5)
-    assert int(state.step_count) == 0 and int(state.last_episode.length) == 3
-    assert int(state.episode.length) == 0
+def test_time_limit_truncates_and_auto_reset_keeps_final_obs(env_case):
+    # The same rollout (same keys, so the same resets and actions) with a 3-step limit and with the env's own:
+    # on the third step the limited envs truncate, keep the observation the unlimited ones reach, and reset.
+    _, params, _, run, _ = env_case
+    key = jax.random.key(3)
+    free = run(params, key)
+    limited = run(envs.override_params(params, {"max_episode_steps": 3}), key)
+    assert int(params.max_episode_steps) > ROLLOUT_STEPS
+    assert not np.any(free.done[:3]), "an episode ended on its own within three random steps"
+    assert not np.any(limited.done[:2])
+    third = jax.tree.map(lambda leaf: leaf[2], limited)
+    assert np.all(third.truncated) and not np.any(third.terminated)
+    np.testing.assert_array_equal(third.final_obs, free.obs[2])
+    assert not np.array_equal(third.obs, free.obs[2]), "the truncated envs were reset"
+    assert np.all(third.step_count == 0) and np.all(third.last_episode.length == 3)
+    assert np.all(third.episode.length == 0)
 
 
-def test_nan_actions_are_zeroed_and_counted(env_and_params, jitted_steps):
-    env, params = env_and_params
-    reset, plain_step, _ = jitted_steps
-    state = reset(jax.random.key(5), params)
+def test_nan_actions_are_zeroed_and_counted(env_case):
+    env, params, _, _, shared = env_case
+    plain_step = shared.step
+    state = shared.reset(jax.random.key(5), params)
     nan_step = plain_step(state, jnp.full(env.spec.action_shape, jnp.nan), params)
     zero_step = plain_step(state, jnp.zeros(env.spec.action_shape), params)
     np.testing.assert_array_equal(nan_step.obs, zero_step.obs)
