@@ -17,6 +17,7 @@ import numpy as np
 from mujoco import mjx
 
 from jaxarm.envs.base import Env, EnvState, HasEpisodeLimit
+from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, pose_fixed_geoms, put_scene, resolve_impl
 from jaxarm.envs.panda.render import render_qpos
 from jaxarm.envs.panda.robot import HOME_QPOS, PandaIds, ik_arm_targets, solve_arm_posture, tcp_pose_at
 
@@ -78,10 +79,15 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       ids: the task's ids, resolved in `mj_model`.
       start_tcp: [3] tool-centre position of the arm's start posture (`start_qpos`), pointing down; the IK's
         null space pulls the arm towards that posture.
+      impl: MJX implementation of the physics: "jax", "warp" (NVIDIA's Warp; needs warp-lang and a CUDA GPU
+        or the CPU) or "auto" (Warp on an NVIDIA GPU when warp-lang is importable, else JAX).
+      max_envs: Warp only: its contact buffer, shared by all envs of a batch, holds the scene's worst case for
+        this many envs. Larger batches run while their contacts fit; a step that overflows raises.
 
     Attributes:
       mj_model: the compiled scene as built (drawing poses a copy of it).
       ids: the task's ids; `ids.robot` the robot's.
+      impl: the MJX implementation in use (`Impl.JAX` or `Impl.WARP`).
       substeps: physics steps per env step (`CONTROL_DT` over the model's timestep).
       mjx_model: `mj_model` on the device; tasks replace its per-episode fields in `episode_model`.
       home_tcp_rotation: [3, 3] tool-centre orientation at HOME_QPOS (pointing down, yaw 0).
@@ -90,12 +96,19 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
 
     uses_mjx = True
 
-    def __init__(self, mj_model: mujoco.MjModel, ids: IdsT, start_tcp: np.ndarray):
+    def __init__(
+        self,
+        mj_model: mujoco.MjModel,
+        ids: IdsT,
+        start_tcp: np.ndarray,
+        impl: str = Impl.JAX,
+        max_envs: int = 4096,
+    ):
         self.mj_model = mj_model
         self.ids = ids
+        self.impl = resolve_impl(impl)
         self.substeps = int(round(CONTROL_DT / mj_model.opt.timestep))
-        self.mjx_model = mjx.put_model(mj_model)
-        self._data0 = mjx.make_data(mj_model)
+        self.mjx_model, self._data0 = put_scene(mj_model, self.impl, max_envs)
         self.home_tcp_rotation = tcp_pose_at(mj_model, ids.robot, HOME_QPOS)[1]
         self.start_qpos = self.solve_posture(start_tcp)
 
@@ -119,7 +132,15 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
     def kinematics(self, model: mjx.Model, sim: PandaSimState) -> mjx.Data:
         """mjx.Data at the sim's state with positions, orientations and com-frame quantities (for Jacobians)."""
         data = self._data0.replace(qpos=sim.qpos, qvel=sim.qvel, ctrl=sim.ctrl, qacc_warmstart=sim.qacc_warmstart)
-        return mjx.com_pos(model, mjx.kinematics(model, data))
+        data = mjx.kinematics(model, data)
+        if self.impl == Impl.WARP:
+            data = pose_fixed_geoms(self.mj_model, model, data)
+        return mjx.com_pos(model, data)
+
+    def simulate(self, model: mjx.Model, data: mjx.Data) -> mjx.Data:
+        """`data` after `substeps` physics steps (one env step); raises if Warp dropped contacts on the way."""
+        data = jax.lax.fori_loop(0, self.substeps, lambda _, d: mjx.step(model, d), data)
+        return check_no_overflow(data)
 
     def ik_targets(
         self,

@@ -26,6 +26,7 @@ from mujoco import mjx
 
 from jaxarm.envs.base import Env, EnvSpec, Transition
 from jaxarm.envs.panda.base import PandaBase
+from jaxarm.envs.panda.mjx_impl import Impl, with_geom_sizes
 from jaxarm.envs.panda.robot import FINGER_OPEN, rotation_about_z, tcp_jacobian, yaw_of_quaternion, yaw_of_rotation
 from jaxarm.envs.panda_sort.curriculum import draw_start, place_in_hand
 from jaxarm.envs.panda_sort.layout import make_layout
@@ -87,6 +88,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         objects starting from it (slots in cyclic order), and the shaping terms follow it alone, so a policy
         always finds the object to work on in the first slot and several objects become the one-object task
         repeated. With one object nothing changes.
+      impl, max_envs: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
     """
 
     # jaxlib 0.10.2's CPU runtime deadlocked on this env at 256 envs (one object) and 128 (three): two batched
@@ -100,6 +102,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         blocker: bool = False,
         tosser: bool = False,
         target_first: bool = False,
+        impl: str = Impl.JAX,
+        max_envs: int = 4096,
     ):
         if not 1 <= objects_count <= 5:
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
@@ -111,7 +115,9 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self.layout = make_layout(blocker=blocker, tosser=tosser)
         mj_model = build_model(objects_count, self.layout)
         spawn_centre = (np.array(self.layout.spawn_low) + np.array(self.layout.spawn_high)) / 2
-        super().__init__(mj_model, resolve_ids(mj_model, objects_count), np.r_[spawn_centre, START_HEIGHT])
+        super().__init__(
+            mj_model, resolve_ids(mj_model, objects_count), np.r_[spawn_centre, START_HEIGHT], impl, max_envs
+        )
         self.grasp_qpos = self.solve_posture(np.r_[spawn_centre, GRASP_HEIGHT])
         action_size = 5 if control_mode == MODE_EE else 8
         self.spec = EnvSpec(observation_shape=(OBJECT_OBS_SIZE * objects_count + 21,), action_shape=(action_size,))
@@ -145,12 +151,12 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         invweight = jnp.stack([1.0 / mass, jnp.mean(1.0 / inertia, axis=-1)], -1)
         friction = model.pair_friction.at[ids.finger_pair, :2].set(params.finger_friction)
         friction = friction.at[ids.object_pair, :2].set(params.object_friction)
-        return model.replace(
-            geom_size=model.geom_size.at[geom_ids].set(sizes),
-            geom_rbound=model.geom_rbound.at[geom_ids].set(rbound),
+        return with_geom_sizes(model, geom_ids, sizes, rbound).replace(
             body_mass=model.body_mass.at[ids.object_body].set(mass),
             body_inertia=model.body_inertia.at[ids.object_body].set(inertia),
             body_invweight0=model.body_invweight0.at[ids.object_body].set(invweight),
+            # Each object is a free body of its own: its subtree is itself (Warp's com_pos reads this; JAX's sums).
+            body_subtreemass=model.body_subtreemass.at[ids.object_body].set(mass),
             pair_friction=friction,
         )
 
@@ -273,7 +279,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
         data = data.replace(ctrl=self._ctrl(model, data, action, params))
-        data = jax.lax.fori_loop(0, self.substeps, lambda _, d: mjx.step(model, d), data)
+        data = self.simulate(model, data)
         outcome = next_outcome(sim.outcome, sim.shape, object_positions(self.ids, data.qpos), self.layout)
         qpos, qvel = park(self.ids, data.qpos, data.qvel, outcome != IN_PLAY)
         next_sim = sim.replace(

@@ -21,6 +21,7 @@ from mujoco import mjx
 
 from jaxarm.envs.base import EnvSpec, Transition
 from jaxarm.envs.panda.base import PandaBase
+from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, with_geom_sizes
 from jaxarm.envs.peg_insert.model import (
     HOLE_FLOOR,
     HOLE_NOMINAL,
@@ -75,11 +76,16 @@ class PegInsertInfo(struct.PyTreeNode):
 
 
 class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
-    """The Panda inserting a peg held in its hand into a square hole shifted at random every episode."""
+    """The Panda inserting a peg held in its hand into a square hole shifted at random every episode.
 
-    def __init__(self):
+    Args:
+      impl, max_envs: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
+    """
+
+    def __init__(self, impl: str = Impl.JAX, max_envs: int = 4096):
         mj_model = build_model()
-        super().__init__(mj_model, resolve_ids(mj_model), np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH]))
+        start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
+        super().__init__(mj_model, resolve_ids(mj_model), start_tcp, impl, max_envs)
         self.spec = EnvSpec(observation_shape=(12,), action_shape=(3,))
 
     def default_params(self) -> PegInsertParams:
@@ -92,11 +98,10 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         ids, model = self.ids, self.mjx_model
         centres, halves = hole_walls(params.clearance)
         block_pos = jnp.concatenate([sim.hole, jnp.zeros(1)])
+        model = with_geom_sizes(model, ids.wall_geoms, halves, jnp.linalg.norm(halves, axis=-1))
         return model.replace(
             body_pos=model.body_pos.at[ids.block_body].set(block_pos),
             geom_pos=model.geom_pos.at[ids.wall_geoms].set(centres),
-            geom_size=model.geom_size.at[ids.wall_geoms].set(halves),
-            geom_rbound=model.geom_rbound.at[ids.wall_geoms].set(jnp.linalg.norm(halves, axis=-1)),
             pair_friction=model.pair_friction.at[ids.block_pairs, :2].set(params.friction),
         )
 
@@ -104,13 +109,18 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         place_block(model, self.ids, np.asarray(sim.hole), np.asarray(params.clearance))
 
     def table_contact(self, data: mjx.Data) -> jax.Array:
-        """[] bool: the peg penetrates the table top (from the contacts of the last collision pass)."""
-        geoms = data.contact.geom
-        pair = {self.ids.table_geom, self.ids.peg_geom}
-        is_table = ((geoms[:, 0] == min(pair)) & (geoms[:, 1] == max(pair))) | (
-            (geoms[:, 0] == max(pair)) & (geoms[:, 1] == min(pair))
-        )
-        return jnp.any(is_table & (data.contact.dist < 0.0))
+        """[] bool: the peg penetrates the table top in the last collision pass (whose poses `data` holds).
+
+        The table-peg pair is plane-capsule, whose contact distances are the heights of the capsule's end
+        spheres over the plane; they are computed here because Warp's contacts of a whole batch share one
+        buffer that no env can pick its own from.
+        """
+        ids = self.ids
+        radius, half_length = self.mj_model.geom_size[ids.peg_geom, :2]
+        axis = data.geom_xmat[ids.peg_geom][:, 2]
+        ends = data.geom_xpos[ids.peg_geom] + jnp.array([[half_length], [-half_length]]) * axis
+        heights = (ends - data.geom_xpos[ids.table_geom]) @ data.geom_xmat[ids.table_geom][:, 2] - radius
+        return jnp.any(heights < 0.0)
 
     def peg_tip(self, data: mjx.Data) -> jax.Array:
         return data.site_xpos[self.ids.peg_tip]
@@ -184,6 +194,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             return data, touched | self.table_contact(data)
 
         data, touched = jax.lax.fori_loop(0, self.substeps, substep, (data, jnp.zeros((), jnp.bool_)))
+        data = check_no_overflow(data)
         next_sim = sim.replace(
             qpos=data.qpos, qvel=data.qvel, qacc_warmstart=data.qacc_warmstart, ctrl=data.ctrl, tcp_target=target
         )
