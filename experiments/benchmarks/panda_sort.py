@@ -1,5 +1,7 @@
 """Panda sorter (MJX) env steps/s and physics steps/s beside bare jit(vmap(mjx.step)) of the same model, same run.
 
+`--impl jax,warp` times both MJX implementations in one run (Warp needs warp-lang and a CUDA GPU).
+
 The env runs `steps` auto-reset env steps (random actions, IK, substeps, scoring, observation, statistics)
 inside one jitted `lax.scan` per batch size. The peer steps the same mjx.Model (this episode's object sizes,
 shared by all envs) with nothing but `mjx.step`, `steps x substeps` times in one scan; their ratio is the cost
@@ -60,42 +62,48 @@ def main(argv: Sequence[str]) -> None:
         default="1,64",
         help="comma-separated env counts (e.g. 1,1024,4096,16384 on a GPU; at most 64 on a CPU)",
     )
+    parser.add_argument("--impl", default="jax", help='comma-separated MJX implementations: "jax", "warp"')
     parser.add_argument("--steps", type=int, default=20, help="env steps per timed scan")
     parser.add_argument("--repeats", type=int, default=2, help="timed repeats; the best is reported")
     add_out_argument(parser)
     args = parser.parse_args(argv)
-    env = envs.make(args.env)
+    sizes = [int(text) for text in args.sizes.split(",")]
+    # Warp's contact buffer is shared by a batch: sized for the largest.
+    env_by_impl = {impl: envs.make(args.env, impl=impl, max_envs=max(sizes)) for impl in args.impl.split(",")}
+    env = next(iter(env_by_impl.values()))
     print(
         f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; env {args.env}: "
         f"{env.objects_count} objects, {env.substeps} physics substeps per env step, "
         f"{env.mj_model.npair} contact pairs"
     )
     print(
-        "| envs | env steps/s | physics steps/s (env) | bare mjx.step physics steps/s | env / bare "
+        "| impl | envs | env steps/s | physics steps/s (env) | bare mjx.step physics steps/s | env / bare "
         "| compile s (env) | compile s (bare) |"
     )
-    print("|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
     rows = []
-    for size in (int(text) for text in args.sizes.split(",")):
-        rate, env_compile = env_rates(env, size, args.steps, args.repeats)
-        bare, bare_compile = bare_mjx_rates(env, size, args.steps * env.substeps, args.repeats)
-        physics = rate * env.substeps
-        print(
-            f"| {size:,} | {rate:,.4g} | {physics:,.4g} | {bare:,.4g} | {physics / bare:.2f} "
-            f"| {env_compile:.1f} | {bare_compile:.1f} |",
-            flush=True,
-        )
-        rows.append(
-            {
-                "envs": size,
-                "env_steps_per_second": rate,
-                "physics_steps_per_second": physics,
-                "bare_mjx_physics_steps_per_second": bare,
-                "env_over_bare": physics / bare,
-                "compile_seconds_env": env_compile,
-                "compile_seconds_bare": bare_compile,
-            }
-        )
+    for impl, env in env_by_impl.items():
+        for size in sizes:
+            rate, env_compile = env_rates(env, size, args.steps, args.repeats)
+            bare, bare_compile = bare_mjx_rates(env, size, args.steps * env.substeps, args.repeats)
+            physics = rate * env.substeps
+            print(
+                f"| {impl} | {size:,} | {rate:,.4g} | {physics:,.4g} | {bare:,.4g} | {physics / bare:.2f} "
+                f"| {env_compile:.1f} | {bare_compile:.1f} |",
+                flush=True,
+            )
+            rows.append(
+                {
+                    "impl": impl,
+                    "envs": size,
+                    "env_steps_per_second": rate,
+                    "physics_steps_per_second": physics,
+                    "bare_mjx_physics_steps_per_second": bare,
+                    "env_over_bare": physics / bare,
+                    "compile_seconds_env": env_compile,
+                    "compile_seconds_bare": bare_compile,
+                }
+            )
     write_record(
         args.out,
         "panda_sort",
