@@ -25,9 +25,11 @@ MJX_NUM_ENVS = 16
 
 FULL_CONTRACT = [names[0] for names in envs.families().values()]
 VARIANTS = [name for names in envs.families().values() for name in names[1:]]
-SHARES_PROGRAMS_WITH = {"panda_sort": "panda_sort", "panda_sort3": "panda_sort", "peg_insert": "peg_insert"}
-"""Env -> the xdist group of the test file that compiles the same programs (test_panda_sort.py steps
-panda_sort3 too); other envs' programs are compiled here alone and may run in any worker."""
+WORKER_GROUPS = {"panda_sort": "panda_sort_contract", "panda_sort3": "panda_sort", "peg_insert": "peg_insert"}
+"""Env -> the xdist group its contract tests run in. panda_sort3 and peg_insert join their test files' groups,
+whose programs they share. panda_sort's contract keeps a group of its own, so that its tests share their
+rollout in one worker while test_panda_sort.py, the largest group, runs in the other: on two workers that
+balance saves more than compiling the sorter's reset and step in both costs. Other envs may run anywhere."""
 
 
 def with_worker_group(names: list[str]) -> list:
@@ -40,7 +42,7 @@ def with_worker_group(names: list[str]) -> list:
 
 
 def worker_group(name: str) -> list:
-    return [same_worker(SHARES_PROGRAMS_WITH[name])] if name in SHARES_PROGRAMS_WITH else []
+    return [same_worker(WORKER_GROUPS[name])] if name in WORKER_GROUPS else []
 
 
 def uses_mjx(name: str) -> bool:
