@@ -82,7 +82,9 @@ class RunConfig:
         chunk is the same compiled program: a shorter last chunk would compile again).
       updates_per_chunk: updates compiled into one call; the runner logs and checkpoints between calls.
       checkpoint_every_updates: save the learner state at the first chunk end after this many updates.
-      eval_episodes: fresh episodes for the final deterministic evaluation.
+      eval_episodes: fresh episodes for each deterministic evaluation (during training and at its end).
+      eval_every_updates: also evaluate at the first chunk end after each multiple of this many updates,
+        logging "eval/..." in metrics and keeping the best-scoring checkpoint; 0 for the final evaluation only.
       seed: PRNG seed of the run.
       init_from: run directory whose latest checkpoint initialises the networks (a warm start, for learners
         that have one, see `jaxarm.agents.registry`; the env maps the old observation onto its own:
@@ -100,6 +102,13 @@ class RunConfig:
     eval_episodes: int = 1000
     seed: int = 0
     init_from: str = ""
+    eval_every_updates: int = 0
+
+    @property
+    def budget_shapes_updates(self) -> str:
+        """What in the learner's updates follows `total_env_steps` (e.g. a learning-rate schedule), "" if nothing:
+        such a run's budget cannot change on resume. Learners' configs say so where it applies."""
+        return ""
 
     @classmethod
     def dynamic_fields(cls) -> tuple[str, ...]:
@@ -118,6 +127,10 @@ class RunConfig:
         for field in ("num_envs", "total_env_steps", "updates_per_chunk", "checkpoint_every_updates", "eval_episodes"):
             if getattr(self, field) <= 0:
                 raise ValueError(f"{field} must be positive, got {getattr(self, field)}")
+        if self.eval_every_updates < 0:
+            raise ValueError(
+                f"eval_every_updates must be 0 (final evaluation only) or positive, got {self.eval_every_updates}"
+            )
         try:
             self.make_eval_env()
         except (KeyError, ValueError, TypeError) as error:
@@ -158,7 +171,9 @@ def parse_value(text: str, annotation) -> Any:
         return text
     if typing.get_origin(annotation) is tuple:
         item_type = typing.get_args(annotation)[0]
-        return tuple(parse_value(part, item_type) for part in text.split(",") if part)
+        # `64,64`, `[64,64]` and `(64, 64)` all name the same sizes.
+        parts = text.strip().removeprefix("[").removeprefix("(").removesuffix("]").removesuffix(")").split(",")
+        return tuple(parse_value(part.strip(), item_type) for part in parts if part.strip())
     raise ValueError(f"cannot parse a value of type {annotation}")
 
 

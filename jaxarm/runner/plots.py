@@ -11,7 +11,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from experiments.stats import confidence_halfwidth
+from jaxarm.runner.stats import confidence_halfwidth
 
 
 def _figure(width: float, height: float, columns: int = 1, rows: int = 1):
