@@ -4,7 +4,8 @@ A second command that compiles the same program (same config, jax version and de
 instead of compiling again: MJX programs compile for about a minute each. The cache lives in
 `~/.cache/jaxarm/jax` (or `$XDG_CACHE_HOME/jaxarm/jax`); `JAXARM_COMPILATION_CACHE=DIR` moves it and
 `JAXARM_COMPILATION_CACHE=off` turns it off. A cache set through JAX's own `JAX_COMPILATION_CACHE_DIR` is left
-as it is. Programs that compile in under half a second are not worth a disk write and are left out.
+as it is. Programs that compile in under half a second are not worth a disk write and are left out (JAX's
+`JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS` changes that).
 """
 
 import os
@@ -35,5 +36,6 @@ def enable_compilation_cache() -> pathlib.Path | None:
         return None
     directory.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(directory))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_SECONDS)
+    if "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS" not in os.environ:
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_SECONDS)
     return directory

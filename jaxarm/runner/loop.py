@@ -135,6 +135,7 @@ def train(
     evaluation describes that state.
     """
     run_dir = pathlib.Path(run_dir)
+    rundir.check_holds_a_run_or_nothing(run_dir)
     with rundir.locked(run_dir):
         return _train_locked(config, preset, run_dir, resume, options)
 
@@ -143,6 +144,7 @@ def resume(run_dir: pathlib.Path, overrides: Sequence[str] = (), options=Options
     """Continues the run in `run_dir` from its latest checkpoint with the `key=value` overrides a resumed run may
     take (rundir.RESUMABLE_KEYS; recorded in config.json and resumes.jsonl). Returns (evaluation, config)."""
     run_dir = pathlib.Path(run_dir)
+    rundir.read_config(run_dir)  # fails on a directory that is no run before the lock writes anything
     with rundir.locked(run_dir):
         config, preset = rundir.read_config(run_dir)
         overrides = list(overrides)
@@ -165,6 +167,7 @@ def _train_locked(config: RunConfig, preset: str, run_dir: pathlib.Path, resume:
         resume = False
     elif has_run and not resume:
         raise rundir.RunDirError(f"{run_dir} already holds a run; use --resume {run_dir} or another --out")
+
     elif resume and not has_run:
         raise rundir.RunDirError(f"{run_dir} is not a run directory: no config.json")
     if resume:
@@ -218,7 +221,7 @@ def _train_locked(config: RunConfig, preset: str, run_dir: pathlib.Path, resume:
             )
             if crossed(config.eval_every_updates, done_updates, done_updates + count):
                 result = evaluator(state, eval_key)
-                rows[-1].update({f"eval/{name}": value for name, value in result.items() if name != "episodes"})
+                rows[-1].update({f"eval/{name}": value for name, value in result.items() if isinstance(value, float)})
                 if better(result, best):
                     best = {"updates": done_updates + count, **result}
                     checkpoint.save(run_dir / "best", done_updates + count, state)

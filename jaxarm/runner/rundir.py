@@ -73,6 +73,17 @@ def foreign_files(run_dir: pathlib.Path) -> list[str]:
     )
 
 
+def check_holds_a_run_or_nothing(run_dir: pathlib.Path) -> None:
+    """RunDirError, before anything is written, when `run_dir` holds files but no run (no config.json)."""
+    if run_dir.is_dir() and not (run_dir / "config.json").exists():
+        held = sorted(path.name for path in run_dir.iterdir() if path.name != ".lock")
+        if held:
+            raise RunDirError(
+                f"{run_dir} holds files but no run ({', '.join(held[:5])}; no config.json); choose another --out "
+                "(nothing was written)"
+            )
+
+
 def any_checkpoint_files(run_dir: pathlib.Path) -> bool:
     """Whether `run_dir/checkpoints` holds anything (complete or not: what is there is never deleted)."""
     directory = run_dir / "checkpoints"
@@ -96,7 +107,10 @@ def locked(run_dir: pathlib.Path) -> Iterator[pathlib.Path]:
     created = not run_dir.exists() or not any(run_dir.iterdir())
     run_dir.mkdir(parents=True, exist_ok=True)
     path = run_dir / ".lock"
-    handle = path.open("a+")
+    try:
+        handle = path.open("a+")
+    except PermissionError:
+        raise RunDirError(f"{run_dir} is not writable; copy the run somewhere writable and retry") from None
     try:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
