@@ -4,6 +4,8 @@ Headless machines need an offscreen GL: set MUJOCO_GL=osmesa (apt package libosm
 (libegl1 and a GPU driver, or Mesa's software EGL) before mujoco is imported.
 """
 
+import weakref
+
 import mujoco
 import numpy as np
 
@@ -19,6 +21,8 @@ class Drawing:
         self.model = model
         self.data = mujoco.MjData(model)
         self.renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        # Closed while the interpreter still runs: closed at its teardown, a renderer prints a TypeError.
+        weakref.finalize(self, _close_all, self.renderers)
 
     def render(self, qpos: np.ndarray, height: int, width: int, camera: str) -> np.ndarray:
         """`model` posed at `qpos` [nq] -> [height, width, 3] uint8 RGB frame seen from `camera`."""
@@ -30,3 +34,8 @@ class Drawing:
         renderer = self.renderers[size]
         renderer.update_scene(self.data, camera=camera)
         return renderer.render()
+
+
+def _close_all(renderers: dict[tuple[int, int], mujoco.Renderer]) -> None:
+    for renderer in renderers.values():
+        renderer.close()
