@@ -23,7 +23,7 @@ def cache_dir(environ=os.environ) -> pathlib.Path | None:
     chosen = environ.get(ENV_VAR)
     if chosen is not None:
         return None if chosen.strip().lower() in OFF else pathlib.Path(chosen).expanduser()
-    base = pathlib.Path(environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache")
+    base = pathlib.Path(environ.get("XDG_CACHE_HOME") or pathlib.Path(environ.get("HOME", "~")).expanduser() / ".cache")
     return base / "jaxarm" / "jax"
 
 
