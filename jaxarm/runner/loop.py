@@ -144,18 +144,17 @@ def resume(run_dir: pathlib.Path, overrides: Sequence[str] = (), options=Options
     """Continues the run in `run_dir` from its latest checkpoint with the `key=value` overrides a resumed run may
     take (rundir.RESUMABLE_KEYS; recorded in config.json and resumes.jsonl). Returns (evaluation, config)."""
     run_dir = pathlib.Path(run_dir)
-    rundir.read_config(run_dir)  # fails on a directory that is no run before the lock writes anything
+    # Checked before the lock writes anything: a directory that is no run, or overrides it may not take.
+    config, preset = rundir.read_config(run_dir)
+    config = rundir.apply_resume_overrides(config, list(overrides))
     with rundir.locked(run_dir):
-        config, preset = rundir.read_config(run_dir)
-        overrides = list(overrides)
-        if overrides:
-            config = rundir.apply_resume_overrides(config, overrides)
-            latest = checkpoint.latest_step(run_dir / "checkpoints")
-            rundir.record_resume(run_dir, config, preset, overrides, latest or 0)
-        return _train_locked(config, preset, run_dir, True, options), config
+        return _train_locked(config, preset, run_dir, True, options, list(overrides)), config
 
 
-def _train_locked(config: RunConfig, preset: str, run_dir: pathlib.Path, resume: bool, options: Options) -> dict:
+def _train_locked(
+    config: RunConfig, preset: str, run_dir: pathlib.Path, resume: bool, options: Options, overrides: Sequence[str] = ()
+) -> dict:
+    """`train`, with the lock held; a resume's `overrides` are recorded once its checkpoint is restored."""
     trainer = registry.make_trainer(config)
     hparams = config.hparams()
     checkpoints = run_dir / "checkpoints"
@@ -173,6 +172,8 @@ def _train_locked(config: RunConfig, preset: str, run_dir: pathlib.Path, resume:
     if resume:
         state = rundir.restore_state(run_dir, trainer, config)
         done_updates = int(state.updates)
+        if overrides:
+            rundir.record_resume(run_dir, config, preset, overrides, done_updates)
         rundir.truncate_metrics(run_dir, done_updates)
         wall_offset = max([row["wall_time"] for row in rundir.read_metrics(run_dir)], default=0.0)
     else:

@@ -26,7 +26,7 @@ import pathlib
 import shutil
 import time
 import typing
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import jax
@@ -270,7 +270,7 @@ and evaluated, and how, but neither the compiled update nor what it computes. `e
 too. `total_env_steps` only where the learner's schedule does not depend on it (`RunConfig.budget_shapes_updates`)."""
 
 
-def apply_resume_overrides(config: RunConfig, overrides: list[str]) -> RunConfig:
+def apply_resume_overrides(config: RunConfig, overrides: Sequence[str]) -> RunConfig:
     """`config` with the `key=value` overrides a resumed run may take; RunDirError listing those for any other."""
     allowed = [*RESUMABLE_KEYS, "eval_env_params.NAME"]
     for item in overrides:
@@ -290,9 +290,9 @@ def apply_resume_overrides(config: RunConfig, overrides: list[str]) -> RunConfig
     return apply_overrides(config, overrides)
 
 
-def record_resume(run_dir: pathlib.Path, config: RunConfig, preset: str, overrides: list[str], update: int) -> None:
+def record_resume(run_dir: pathlib.Path, config: RunConfig, preset: str, overrides: Sequence[str], update: int) -> None:
     """Writes the overridden config to config.json and appends the overrides to resumes.jsonl."""
-    row = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "resumed_at_update": update, "overrides": overrides}
+    row = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "resumed_at_update": update, "overrides": list(overrides)}
     with (run_dir / "resumes.jsonl").open("a") as log:
         log.write(json.dumps(row) + "\n")
     write_config(run_dir, config, preset)

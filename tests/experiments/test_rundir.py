@@ -190,6 +190,19 @@ def test_resume_refuses_overrides_that_change_the_learner_and_changes_nothing(re
     assert snapshot(reference) == before
 
 
+def test_a_resume_that_cannot_restore_records_nothing(reference, tmp_path, capsys):
+    damaged = tmp_path / "damaged"
+    shutil.copytree(reference, damaged)
+    for path in (damaged / "checkpoints").rglob("*"):
+        if path.is_file():
+            path.write_text("garbage")
+    before = snapshot(damaged)
+    assert run.main(["--resume", str(damaged), "eval_episodes=5"]) == 2
+    error = capsys.readouterr().err
+    assert "cannot be restored" in error and error.count("\n") == 1, "one line, orbax's own log lines silenced"
+    assert snapshot(damaged) == before and not (damaged / "resumes.jsonl").exists()
+
+
 def test_evaluation_during_training_logs_rows_keeps_the_best_and_draws_them(tmp_path):
     run_dir = tmp_path / "evaluated"
     assert run_cli("eval_every_updates=8", "--out", str(run_dir)) == 0
