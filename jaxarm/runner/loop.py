@@ -166,7 +166,6 @@ def _train_locked(
         resume = False
     elif has_run and not resume:
         raise rundir.RunDirError(f"{run_dir} already holds a run; use --resume {run_dir} or another --out")
-
     elif resume and not has_run:
         raise rundir.RunDirError(f"{run_dir} is not a run directory: no config.json")
     if resume:
@@ -189,18 +188,19 @@ def _train_locked(
     eval_key = jax.random.PRNGKey(config.seed + FINAL_EVAL_SEED_OFFSET)
     best_path = run_dir / "best.json"
     best = json.loads(best_path.read_text()) if resume and best_path.exists() else None
-    sinks: list[Sink] = [TensorBoardSink(run_dir / "tensorboard")]
-    if options.wandb:
-        sinks.append(WandbSink(options.wandb, run_dir, json.loads((run_dir / "config.json").read_text())))
     runners: dict[int, Callable] = {}
     last_saved = done_updates
     start = time.perf_counter()
     stop = StopRequests()
-    with (
-        stop.installed(),
-        progress.Progress(trainer.num_updates * trainer.env_steps_per_update) as bar,
-        (run_dir / "metrics.jsonl").open("a") as log,
-    ):
+    with contextlib.ExitStack() as stack:
+        sinks: list[Sink] = [TensorBoardSink(run_dir / "tensorboard")]
+        if options.wandb:
+            sinks.append(WandbSink(options.wandb, run_dir, json.loads((run_dir / "config.json").read_text())))
+        for sink in sinks:
+            stack.callback(sink.close)
+        stack.enter_context(stop.installed())
+        bar = stack.enter_context(progress.Progress(trainer.num_updates * trainer.env_steps_per_update))
+        log = stack.enter_context((run_dir / "metrics.jsonl").open("a"))
         bar.advance_to(done_updates * trainer.env_steps_per_update)
         while done_updates < trainer.num_updates:
             count = min(config.updates_per_chunk, trainer.num_updates - done_updates)
@@ -246,16 +246,12 @@ def _train_locked(
             if options.on_chunk:
                 options.on_chunk(done_updates)
             if stop.requested:
-                for sink in sinks:
-                    sink.close()
                 raise TrainingInterrupted(
                     f"interrupted: checkpoint at update {done_updates} of {trainer.num_updates} saved in "
                     f"{checkpoints}; continue with: python -m experiments.run --resume {run_dir}"
                 )
             if out_of_time:
                 break
-    for sink in sinks:
-        sink.close()
     train_time = wall_offset + time.perf_counter() - start
     result = evaluator(state, eval_key)
     result["train_wall_time"] = train_time
