@@ -21,7 +21,13 @@ def suite_summary(name: str) -> str:
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv and argv[0] in SUITES:
-        enable_compilation_cache()
+        cache = enable_compilation_cache()
+        if cache:
+            print(
+                f"compilation cache: {cache} (a program read from it reports its load time as compile s; "
+                "JAXARM_COMPILATION_CACHE=off times real compiles)",
+                file=sys.stderr,
+            )
         importlib.import_module(f"experiments.benchmarks.{argv[0]}").main(argv[1:])
         return 0
     parser = argparse.ArgumentParser(

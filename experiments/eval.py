@@ -9,6 +9,7 @@ few episodes drawn without a window. The run directory is locked while this writ
 import argparse
 import pathlib
 import sys
+import time
 
 import jax
 
@@ -46,11 +47,13 @@ def main(argv=None) -> int:
         trainer = configs.make_trainer(config)
         with rundir.locked(run_dir):
             state = rundir.restore_state(run_dir, trainer, config, best=args.best)
+            start = time.perf_counter()
             result = rundir.evaluate_state(trainer, config, state, args.episodes, args.seed)
             result["checkpoint_update"] = int(state.updates)
             print(
                 f"{run_dir}: success_rate {result['success_rate']:.3f} return_mean {result['return_mean']:.2f} "
-                f"over {result['episodes']} episodes (update {result['checkpoint_update']})",
+                f"over {result['episodes']} episodes (update {result['checkpoint_update']}; "
+                f"{time.perf_counter() - start:.1f} s with compilation)",
                 flush=True,
             )
             path = rundir.eval_path(run_dir, args.episodes, args.seed)
@@ -59,10 +62,11 @@ def main(argv=None) -> int:
             if args.video:
                 env, env_params = config.make_eval_env()
                 key = jax.random.PRNGKey(args.seed + 1)
+                start = time.perf_counter()
                 frames = video.episode_frames(env, env_params, trainer, state, key, VIDEO_EPISODES)
                 video_path = run_dir / f"video.{args.video}"
                 video.write_video(video_path, frames)
-                print(f"wrote {video_path} ({len(frames)} frames)")
+                print(f"wrote {video_path} ({len(frames)} frames, {time.perf_counter() - start:.1f} s)")
     except (ValueError, OSError, checkpoint.CheckpointError, video.RenderError) as error:
         print(f"error: {error}", file=sys.stderr)
         quiet_libraries()

@@ -7,6 +7,7 @@ Panda envs draw with MuJoCo's renderer, which needs an offscreen GL platform on 
 
 import operator
 import pathlib
+import warnings
 
 import imageio.v2 as imageio
 import jax
@@ -60,7 +61,10 @@ def write_video(path: pathlib.Path, frames: list[np.ndarray]) -> None:
         import imageio_ffmpeg  # noqa: F401
     except ImportError:
         raise RenderError("mp4 needs imageio-ffmpeg: pip install 'jaxarm[video]' (or write a .gif)") from None
-    # Frame sides must be even for the H.264 encoder's yuv420p; macro_block_size=1 keeps them as drawn.
-    with imageio.get_writer(path, fps=round(1 / FRAME_SECONDS), macro_block_size=1) as writer:
-        for frame in frames:
-            writer.append_data(np.asarray(frame))  # type: ignore[attr-defined]
+    # ffmpeg runs as a child process; JAX's warning about forking a threaded process does not apply to an exec.
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="os.fork", category=RuntimeWarning)
+        # macro_block_size=1: imageio would otherwise pad frames to multiples of 16 pixels (and warn).
+        with imageio.get_writer(path, fps=round(1 / FRAME_SECONDS), macro_block_size=1) as writer:
+            for frame in frames:
+                writer.append_data(np.asarray(frame))  # type: ignore[attr-defined]
