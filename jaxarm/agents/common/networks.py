@@ -7,6 +7,16 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
+from jaxarm.ranges import Range
+
+ACTIVATIONS = {
+    name: getattr(nn, name)
+    for name in ("relu", "tanh", "swish", "silu", "gelu", "elu", "selu", "celu", "leaky_relu", "softplus", "sigmoid")
+}
+"""Hidden-layer activations by the name configs give (flax.linen's functions)."""
+ACTIVATION = Range(choices=tuple(ACTIVATIONS))
+"""The allowed values of a config's `activation`."""
+
 
 class MLP(nn.Module):
     """[..., in] -> [..., out]: hidden layers with `activation`, a linear output layer.
@@ -21,7 +31,7 @@ class MLP(nn.Module):
 
     @nn.compact
     def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
-        act = getattr(nn, self.activation)
+        act = ACTIVATIONS[self.activation]
         for size in self.hidden_sizes:
             x = act(nn.Dense(size, kernel_init=nn.initializers.orthogonal(jnp.sqrt(2.0)))(x))
         return nn.Dense(self.output_size, kernel_init=nn.initializers.orthogonal(self.output_scale))(x)
