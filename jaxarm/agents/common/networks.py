@@ -6,6 +6,7 @@ from typing import Any, cast
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxarm.ranges import Range
 
@@ -41,3 +42,16 @@ def apply_module(module: nn.Module, variables: Mapping[str, Any], *inputs: jax.A
     """`module.apply(variables, *inputs)`, typed as the array it is: flax types `apply` as perhaps also
     returning mutated variables, which it does only when asked to (never in these learners)."""
     return cast(jax.Array, module.apply(variables, *inputs))
+
+
+def mlp_layers(variables: Mapping[str, Any]) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+    """The dense layers of the one `MLP` in a module's flax variables, in order: ([in, out] kernels, [out] biases)
+    as float32 numpy arrays (the form `jaxarm.export.numpy_policy` runs)."""
+    tree = variables["params"]
+    while not any(name.startswith("Dense_") for name in tree):
+        (tree,) = tree.values()  # a module wrapping one MLP (TD3's actor)
+    names = sorted(tree, key=lambda name: int(name.removeprefix("Dense_")))
+    return (
+        tuple(np.asarray(tree[name]["kernel"], np.float32) for name in names),
+        tuple(np.asarray(tree[name]["bias"], np.float32) for name in names),
+    )
