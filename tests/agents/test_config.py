@@ -136,6 +136,8 @@ def test_issue_env_params_are_refused_by_override_params_and_overrides(name, tex
     for group in ("env_params", "eval_env_params"):
         with pytest.raises(ValueError, match=f"^{group}.{name} {message}"):
             apply_overrides(PPOConfig(), [f"{group}.{name}={text}"])
+        with pytest.raises(ValueError, match=f"^{group}.{name} {message}"):
+            PPOConfig(**{group: ((name, parse_literal(text)),)}).validate()
 
 
 def test_sorter_params_are_refused_by_their_ranges_and_order():
@@ -147,6 +149,8 @@ def test_sorter_params_are_refused_by_their_ranges_and_order():
     with pytest.raises(ValueError, match="^env param held_start_prob must be in .0, 1.*"):
         envs.override_params(params, {"held_start_prob": 1.5})
     assert float(envs.override_params(params, {"object_size": 0.03}).object_size) == pytest.approx(0.03)
+    with pytest.raises(ValueError, match="^env_params.object_size must be > 0, got -0.01"):
+        PPOConfig(env="panda_sort", env_params=(("object_size", -0.01),)).validate()
 
 
 def test_default_env_params_lie_in_their_declared_ranges():
