@@ -4,7 +4,8 @@ A field states its range once, in its dataclass metadata (`Range` under the key 
 `static(...)` and `dynamic(...)` (jaxarm.agents.common.config), env params through `ranged(...)`. The checks
 here are generic: beyond each field's declared range, every float must be finite and every integer must fit in
 int32 (the dtype of jaxarm's step counters, indices and int params). Messages name the field and what it must be,
-in one line. Nothing here runs inside jit: params that reach a compiled program are checked before it.
+in one line. Nothing here runs inside jit: params made inside a compiled program are not checked, and the envs
+clean up what such params break (see jaxarm.envs.base).
 """
 
 import dataclasses
@@ -29,7 +30,7 @@ class Range:
     Attributes:
       gt, ge: exclusive and inclusive lower bounds (None: none).
       lt, le: exclusive and inclusive upper bounds (None: none).
-      choices: the allowed values of a choice (a string field); empty for numbers.
+      choices: the allowed values of a choice (strings, or an int param's codes); empty for a numeric range.
     """
 
     gt: float | None = None
@@ -76,6 +77,7 @@ def ranged(allowed: Range | None = None) -> Any:
 
 
 def declared_range(field: dataclasses.Field) -> Range | None:
+    """The range `field` declares, None where it declares none (finite, int32-sized values still apply)."""
     return field.metadata.get(RANGE)
 
 

@@ -133,8 +133,8 @@ class RunConfig:
 
     @property
     def num_updates(self) -> int:
-        """Updates in the run: `total_env_steps` rounded up to whole chunks of `chunk_updates` (so the run is at
-        most one chunk, itself at most the budget, longer than `total_env_steps`)."""
+        """Updates in the run: `total_env_steps` rounded up to whole chunks of `chunk_updates`. A run overshoots
+        its budget by less than one chunk, and a chunk is never longer than the whole budget needs."""
         chunk_steps = self.env_steps_per_update * self.chunk_updates
         return -(-self.total_env_steps // chunk_steps) * self.chunk_updates
 
