@@ -10,6 +10,7 @@ Layout of `runs/<config>-<timestamp>/`:
   curve.png        learning curve
   eval.json        deterministic evaluation at the end of training
   eval-<episodes>-<seed>.json, video.gif, video.mp4   written by `experiments.eval`
+  export/          the policy exported by `experiments.export`
   .lock            held (flock) by the one process writing to the directory
 
 A directory becomes a run when its config.json is written; until its first checkpoint, starting it again (or
@@ -39,7 +40,7 @@ from jaxarm.agents.common.evaluate import evaluate
 
 RUN_FILES = ("config.json", "resumes.jsonl", "metrics.jsonl", "tensorboard", "checkpoints", "best", "best.json")
 """What training writes; with `OUTPUT_FILES`, what a run directory may hold."""
-OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", ".lock")
+OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock")
 OUTPUT_PATTERNS = ("eval-*.json", "wandb")
 
 

@@ -2,7 +2,9 @@
 
 import dataclasses
 
-from jaxarm.agents.common.config import RunConfig, dynamic
+from jaxarm.agents.common.config import RunConfig, dynamic, static
+from jaxarm.agents.common.networks import ACTIVATION
+from jaxarm.ranges import COUNT, DISCOUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL
 
 
 @dataclasses.dataclass(frozen=True)
@@ -15,7 +17,7 @@ class PPOConfig(RunConfig):
       num_epochs: passes over each rollout.
       policy_hidden_sizes: hidden layer sizes of the policy MLP.
       value_hidden_sizes: hidden layer sizes of the value MLP.
-      activation: flax.linen activation name for hidden layers.
+      activation: hidden-layer activation, one of `jaxarm.agents.common.networks.ACTIVATIONS`.
       normalize_observations: keep running mean/std of observations in the learner state.
       normalize_advantages: standardise advantages per minibatch.
       anneal_learning_rate: decay the learning rate linearly to 0 over the run.
@@ -30,32 +32,28 @@ class PPOConfig(RunConfig):
       reward_scale: rewards are multiplied by this before GAE.
     """
 
-    rollout_length: int = 16
-    num_minibatches: int = 8
-    num_epochs: int = 4
-    policy_hidden_sizes: tuple[int, ...] = (64, 64)
-    value_hidden_sizes: tuple[int, ...] = (64, 64)
-    activation: str = "tanh"
+    rollout_length: int = static(16, COUNT)
+    num_minibatches: int = static(8, COUNT)
+    num_epochs: int = static(4, COUNT)
+    policy_hidden_sizes: tuple[int, ...] = static((64, 64), COUNT)
+    value_hidden_sizes: tuple[int, ...] = static((64, 64), COUNT)
+    activation: str = static("tanh", ACTIVATION)
     normalize_observations: bool = True
     normalize_advantages: bool = True
     anneal_learning_rate: bool = True
-    initial_log_std: float = 0.0
-    learning_rate: float = dynamic(3e-4)
-    gamma: float = dynamic(0.99)
-    gae_lambda: float = dynamic(0.95)
-    clip_epsilon: float = dynamic(0.2)
-    entropy_coef: float = dynamic(0.01)
-    value_coef: float = dynamic(0.5)
-    max_grad_norm: float = dynamic(0.5)
-    reward_scale: float = dynamic(1.0)
+    initial_log_std: float = static(0.0)
+    learning_rate: float = dynamic(3e-4, POSITIVE)
+    gamma: float = dynamic(0.99, DISCOUNT)
+    gae_lambda: float = dynamic(0.95, UNIT_INTERVAL)
+    clip_epsilon: float = dynamic(0.2, POSITIVE)
+    entropy_coef: float = dynamic(0.01, NON_NEGATIVE)
+    value_coef: float = dynamic(0.5, POSITIVE)
+    max_grad_norm: float = dynamic(0.5, POSITIVE)
+    reward_scale: float = dynamic(1.0, POSITIVE)
 
     @property
     def env_steps_per_update(self) -> int:
         return self.rollout_length * self.num_envs
-
-    @property
-    def num_updates(self) -> int:
-        return self.whole_chunks(self.env_steps_per_update)
 
     @property
     def budget_shapes_updates(self) -> str:
