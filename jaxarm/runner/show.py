@@ -6,10 +6,12 @@ documented once.
 
 import dataclasses
 import re
+import textwrap
 import typing
 
 import numpy as np
 
+from jaxarm import ranges
 from jaxarm.agents.common.config import RunConfig
 
 _ENTRY = re.compile(r"^\s{2,}(\w+): (.*)$")
@@ -39,6 +41,15 @@ def _type_name(annotation) -> str:
     return annotation.__name__ if isinstance(annotation, type) else str(annotation).replace("typing.", "")
 
 
+def _wrapped(doc: str) -> str:
+    return textwrap.fill(doc, width=116, initial_indent=" " * 6, subsequent_indent=" " * 6)
+
+
+def _allowed(field: dataclasses.Field, before: str = ", ", after: str = "") -> str:
+    allowed = ranges.declared_range(field)
+    return f"{before}{allowed.describe()}{after}" if allowed else ""
+
+
 def config_lines(config: RunConfig) -> list[str]:
     """One line per config field: name, type, this config's value (and the class default where it differs), doc."""
     hints = typing.get_type_hints(type(config))
@@ -49,15 +60,15 @@ def config_lines(config: RunConfig) -> list[str]:
         default = field.default
         changed = "" if value == default else f"  (default {default!r})"
         marks = " [dynamic]" if field.metadata.get("dynamic") else ""
-        lines.append(f"  {field.name} ({_type_name(hints[field.name])}{marks}) = {value!r}{changed}")
+        lines.append(f"  {field.name} ({_type_name(hints[field.name])}{marks}{_allowed(field)}) = {value!r}{changed}")
         if field.name in docs:
-            lines.append(f"      {docs[field.name]}")
+            lines.append(_wrapped(docs[field.name]))
     return lines
 
 
 def _plain(value) -> str:
     array = np.asarray(value)
-    return repr(array.item()) if array.ndim == 0 else np.array2string(array, separator=",", precision=4)
+    return str(array[()]) if array.ndim == 0 else np.array2string(array, separator=",", precision=4)
 
 
 def env_param_lines(config: RunConfig) -> list[str]:
@@ -69,9 +80,9 @@ def env_param_lines(config: RunConfig) -> list[str]:
     for field in dataclasses.fields(params):
         value, default = _plain(getattr(params, field.name)), _plain(getattr(defaults, field.name))
         changed = "" if value == default else f"  (default {default})"
-        lines.append(f"  env_params.{field.name} = {value}{changed}")
+        lines.append(f"  env_params.{field.name}{_allowed(field, ' (', ')')} = {value}{changed}")
         if field.name in docs:
-            lines.append(f"      {docs[field.name]}")
+            lines.append(_wrapped(docs[field.name]))
     return lines
 
 

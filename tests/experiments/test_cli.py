@@ -46,13 +46,14 @@ def test_bench_lists_its_suites_and_refuses_an_unknown_one(capsys):
 def test_show_lists_config_fields_and_env_params_with_defaults_and_docs(capsys):
     assert run.main(["--config", "ppo_arm2d", "--show", "learning_rate=1e-3"]) == 0
     out = capsys.readouterr().out
-    assert "learning_rate (float [dynamic]) = 0.001  (default 0.0003)" in out
+    assert "learning_rate (float [dynamic], > 0) = 0.001  (default 0.0003)" in out
     assert "Adam step size (linearly annealed to 0 when `anneal_learning_rate`)." in out
-    assert "policy_hidden_sizes (tuple[int, ...]) = (64, 64)" in out
-    assert "eval_every_updates (int) = 0" in out and 'logging "eval/..." in metrics' in out
+    assert "policy_hidden_sizes (tuple[int, ...], >= 1) = (64, 64)" in out
+    assert "eval_every_updates (int, >= 0) = 0" in out and 'logging "eval/..." in metrics' in out
     assert "env_params.success_bonus = 10.0  (default 0.0)" in out
+    assert "env_params.goal_mode (one of 0, 1, 2) = 2  (default 0)" in out
     assert "reward on the step that completes the hold" in out
-    assert "env_params.max_episode_steps = 200" in out and "time limit (truncation)." in out
+    assert "env_params.max_episode_steps (>= 1) = 200" in out and "time limit (truncation)." in out
 
 
 def test_cache_directory_follows_the_environment(tmp_path):
