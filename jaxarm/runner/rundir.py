@@ -41,7 +41,7 @@ from jaxarm.agents.common.evaluate import evaluate
 RUN_FILES = ("config.json", "resumes.jsonl", "metrics.jsonl", "tensorboard", "checkpoints", "best", "best.json")
 """What training writes; with `OUTPUT_FILES`, what a run directory may hold."""
 OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock")
-OUTPUT_PATTERNS = ("eval-*.json", "wandb")
+OUTPUT_PATTERNS = ("eval-*.json", "wandb", ".*.tmp")
 
 
 class RunDirError(ValueError):
@@ -102,8 +102,8 @@ def locked(run_dir: pathlib.Path) -> Iterator[pathlib.Path]:
     if foreign:
         shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
         raise RunDirError(
-            f"{run_dir} holds files that are not part of a jaxarm run ({shown}); choose another --out "
-            "(nothing was written)"
+            f"{run_dir} holds files that are not part of a jaxarm run ({shown}); move them out or use another "
+            "directory (nothing was written)"
         )
     created = not run_dir.exists() or not any(run_dir.iterdir())
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -121,8 +121,8 @@ def locked(run_dir: pathlib.Path) -> Iterator[pathlib.Path]:
             handle.seek(0)
             holder = handle.read().strip() or "unknown"
             raise RunDirError(
-                f"{run_dir} is in use by another process (pid {holder}, holding {path}); wait for it to finish, "
-                "or choose another --out (nothing was written)"
+                f"{run_dir} is in use by another process (pid {holder}, holding {path}); wait for it to finish "
+                "or use another directory (nothing was written)"
             ) from None
         handle.seek(0)
         handle.truncate()
@@ -153,7 +153,7 @@ def _as_tuples(value):
 def write_config(run_dir: pathlib.Path, config: RunConfig, preset: str) -> None:
     run_dir.mkdir(parents=True, exist_ok=True)
     data = {"preset": preset, "agent": registry.name_of(config), **dataclasses.asdict(config)}
-    (run_dir / "config.json").write_text(json.dumps(data, indent=2))
+    write_json(run_dir / "config.json", data)
 
 
 def read_config(run_dir: pathlib.Path) -> tuple[RunConfig, str]:
@@ -219,7 +219,11 @@ def evaluate_state(trainer, config: RunConfig, state, episodes: int, seed: int) 
 
 
 def write_json(path: pathlib.Path, data: dict) -> None:
-    path.write_text(json.dumps(data, indent=2))
+    """Writes `data` to `path` whole or not at all (a temporary file renamed over it): a process killed while
+    writing leaves the previous file."""
+    temporary = path.with_name(f".{path.name}.tmp")
+    temporary.write_text(json.dumps(data, indent=2))
+    temporary.replace(path)
 
 
 def eval_path(run_dir: pathlib.Path, episodes: int, seed: int) -> pathlib.Path:
