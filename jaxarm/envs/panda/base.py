@@ -170,8 +170,8 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         """One (non-batched) state -> [height, width, 3] uint8 RGB frame seen from `camera` (outside jit).
 
         The env keeps one copy of its model for drawing (the episode's geometry is written into it each frame;
-        `mj_model` stays as built) and one renderer per frame size: building a renderer took 200 of a frame's
-        290 ms on the 2-core CPU.
+        `mj_model` stays as built) and one renderer per frame size: the sorter at 320x240 with EGL on the 2-core
+        CPU drew a frame in 170-200 ms with a renderer built for it, 57 ms with one reused.
         """
         if self._drawing is None:
             self._drawing = Drawing(copy.copy(self.mj_model))
