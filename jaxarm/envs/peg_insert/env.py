@@ -79,13 +79,13 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     """The Panda inserting a peg held in its hand into a square hole shifted at random every episode.
 
     Args:
-      impl, max_envs: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
+      impl, max_envs, contacts_per_env: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
     """
 
-    def __init__(self, impl: str = Impl.JAX, max_envs: int = 4096):
+    def __init__(self, impl: str = Impl.JAX, max_envs: int = 4096, contacts_per_env: int | None = None):
         mj_model = build_model()
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
-        super().__init__(mj_model, resolve_ids(mj_model), start_tcp, impl, max_envs)
+        super().__init__(mj_model, resolve_ids(mj_model), start_tcp, impl, max_envs, contacts_per_env)
         self.spec = EnvSpec(observation_shape=(12,), action_shape=(3,))
 
     def default_params(self) -> PegInsertParams:
