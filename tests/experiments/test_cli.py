@@ -166,3 +166,26 @@ def test_a_missing_gl_platform_gets_a_one_line_hint():
     trainer = types.SimpleNamespace(act=lambda learner, obs: np.zeros((obs.shape[0], 2), np.float32))
     with pytest.raises(video.RenderError, match=r"set MUJOCO_GL=egl \(GPU\) or MUJOCO_GL=osmesa \(CPU\)"):
         video.episode_frames(Headless(), params, trainer, None, jax.random.PRNGKey(0), 1)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        "gamma=2",
+        "learning_rate=-1",
+        "gae_lambda=5",
+        "max_grad_norm=0",
+        "num_minibatches=0",
+        "rollout_length=0",
+        "activation=foo",
+        "env_params.goal_size=-40",
+        "env_params.success_bonus=nan",
+        "env_params.max_episode_steps=0",
+        "env_params.max_episode_steps=1e10",
+    ],
+)
+def test_a_bad_value_is_refused_before_any_directory_is_written(bad, tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    assert run.main(["--config", "ppo_arm2d", bad, "--out", str(run_dir)]) == 2
+    assert bad.split("=")[0].split(".")[-1] in capsys.readouterr().err
+    assert not run_dir.exists()
