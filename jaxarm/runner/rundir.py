@@ -205,10 +205,13 @@ def warm_starter(config: RunConfig) -> Callable[[Any], Any]:
     return lambda state: warm_start(state, trained, index)
 
 
-def make_evaluator(trainer, config: RunConfig, episodes: int) -> Callable[[Any, jax.Array], dict]:
-    """(learner state, key) -> deterministic-policy results on `episodes` fresh episodes of the eval env, as a
-    JSON-ready dict; compiled once, on the first call."""
-    env, env_params = config.make_eval_env()
+def make_evaluator(
+    trainer, config: RunConfig, episodes: int, randomized: bool = False
+) -> Callable[[Any, jax.Array], dict]:
+    """(learner state, key) -> deterministic-policy results on `episodes` fresh episodes of the eval env (with
+    the config's `randomize` params drawn per episode if `randomized`), as a JSON-ready dict; compiled once, on
+    the first call."""
+    env, env_params = config.make_eval_env(randomized)
     run = jax.jit(lambda learner, key: evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, episodes))
     return lambda state, key: {**run(state, key).summary(), "device": jax.devices()[0].device_kind}
 

@@ -179,3 +179,13 @@ def test_a_warm_start_begins_from_the_trained_networks_and_statistics(finished_r
     assert run_cli(*SMALL, f"init_from={tmp_path / 'nowhere'}", "--out", str(tmp_path / "cold")) == 2
     assert "not a run directory" in capsys.readouterr().err
     assert not (tmp_path / "cold" / "config.json").exists(), "a failed warm start left a run behind"
+
+
+def test_a_randomised_run_reports_nominal_and_randomised_evaluations(tmp_path):
+    run_dir = tmp_path / "randomised"
+    assert run_cli(*SMALL, "randomize.action_scale=0.5..1.5", "--out", str(run_dir)) == 0
+    config, _ = rundir.read_config(run_dir)
+    assert dict(config.randomize) == {"action_scale": "0.5..1.5"}
+    result = json.loads((run_dir / "eval.json").read_text())
+    assert {"success_rate", "randomized/success_rate", "randomized/return_mean"} <= set(result)
+    assert result["randomized/return_mean"] != result["return_mean"]
