@@ -10,6 +10,7 @@ Layout of `runs/<config>-<timestamp>/`:
   curve.png        learning curve
   eval.json        deterministic evaluation at the end of training
   eval-<episodes>-<seed>.json, video.gif, video.mp4   written by `experiments.eval`
+  robustness-<episodes>-<seed>.json, .md, .png   written by `experiments.eval --perturb`
   export/          the policy exported by `experiments.export`
   .lock            held (flock) by the one process writing to the directory
 
@@ -41,7 +42,7 @@ from jaxarm.agents.common.evaluate import evaluate
 RUN_FILES = ("config.json", "resumes.jsonl", "metrics.jsonl", "tensorboard", "checkpoints", "best", "best.json")
 """What training writes; with `OUTPUT_FILES`, what a run directory may hold."""
 OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock")
-OUTPUT_PATTERNS = ("eval-*.json", "wandb", ".*.tmp")
+OUTPUT_PATTERNS = ("eval-*.json", "robustness-*.json", "robustness-*.md", "robustness-*.png", "wandb", ".*.tmp")
 
 
 class RunDirError(ValueError):
