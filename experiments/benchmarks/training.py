@@ -377,8 +377,8 @@ def main(argv: Sequence[str]) -> None:
     print(
         f"env {config.env} ({args.impl}) {dict(config.env_params)}; {config.num_envs:,} envs × "
         f"{config.rollout_length} steps per update, {config.num_updates} updates, {config.num_minibatches} "
-        f"minibatches × {config.num_epochs} epochs, MLPs {config.policy_hidden_sizes}/{config.value_hidden_sizes} {config.activation}, "
-        f"γ {config.gamma}; "
+        f"minibatches × {config.num_epochs} epochs, MLPs {config.policy_hidden_sizes}/{config.value_hidden_sizes} "
+        f"{config.activation}, γ {config.gamma}; "
         f"lr ours {config.learning_rate:g} (linear decay), brax {args.brax_learning_rate:g} (constant)",
         flush=True,
     )
