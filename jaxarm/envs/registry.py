@@ -87,6 +87,18 @@ def override_params(params, overrides: Mapping[str, Any]):
 
 
 register("arm2d", "jaxarm.envs.arm2d:Arm2d", "2-link planar reaching arm (the classic tutorial arm)")
+register(
+    "arm2d_pixels",
+    "jaxarm.envs.arm2d:Arm2d",
+    "2-link arm seen by a 64x64 grayscale camera from above (links and goal), no state",
+    obs_mode="pixels",
+)
+register(
+    "arm2d_pixels_proprio",
+    "jaxarm.envs.arm2d:Arm2d",
+    "2-link arm: camera image (the goal is seen only there) and the link ends' positions",
+    obs_mode="pixels+proprio",
+)
 register("arm2d_squid", "jaxarm.envs.arm2d:Arm2d", "5-link planar reaching arm ('squid arm')", num_links=5)
 register(
     "panda_sort",
