@@ -3,6 +3,7 @@
 import dataclasses
 
 from jaxarm.agents.common.config import RunConfig, dynamic
+from jaxarm.agents.common.encoders import check_encoder
 
 
 @dataclasses.dataclass(frozen=True)
@@ -16,7 +17,12 @@ class PPOConfig(RunConfig):
       policy_hidden_sizes: hidden layer sizes of the policy MLP.
       value_hidden_sizes: hidden layer sizes of the value MLP.
       activation: flax.linen activation name for hidden layers.
-      normalize_observations: keep running mean/std of observations in the learner state.
+      encoder: conv stack in front of the MLPs for camera observations (`jaxarm.agents.common.encoders`:
+        "nature", "impala", "patches"); unused for flat observations.
+      encoder_features: width of the encoder's dense output layer.
+      shared_encoder: one encoder (the policy's) feeds both heads, trained by both losses; else one each.
+      normalize_observations: keep running mean/std of observations in the learner state (of a camera
+        observation, its proprio part only).
       normalize_advantages: standardise advantages per minibatch.
       anneal_learning_rate: decay the learning rate linearly to 0 over the run.
       initial_log_std: initial policy standard deviation's log (pre-tanh).
@@ -36,6 +42,9 @@ class PPOConfig(RunConfig):
     policy_hidden_sizes: tuple[int, ...] = (64, 64)
     value_hidden_sizes: tuple[int, ...] = (64, 64)
     activation: str = "tanh"
+    encoder: str = "nature"
+    encoder_features: int = 256
+    shared_encoder: bool = False
     normalize_observations: bool = True
     normalize_advantages: bool = True
     anneal_learning_rate: bool = True
@@ -64,6 +73,7 @@ class PPOConfig(RunConfig):
     def validate(self) -> None:
         """RunConfig's checks, and that each rollout splits into whole minibatches."""
         super().validate()
+        check_encoder(self.encoder)
         if self.env_steps_per_update % self.num_minibatches:
             raise ValueError(
                 f"rollout_length*num_envs={self.env_steps_per_update} must divide by "

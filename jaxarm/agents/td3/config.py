@@ -7,6 +7,7 @@ experiments/configs/td3.py).
 import dataclasses
 
 from jaxarm.agents.common.config import RunConfig, dynamic
+from jaxarm.agents.common.encoders import check_encoder
 
 
 @dataclasses.dataclass(frozen=True)
@@ -26,6 +27,11 @@ class TD3Config(RunConfig):
       reward_scale: rewards are multiplied by this in the critic target.
       hidden_sizes: hidden layer widths of the actor and of each critic.
       activation: hidden-layer activation (a flax.linen function name).
+      encoder: conv stack each network reads camera observations through (`jaxarm.agents.common.encoders`:
+        "nature", "impala", "patches"); unused for flat observations.
+      encoder_features: width of the encoder's dense output layer.
+      random_shift_pad: DrQ's augmentation: the critics' and the actor's training images shifted by up to
+        ±this many pixels (0: off; DrQ used 4 at 84×84).
       num_critics: critics trained on the same target; the target takes their minimum (2: TD3, 1: DDPG).
       policy_delay: critic steps per actor and target-network step (2: TD3, 1: DDPG).
       target_smoothing: add clipped noise to the target action (TD3); False for DDPG.
@@ -52,6 +58,9 @@ class TD3Config(RunConfig):
 
     hidden_sizes: tuple[int, ...] = (256, 256)
     activation: str = "relu"
+    encoder: str = "nature"
+    encoder_features: int = 256
+    random_shift_pad: int = 0
     num_critics: int = 2
     policy_delay: int = 2
     target_smoothing: bool = True
@@ -72,6 +81,9 @@ class TD3Config(RunConfig):
     def validate(self) -> None:
         """RunConfig's checks, positive sizes, whole policy-delay blocks, and room for one update's steps."""
         super().validate()
+        check_encoder(self.encoder)
+        if self.random_shift_pad < 0:
+            raise ValueError(f"random_shift_pad must be >= 0, got {self.random_shift_pad}")
         for field in (
             "num_critics",
             "policy_delay",
