@@ -132,3 +132,9 @@ register(
     "jaxarm.envs.peg_insert:PegInsert",
     "Franka Panda (MJX) inserting a peg into a square hole shifted at random, end-effector control",
 )
+register(
+    "peg_insert_pixels",
+    "jaxarm.envs.peg_insert:PegInsert",
+    "peg insertion seen by a scene and a wrist camera (64x64 gray and depth) with the arm's own state",
+    obs_mode="pixels+proprio",
+)

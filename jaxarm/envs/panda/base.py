@@ -17,12 +17,18 @@ import numpy as np
 from mujoco import mjx
 
 from jaxarm.envs.base import Env, EnvState, HasEpisodeLimit
+from jaxarm.envs.observation import check_obs_mode
+from jaxarm.envs.panda import camera
 from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, pose_fixed_geoms, put_scene, resolve_impl
 from jaxarm.envs.panda.render import render_qpos
 from jaxarm.envs.panda.robot import HOME_QPOS, PandaIds, ik_arm_targets, solve_arm_posture, tcp_pose_at
 
 CONTROL_DT = 0.04
 """Seconds of simulated time per env step, in every Panda task."""
+DEPTH_RANGE = 1.0
+"""Metres of depth a camera image's depth channel spans (0 to 255); farther reads 255."""
+CAMERAS = ("scene", "hand_camera")
+"""The MJCF cameras a pixel observation stacks by default: the task's fixed scene camera and the wrist's."""
 
 
 class PandaSimState(Protocol):
@@ -83,6 +89,10 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         or the CPU) or "auto" (Warp on an NVIDIA GPU when warp-lang is importable, else JAX).
       max_envs: Warp only: its contact buffer, shared by all envs of a batch, holds the scene's worst case for
         this many envs. Larger batches run while their contacts fit; a step that overflows raises.
+      obs_mode: "state", "pixels" or "pixels+proprio" (`jaxarm.envs.observation`); the task builds its
+        observation from `camera_image` in the pixel modes.
+      resolution: side of the square camera images, pixels.
+      cameras: names of the MJCF cameras (mode "fixed") stacked in `camera_image`.
 
     Attributes:
       mj_model: the compiled scene as built (drawing poses a copy of it).
@@ -92,6 +102,8 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       mjx_model: `mj_model` on the device; tasks replace its per-episode fields in `episode_model`.
       home_tcp_rotation: [3, 3] tool-centre orientation at HOME_QPOS (pointing down, yaw 0).
       start_qpos: [7] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
+      obs_mode, resolution: as given.
+      cameras: the `camera.Camera`s of `cameras`, resolved once.
     """
 
     uses_mjx = True
@@ -103,7 +115,15 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         start_tcp: np.ndarray,
         impl: str = Impl.JAX,
         max_envs: int = 4096,
+        obs_mode: str = "state",
+        resolution: int = 64,
+        cameras: tuple[str, ...] = CAMERAS,
     ):
+        check_obs_mode(obs_mode, resolution)
+        self.obs_mode = obs_mode
+        self.resolution = resolution
+        self.cameras = tuple(camera.Camera.from_model(mj_model, name) for name in cameras)
+        self._camera_scene = camera.Scene.from_model(mj_model)
         self.mj_model = mj_model
         self.ids = ids
         self.impl = resolve_impl(impl)
@@ -136,6 +156,29 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         if self.impl == Impl.WARP:
             data = pose_fixed_geoms(self.mj_model, model, data)
         return mjx.com_pos(model, data)
+
+    @property
+    def image_shape(self) -> tuple[int, int, int]:
+        """Shape of `camera_image`: [R, R, 2 per camera]."""
+        return (self.resolution, self.resolution, 2 * len(self.cameras))
+
+    def camera_image(self, model: mjx.Model, data: mjx.Data) -> jax.Array:
+        """uint8 [R, R, 2 per camera]: each camera's grayscale, then its depth over `DEPTH_RANGE`, cast in JAX
+        (`camera.render`) from the poses in `data` (after `kinematics`) and the episode's geom sizes."""
+        channels = []
+        for view in self.cameras:
+            depth, gray = camera.render(
+                self._camera_scene,
+                view,
+                self.resolution,
+                model.geom_size,
+                data.geom_xpos,
+                data.geom_xmat,
+                data.xpos,
+                data.xmat,
+            )
+            channels += [gray, jnp.clip(depth / DEPTH_RANGE, 0.0, 1.0)]
+        return jnp.round(jnp.stack(channels, axis=-1) * 255.0).astype(jnp.uint8)
 
     def simulate(self, model: mjx.Model, data: mjx.Data) -> mjx.Data:
         """`data` after `substeps` physics steps (one env step); raises if Warp dropped contacts on the way."""
