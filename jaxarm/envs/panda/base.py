@@ -103,7 +103,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       home_tcp_rotation: [3, 3] tool-centre orientation at HOME_QPOS (pointing down, yaw 0).
       start_qpos: [7] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
       obs_mode, resolution: as given.
-      cameras: the `camera.Camera`s of `cameras`, resolved once.
+      cameras: the `camera.Camera`s of `cameras`, resolved once (none in "state" mode).
     """
 
     uses_mjx = True
@@ -122,7 +122,10 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         check_obs_mode(obs_mode, resolution)
         self.obs_mode = obs_mode
         self.resolution = resolution
-        self.cameras = tuple(camera.Camera.from_model(mj_model, name) for name in cameras)
+        # Resolved only where they are observed: a state-only scene need not declare them.
+        self.cameras = (
+            () if obs_mode == "state" else tuple(camera.Camera.from_model(mj_model, name) for name in cameras)
+        )
         self._camera_scene = camera.Scene.from_model(mj_model)
         self.mj_model = mj_model
         self.ids = ids
