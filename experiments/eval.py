@@ -17,10 +17,12 @@ import numpy.typing as npt
 from experiments import configs, rundir
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.evaluate import rollout_episodes
+from jaxarm.envs.observation import with_camera_views
 
 
 def episode_frames(env, env_params, trainer, state, key, episodes: int) -> list[np.ndarray]:
-    """Frames of `episodes` deterministic episodes played one after another, each until it ends."""
+    """Frames of `episodes` deterministic episodes played one after another, each until it ends; a policy that
+    sees has its camera's image beside each frame."""
     max_steps = int(env_params.max_episode_steps)
     policy = jax.jit(lambda obs: trainer.act(state, obs))
     states = jax.device_get(rollout_episodes(env, env_params, policy, key, episodes, max_steps))
@@ -28,7 +30,8 @@ def episode_frames(env, env_params, trainer, state, key, episodes: int) -> list[
     for episode in range(episodes):
         length = int(states.episode.length[-1, episode])
         for step in range(length):
-            frames.append(env.render(jax.tree.map(operator.itemgetter((step, episode)), states), env_params))
+            state_now = jax.tree.map(operator.itemgetter((step, episode)), states)
+            frames.append(with_camera_views(env.render(state_now, env_params), state_now.obs))
     return frames
 
 

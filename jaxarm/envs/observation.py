@@ -6,9 +6,11 @@
 """
 
 from collections.abc import Mapping
+from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 OBS_MODES = ("state", "pixels", "pixels+proprio")
 IMAGE = "image"
@@ -40,3 +42,20 @@ def pixel_observation(obs_mode: str, image: jax.Array, proprio: jax.Array) -> Ma
     if obs_mode == "pixels+proprio":
         return {IMAGE: image, PROPRIO: proprio}
     return {IMAGE: image}
+
+
+def with_camera_views(frame: np.ndarray, obs: Any) -> np.ndarray:
+    """Outside jit: a rendered frame uint8 [H, W, 3] with what the observation's camera saw to its right, each
+    image channel (gray, depth, ...) as a gray tile scaled up to the frame's height; `frame` as it is for a flat
+    observation."""
+    if not isinstance(obs, Mapping) or IMAGE not in obs:
+        return frame
+    image = np.asarray(obs[IMAGE])
+    height = frame.shape[0]
+    scale = max(1, height // image.shape[0])
+    tiles = []
+    for channel in np.moveaxis(image, -1, 0):
+        tile = np.repeat(np.repeat(channel, scale, axis=0), scale, axis=1)[:height]
+        tile = np.pad(tile, ((0, height - tile.shape[0]), (0, 0)))
+        tiles.append(np.repeat(tile[..., None], 3, axis=-1))
+    return np.concatenate([frame, *tiles], axis=1)

@@ -9,6 +9,7 @@ from jaxarm import envs
 from jaxarm.envs.arm2d import Arm2d, Arm2dSim
 from jaxarm.envs.arm2d.arm import link_end_positions
 from jaxarm.envs.arm2d.camera import ARM_LEVEL, GOAL_LEVEL
+from jaxarm.envs.observation import with_camera_views
 from tests.envs.test_arm2d import start_state
 
 RESOLUTION = 40
@@ -94,3 +95,18 @@ def test_sim_is_unchanged_by_the_observation_mode():
     pixel_sim = Arm2d(obs_mode="pixels").reset(key, params).sim
     assert isinstance(pixel_sim, Arm2dSim)
     jax.tree.map(np.testing.assert_array_equal, state_sim, pixel_sim)
+
+
+def test_video_frames_show_the_camera_beside_the_scene():
+    env = Arm2d(obs_mode="pixels", resolution=RESOLUTION)
+    params = env.default_params()
+    state = start_state(env, params, [0.0, 0.0], [100.0, 100.0])
+    frame = env.render(state, params)
+    combined = with_camera_views(frame, state.obs)
+    scale = frame.shape[0] // RESOLUTION
+    assert combined.shape == (frame.shape[0], frame.shape[1] + scale * RESOLUTION, 3)
+    np.testing.assert_array_equal(combined[:, : frame.shape[1]], frame)
+    camera_tile = combined[: scale * RESOLUTION : scale, frame.shape[1] :: scale, 0]
+    np.testing.assert_array_equal(camera_tile, state.obs["image"][..., 0])
+    flat = envs.make("arm2d")
+    np.testing.assert_array_equal(with_camera_views(frame, flat.reset(jax.random.key(0), params).obs), frame)
