@@ -6,7 +6,7 @@ Each suite prints ratios against a peer measured in the same run, with the devic
 import importlib
 import sys
 
-SUITES = ("arm2d", "panda_sort", "training", "scaling", "ceilings", "profile")
+SUITES = ("arm2d", "panda_sort", "training", "scaling", "ceilings", "profile", "camera")
 
 
 def main(argv=None) -> int:
