@@ -42,6 +42,26 @@ def ppo_arm2d_fixed() -> PPOConfig:
     return dataclasses.replace(ARM2D_PPO, total_env_steps=1_000_000)
 
 
+@preset("PPO on arm2d from a 32x32 camera image and the arm's own joints, random goals (2-core CPU)")
+def ppo_arm2d_pixels() -> PPOConfig:
+    # The goal is seen only in the image. The patch encoder: XLA:CPU's conv gradients are 15-100x slower inside
+    # the update's scans (jaxarm/agents/common/encoders.py); one encoder shared by both heads halves the convs.
+    return dataclasses.replace(
+        ARM2D_PPO,
+        env="arm2d_pixels_proprio",
+        env_kwargs=(("resolution", 32),),
+        env_params=(("goal_mode", GOAL_UNIFORM_REACHABLE), ("success_bonus", 10.0)),
+        num_envs=256,
+        encoder="patches",
+        encoder_features=64,
+        shared_encoder=True,
+        learning_rate=1e-3,
+        total_env_steps=3_000_000,
+        updates_per_chunk=20,
+        checkpoint_every_updates=100,
+    )
+
+
 # The sorter presets fill one GPU; on a CPU, shrink them with overrides, e.g.
 #   python -m experiments.run --config ppo_sorter num_envs=32 rollout_length=8 num_minibatches=4 \
 #       total_env_steps=20000 eval_episodes=8
@@ -138,4 +158,18 @@ def ppo_peg() -> PPOConfig:
         total_env_steps=10_000_000,
         updates_per_chunk=20,
         checkpoint_every_updates=100,
+    )
+
+
+@preset("PPO inserting the peg from two 64x64 cameras (gray and depth) and the arm's state (one GPU)")
+def ppo_peg_pixels() -> PPOConfig:
+    # ppo_peg with the hole seen only in the images, through one Nature-DQN encoder per network. A rollout of
+    # 1,024 envs x 16 steps holds 256 MiB of uint8 frames (16 KiB per observation).
+    return dataclasses.replace(
+        ppo_peg(),
+        env="peg_insert_pixels",
+        num_envs=1024,
+        encoder="nature",
+        encoder_features=256,
+        total_env_steps=20_000_000,
     )
