@@ -57,12 +57,10 @@ class PPONetworks:
         """Fresh parameters for `spec`'s observations."""
         dummy = spec.zero_observation((1,))
         policy = self.policy_net.init(policy_key, dummy)
-        value_input = self._shared_features(policy, dummy) if self.shared_encoder is not None else dummy
+        value_input = dummy
+        if self.shared_encoder is not None:
+            value_input = shared_features(self.shared_encoder, policy, dummy)
         return NetworkParams(policy=policy, value=self.value_net.init(value_key, value_input))
-
-    def _shared_features(self, policy: Mapping[str, Any], obs: Observation) -> jax.Array:
-        encoder = {"params": policy["params"]["encoder"]}
-        return apply_module(self.shared_encoder, encoder, obs)  # type: ignore[arg-type]
 
     def normalize(self, normalizer: running_statistics.RunningStatisticsState, obs: Observation) -> Observation:
         """Observations [B, ...] as the networks see them (a camera observation's proprio part normalised)."""
@@ -80,12 +78,17 @@ class PPONetworks:
         """V [B] at observations [B, ...]."""
         inputs = self.normalize(normalizer, obs)
         if self.shared_encoder is not None:
-            inputs = self._shared_features(params.policy, inputs)
+            inputs = shared_features(self.shared_encoder, params.policy, inputs)
         return apply_module(self.value_net, params.value, inputs)[..., 0]
 
     def deterministic_action(self, params: NetworkParams, normalizer, obs: Observation) -> jax.Array:
         """The policy's mode, tanh of the Gaussian's mean [B, A], at observations [B, ...]."""
         return self.action_dist.mode(self.policy_params(params, normalizer, obs))
+
+
+def shared_features(encoder: PixelEncoder, policy: Mapping[str, Any], obs: Observation) -> jax.Array:
+    """Features [B, F + P] of (normalised) camera observations through the encoder inside the policy's params."""
+    return apply_module(encoder, {"params": policy["params"]["encoder"]}, obs)
 
 
 def make_networks(config: PPOConfig, action_size: int, camera: bool = False) -> PPONetworks:
