@@ -78,16 +78,15 @@ def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, pr
     if config.init_from:
         state = jax.vmap(rundir.warm_starter(config))(state)
     chunk = jax.jit(
-        jax.vmap(lambda s, h: run_updates(trainer, s, h, config.updates_per_chunk)),
+        jax.vmap(lambda s, h: run_updates(trainer, s, h, config.chunk_updates)),
         compiler_options=trainer.compiler_options,
     )
     chunks = []
-    for index in range(trainer.num_updates // config.updates_per_chunk):
+    for index in range(trainer.num_updates // config.chunk_updates):
         state, metrics = chunk(state, hparams)
         chunks.append(jax.device_get(metrics))
         progress(
-            f"  chunk {index + 1}/{trainer.num_updates // config.updates_per_chunk} "
-            f"({time.perf_counter() - start:.1f} s)"
+            f"  chunk {index + 1}/{trainer.num_updates // config.chunk_updates} ({time.perf_counter() - start:.1f} s)"
         )
     metrics = jax.tree.map(lambda *parts: np.concatenate(parts, axis=1), *chunks)
     env, env_params = config.make_eval_env()

@@ -7,14 +7,19 @@ randomisation); static shapes and counts are constructor arguments.
 Subclasses implement the task in `_reset` and `_transition`; this module owns the bookkeeping that must
 be the same everywhere: action clipping, NaN-action handling, the time limit, and episode statistics.
 
-NaN actions: inside jit there is no way to raise, so a NaN component is replaced by 0 (the env steps with
-a zero command there) and counted in `state.episode.nan_actions`. Code that runs outside jit (adapters,
-evaluation) calls `check_action` for a clear error instead.
+Non-finite actions: inside jit there is no way to raise, so a NaN component is replaced by 0 (the env steps
+with a zero command there), an infinite one is clipped to its bound like any other, and either is counted in
+`state.episode.nan_actions`. Code that runs outside jit (adapters, evaluation) calls `check_action` for a
+clear error instead.
 
 Diverged physics: a step whose observation or reward is not finite, or whose observation exceeds
 `DIVERGENCE_LIMIT` in magnitude (a simulator blowing up), ends the episode as terminated with reward 0 and
 a zero observation, and is flagged in `state.episode.diverged`, so one unstable env among thousands cannot
-poison a learner's batch.
+poison a learner's batch. A reset observation is cleaned the same way: zeroed, and its episode flagged in
+`state.episode.diverged`.
+
+Stepping a plain (not auto-reset) env past the end of its episode changes nothing the episode reported:
+`last_episode` keeps the statistics of the step that ended it.
 """
 
 import abc
@@ -107,7 +112,7 @@ class EpisodeStats:
       return_: sum of rewards so far.
       length: env steps so far.
       success: whether the task's success condition held at any step.
-      nan_actions: steps whose action had a NaN component (replaced by zero).
+      nan_actions: steps whose action had a NaN or infinite component (NaN replaced by zero, inf clipped).
       diverged: the simulation diverged and ended the episode.
     """
 
@@ -186,6 +191,11 @@ def observation_healthy(obs: Observation) -> jax.Array:
     return healthy
 
 
+def zeroed_unless(healthy: jax.Array, obs: Observation) -> Observation:
+    """`obs` where `healthy`, else all zeros (every part in its own dtype)."""
+    return jax.tree.map(lambda part: jnp.where(healthy, part, jnp.zeros_like(part)), obs)
+
+
 def check_action(action: np.ndarray, spec: EnvSpec) -> np.ndarray:
     """Outside-jit validation: raises ValueError on a wrong shape or a NaN; returns a float32 array."""
     array = np.asarray(action, dtype=np.float32)
@@ -241,7 +251,9 @@ class Env(abc.ABC, Generic[Params, Sim]):
     def reset(self, key: jax.Array, params: Params) -> EnvState[Sim]:
         """Starts an episode. `key` is a PRNG key; the returned state holds a descendant for auto-resets."""
         reset_key, carry_key = jax.random.split(key)
-        sim, obs, info = self._reset(reset_key, params)
+        sim, raw_obs, info = self._reset(reset_key, params)
+        healthy = observation_healthy(raw_obs)
+        obs = zeroed_unless(healthy, raw_obs)
         return EnvState(
             sim=sim,
             obs=obs,
@@ -250,7 +262,7 @@ class Env(abc.ABC, Generic[Params, Sim]):
             truncated=jnp.zeros((), jnp.bool_),
             final_obs=obs,
             step_count=jnp.zeros((), jnp.int32),
-            episode=EpisodeStats.zeros(),
+            episode=dataclasses.replace(EpisodeStats.zeros(), diverged=~healthy),
             last_episode=EpisodeStats.zeros(),
             info=info,
             key=carry_key,
@@ -259,11 +271,11 @@ class Env(abc.ABC, Generic[Params, Sim]):
     def step(self, state: EnvState[Sim], action: jax.Array, params: Params) -> EnvState[Sim]:
         """Advances one step: clips the action, zeroes NaNs, applies the time limit, updates statistics."""
         action = jnp.asarray(action, jnp.float32).reshape(self.spec.action_shape)
-        has_nan = jnp.any(jnp.isnan(action))
+        non_finite = jnp.any(~jnp.isfinite(action))
         action = jnp.clip(jnp.nan_to_num(action, nan=0.0), self.spec.action_low, self.spec.action_high)
         out = self._transition(state.sim, action, params)
         healthy = observation_healthy(out.obs) & jnp.isfinite(out.reward)
-        obs = jax.tree.map(lambda part: jnp.where(healthy, part, jnp.zeros_like(part)), out.obs)
+        obs = zeroed_unless(healthy, out.obs)
         reward = jnp.where(healthy, out.reward, 0.0).astype(jnp.float32)
         terminated = out.terminated | ~healthy
         step_count = state.step_count + 1
@@ -272,11 +284,14 @@ class Env(abc.ABC, Generic[Params, Sim]):
             return_=state.episode.return_ + reward,
             length=state.episode.length + 1,
             success=state.episode.success | (out.success & healthy),
-            nan_actions=state.episode.nan_actions + has_nan.astype(jnp.int32),
+            nan_actions=state.episode.nan_actions + non_finite.astype(jnp.int32),
             diverged=state.episode.diverged | ~healthy,
         )
         done = terminated | truncated
-        last_episode = jax.tree.map(lambda new, old: jnp.where(done, new, old), episode, state.last_episode)
+        # A state that is done but not reset (step_count > 0: AutoReset starts the next episode at 0) is a plain
+        # env stepped past its end; the episode it reported stays reported.
+        ends_episode = done & ~(state.done & (state.step_count > 0))
+        last_episode = jax.tree.map(lambda new, old: jnp.where(ends_episode, new, old), episode, state.last_episode)
         return state.replace(
             sim=out.sim,
             obs=obs,

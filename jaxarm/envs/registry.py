@@ -12,6 +12,8 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm import ranges
+
 
 @dataclasses.dataclass(frozen=True)
 class EnvEntry:
@@ -68,22 +70,26 @@ def make(name: str, **kwargs):
     return _REGISTRY[name].build(**kwargs)
 
 
-def override_params(params, overrides: Mapping[str, Any]):
+def override_params(params, overrides: Mapping[str, Any], prefix: str = "env param "):
     """Returns `params` with fields replaced by `overrides`, cast to each field's dtype and shape.
 
-    Raises KeyError naming the closest field for an unknown name, ValueError for a value of the wrong shape.
+    Raises KeyError naming the closest field for an unknown name, ValueError for a value of the wrong shape or
+    type, or outside the field's declared range (`jaxarm.ranges`), or breaking the params' order relations.
+    Messages name a param as `prefix + name`.
     """
     fields = {field.name for field in dataclasses.fields(params)}
     updates = {}
     for name, value in overrides.items():
         if name not in fields:
-            raise KeyError(f"unknown env param {name!r}{closest_match_hint(name, fields)}")
-        current = getattr(params, name)
-        array = jnp.asarray(np.asarray(value), dtype=current.dtype)
+            raise KeyError(f"unknown {prefix}{name}{closest_match_hint(name, fields)}")
+        current = np.asarray(getattr(params, name))
+        array = ranges.param_array(f"{prefix}{name}", value, current)
         if array.shape != current.shape:
-            raise ValueError(f"env param {name!r} needs shape {current.shape}, got {array.shape}")
-        updates[name] = array
-    return params.replace(**updates)
+            raise ValueError(f"{prefix}{name} needs shape {current.shape}, got {array.shape}")
+        updates[name] = jnp.asarray(array)
+    changed = params.replace(**updates)
+    ranges.check_params(changed, updates, prefix)
+    return changed
 
 
 register("arm2d", "jaxarm.envs.arm2d:Arm2d", "2-link planar reaching arm (the classic tutorial arm)")

@@ -1,13 +1,21 @@
-"""Run configs: the hyper-parameters a config declares dynamic, and the presets' validity."""
+"""Run configs: the hyper-parameters a config declares dynamic, the presets' validity, and the ranges, types and
+relations every config field and env param is checked against."""
+
+import dataclasses
+import json
+import typing
 
 import jax
 import jax.numpy as jnp
 import pytest
 
-from experiments import configs
-from jaxarm.agents.common.config import HParams
+from experiments import configs, rundir
+from jaxarm import envs, ranges
+from jaxarm.agents.common.config import HParams, RunConfig, apply_overrides, parse_literal
 from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
+from jaxarm.envs.panda_sort import params as panda_sort_params
+from jaxarm.envs.peg_insert import params as peg_insert_params
 
 
 @pytest.mark.parametrize(
@@ -30,3 +38,153 @@ def test_hparams_hold_the_fields_declared_dynamic_and_no_others(config_class, dy
 def test_every_preset_is_valid():
     for name in configs.names():
         configs.get(name)  # validates
+
+
+CONFIG_CLASSES = [PPOConfig, TD3Config]
+ISSUE_VALUES = [
+    # The values a new user tried, which trained (or crashed late) before they were refused.
+    (PPOConfig, "gamma", 2.0),
+    (PPOConfig, "learning_rate", -1.0),
+    (PPOConfig, "gae_lambda", 5.0),
+    (PPOConfig, "max_grad_norm", 0.0),
+    (PPOConfig, "num_minibatches", 0),
+    (PPOConfig, "rollout_length", 0),
+    (PPOConfig, "activation", "foo"),
+    (TD3Config, "gamma", 2.0),
+    (TD3Config, "rollout_length", 0),
+    (TD3Config, "activation", "foo"),
+]
+
+
+def numeric_fields(config_class) -> list[str]:
+    hints = typing.get_type_hints(config_class)
+    return [field.name for field in dataclasses.fields(config_class) if hints[field.name] in (int, float)]
+
+
+def float_fields(config_class) -> list[str]:
+    hints = typing.get_type_hints(config_class)
+    return [field.name for field in dataclasses.fields(config_class) if hints[field.name] is float]
+
+
+@pytest.mark.parametrize("config_class", CONFIG_CLASSES)
+def test_every_number_size_and_choice_declares_its_range(config_class):
+    hints = typing.get_type_hints(config_class)
+    for field in dataclasses.fields(config_class):
+        if hints[field.name] in (int, float, tuple[int, ...]) or field.name == "activation":
+            assert ranges.RANGE in field.metadata, f"{config_class.__name__}.{field.name} declares no range"
+
+
+def test_a_default_declared_again_keeps_its_range():
+    assert TD3Config().num_envs == 16 and RunConfig.__dataclass_fields__["num_envs"].default == 256
+    assert TD3Config.__dataclass_fields__["num_envs"].metadata == RunConfig.__dataclass_fields__["num_envs"].metadata
+    with pytest.raises(ValueError, match="^num_envs must be >= 1, got 0"):
+        TD3Config(num_envs=0)
+
+
+@pytest.mark.parametrize("config_class, field, value", ISSUE_VALUES)
+def test_issue_values_are_refused_by_the_class_and_by_overrides(config_class, field, value):
+    with pytest.raises(ValueError, match=f"^{field} must be"):
+        config_class(**{field: value})
+    with pytest.raises(ValueError, match=f"^{field} must be"):
+        apply_overrides(config_class(), [f"{field}={value}"])
+
+
+@pytest.mark.parametrize("config_class, field", [(cls, name) for cls in CONFIG_CLASSES for name in float_fields(cls)])
+@pytest.mark.parametrize("text", ["nan", "inf", "-inf"])
+def test_every_float_field_refuses_nan_and_inf(config_class, field, text):
+    with pytest.raises(ValueError, match=f"^{field} must be finite"):
+        config_class(**{field: float(text)})
+    with pytest.raises(ValueError, match=f"^{field} must be finite"):
+        apply_overrides(config_class(), [f"{field}={text}"])
+
+
+@pytest.mark.parametrize("config_class", CONFIG_CLASSES)
+def test_integers_beyond_int32_and_wrong_types_are_refused(config_class):
+    for field in numeric_fields(config_class):
+        if field in float_fields(config_class):
+            with pytest.raises(ValueError, match=f"^{field} must be a number"):
+                config_class(**{field: "0.5"})
+            continue
+        with pytest.raises(ValueError, match=f"^{field} must fit in int32"):
+            config_class(**{field: 2**31})
+        with pytest.raises(ValueError, match=f"^{field} must fit in int32"):
+            apply_overrides(config_class(), [f"{field}=1e10"])
+        with pytest.raises(ValueError, match=f"^{field} must be an integer"):
+            config_class(**{field: 2.5})
+    with pytest.raises(ValueError, match="normalize_observations must be true or false|target_smoothing must be"):
+        config_class(**{"normalize_observations" if config_class is PPOConfig else "target_smoothing": 1})
+    field = "policy_hidden_sizes" if config_class is PPOConfig else "hidden_sizes"
+    with pytest.raises(ValueError, match=rf"^{field}\[1\] must be >= 1, got 0"):
+        config_class(**{field: (64, 0)})
+
+
+ENV_PARAM_VALUES = [
+    ("goal_size", "-40", "must be > 0"),
+    ("success_bonus", "nan", "must be finite"),
+    ("max_episode_steps", "0", "must be >= 1"),
+    ("max_episode_steps", "1e10", "must fit in int32"),
+    ("max_episode_steps", "2.5", "must be an integer"),
+    ("goal_mode", "3", "must be one of 0, 1, 2"),
+]
+
+
+@pytest.mark.parametrize("name, text, message", ENV_PARAM_VALUES)
+def test_issue_env_params_are_refused_by_override_params_and_overrides(name, text, message):
+    params = envs.make("arm2d").default_params()
+    with pytest.raises(ValueError, match=f"^env param {name} {message}"):
+        envs.override_params(params, {name: parse_literal(text)})
+    for group in ("env_params", "eval_env_params"):
+        with pytest.raises(ValueError, match=f"^{group}.{name} {message}"):
+            apply_overrides(PPOConfig(), [f"{group}.{name}={text}"])
+        with pytest.raises(ValueError, match=f"^{group}.{name} {message}"):
+            PPOConfig(**{group: ((name, parse_literal(text)),)}).validate()
+
+
+def test_sorter_params_are_refused_by_their_ranges_and_order():
+    params = panda_sort_params.default_params()
+    with pytest.raises(ValueError, match="^env param object_size must be > 0, got -0.01"):
+        envs.override_params(params, {"object_size": -0.01})
+    with pytest.raises(ValueError, match="size_scale_low .2.0. must not exceed env param size_scale_high .1.5."):
+        envs.override_params(params, {"size_scale_low": 2.0})
+    with pytest.raises(ValueError, match="^env param held_start_prob must be in .0, 1.*"):
+        envs.override_params(params, {"held_start_prob": 1.5})
+    assert float(envs.override_params(params, {"object_size": 0.03}).object_size) == pytest.approx(0.03)
+    with pytest.raises(ValueError, match="^env_params.object_size must be > 0, got -0.01"):
+        PPOConfig(env="panda_sort", env_params=(("object_size", -0.01),)).validate()
+
+
+def test_default_env_params_lie_in_their_declared_ranges():
+    for params in (
+        envs.make("arm2d").default_params(),
+        panda_sort_params.default_params(),
+        peg_insert_params.default_params(),
+    ):
+        ranges.check_params(params)
+        hints = [field.metadata for field in dataclasses.fields(params)]
+        assert all(ranges.RANGE in metadata for metadata in hints), type(params).__name__
+
+
+def test_a_chunk_larger_than_the_budget_shrinks_to_the_budget():
+    preset = configs.get("ppo_arm2d")  # 1.5M env steps of 16,384 per update: 92 updates, run as 5 chunks of 20
+    assert (preset.chunk_updates, preset.num_updates) == (20, 100)
+    big = apply_overrides(preset, ["updates_per_chunk=1000"])
+    assert (big.chunk_updates, big.num_updates) == (92, 92)
+    assert big.num_updates * big.env_steps_per_update - big.total_env_steps < big.env_steps_per_update
+
+
+def test_a_budget_beyond_the_int32_step_counter_is_refused():
+    with pytest.raises(ValueError, match="total_env_steps=2,147,000,000 .run as 2,147,483,648 env steps"):
+        PPOConfig(num_envs=1024, rollout_length=16, updates_per_chunk=4096, total_env_steps=2_147_000_000).validate()
+
+
+def test_an_edited_config_json_is_refused_on_reading(tmp_path):
+    rundir.write_config(tmp_path, configs.get("ppo_arm2d"), "ppo_arm2d")
+    path = tmp_path / "config.json"
+    data = json.loads(path.read_text())
+    for field, value in [("gamma", 2.0), ("num_minibatches", 0), ("activation", "foo"), ("num_envs", 2.5)]:
+        path.write_text(json.dumps({**data, field: value}))
+        with pytest.raises(ValueError, match=f"{field} must be"):
+            rundir.read_config(tmp_path)
+    path.write_text(json.dumps({**data, "env_params": [["goal_size", -40]]}))
+    with pytest.raises(ValueError, match="env_params.goal_size must be > 0"):
+        rundir.read_config(tmp_path)

@@ -159,7 +159,7 @@ def test_time_limit_truncates_and_auto_reset_keeps_final_obs(env_case):
     assert np.all(third.episode.length == 0)
 
 
-def test_nan_actions_are_zeroed_and_counted(env_case):
+def test_nan_actions_are_zeroed_inf_actions_clipped_and_both_counted(env_case):
     env, params, _, _, shared = env_case
     plain_step = shared.step
     state = shared.reset(jax.random.key(5), params)
@@ -167,6 +167,11 @@ def test_nan_actions_are_zeroed_and_counted(env_case):
     zero_step = plain_step(state, jnp.zeros(env.spec.action_shape), params)
     assert_trees_equal(nan_step.obs, zero_step.obs)
     assert int(nan_step.episode.nan_actions) == 1 and int(zero_step.episode.nan_actions) == 0
+    signs = jnp.where(jnp.arange(env.spec.action_size) % 2 == 0, 1.0, -1.0).reshape(env.spec.action_shape)
+    inf_step = plain_step(state, signs * jnp.inf, params)
+    bound_step = plain_step(state, jnp.where(signs > 0, env.spec.action_high, env.spec.action_low), params)
+    np.testing.assert_array_equal(inf_step.obs, bound_step.obs)
+    assert int(inf_step.episode.nan_actions) == 1 and int(bound_step.episode.nan_actions) == 0
 
 
 def test_check_action_rejects_nan_and_wrong_shape(env_and_params):
@@ -191,6 +196,41 @@ def test_a_diverged_step_terminates_with_zero_observation_and_reward():
     assert float(broken.reward) == 0.0 and np.all(np.asarray(broken.obs) == 0.0)
     healthy = jax.jit(env.step)(state, jnp.zeros(2), params)
     assert not bool(healthy.episode.diverged)
+
+
+def test_a_non_finite_reset_observation_is_zeroed_and_flagged():
+    env = envs.make("arm2d")
+    params = env.default_params()
+    # The override path refuses such params; per-env randomised params reach `reset` unchecked, inside jit.
+    for broken in (params.replace(world_size=jnp.float32(0.0)), params.replace(link_lengths=jnp.full(2, jnp.nan))):
+        state = jax.jit(env.reset)(jax.random.key(0), broken)
+        assert np.all(np.asarray(state.obs) == 0.0) and np.all(np.asarray(state.final_obs) == 0.0)
+        assert bool(state.episode.diverged)
+    healthy = jax.jit(env.reset)(jax.random.key(0), params)
+    assert np.any(np.asarray(healthy.obs) != 0.0) and not bool(healthy.episode.diverged)
+
+
+def test_a_plain_env_stepped_past_its_end_keeps_the_episode_it_reported():
+    env = envs.make("arm2d")
+    params = envs.override_params(env.default_params(), {"max_episode_steps": 3})
+    step = jax.jit(env.step)
+    state = env.reset(jax.random.key(0), params)
+    for _ in range(3):
+        state = step(state, jnp.ones(2), params)
+    assert bool(state.truncated) and int(state.last_episode.length) == 3
+    reported = state.last_episode
+    for _ in range(4):
+        state = step(state, jnp.ones(2), params)
+        assert bool(state.done)
+        jax.tree.map(np.testing.assert_array_equal, state.last_episode, reported)
+    # Auto-reset envs still report every episode, including one that ends on its first step.
+    auto = envs.AutoReset(env)
+    one_step = envs.override_params(params, {"max_episode_steps": 1})
+    state = auto.reset(jax.random.key(0), one_step)
+    for _ in range(3):
+        state = jax.jit(auto.step)(state, jnp.ones(2), one_step)
+        assert bool(state.truncated) and int(state.last_episode.length) == 1
+        assert float(state.last_episode.return_) == float(state.reward)
 
 
 def test_vmap_warns_above_an_envs_cpu_limit():

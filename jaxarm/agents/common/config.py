@@ -1,11 +1,13 @@
 """Typed, frozen run configs shared by every learner, their hyper-parameter pytree, and validated overrides.
 
-A config is a frozen dataclass: static choices (sizes, counts, env) are plain fields; a field declared with
-`dynamic(default)` is a hyper-parameter `train` takes as data: `hparams()` gathers those fields into one
-`HParams` pytree, so seeds × hyper-parameters vmap. `validate()` is where a config's values are checked, once
-it is built from user input (a preset, overrides, a run directory's config.json). Env constructor kwargs and
-env params are (name, value) pairs set on the CLI as `env_kwargs.NAME=VALUE`, `env_params.NAME=VALUE` and
-`eval_env_params.NAME=VALUE`.
+A config is a frozen dataclass: static choices (sizes, counts, env) are declared with `static(default, range)`;
+a field declared with `dynamic(default, range)` is a hyper-parameter `train` takes as data: `hparams()` gathers
+those fields into one `HParams` pytree, so seeds × hyper-parameters vmap. Every field's type and declared range
+(`jaxarm.ranges`: floats finite, integers within int32) are checked whenever a config is built, so no config
+holds a value out of range; `validate()` adds the relations between fields and builds the env with its params,
+once a config is made from user input (a preset, overrides, a run directory's config.json). Env constructor
+kwargs and env params are (name, value) pairs set on the CLI as `env_kwargs.NAME=VALUE`,
+`env_params.NAME=VALUE` and `eval_env_params.NAME=VALUE`; env params are checked against their own ranges.
 """
 
 import ast
@@ -17,8 +19,9 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from jaxarm import envs
+from jaxarm import envs, ranges
 from jaxarm.envs.registry import closest_match_hint
+from jaxarm.ranges import COUNT, Range
 
 Pairs = tuple[tuple[str, Any], ...]
 
@@ -26,9 +29,21 @@ DYNAMIC = "dynamic"
 """The metadata key `dynamic` sets on a config field."""
 
 
-def dynamic(default: float) -> float:
-    """Declares a config field as a dynamic hyper-parameter: a float `train` takes as data (in `HParams`)."""
-    return dataclasses.field(default=default, metadata={DYNAMIC: True})
+def static(default: Any, allowed: Range | None = None) -> Any:
+    """Declares a static config field (a size, count or choice fixed at compile time) and its allowed values."""
+    return dataclasses.field(default=default, metadata={ranges.RANGE: allowed})
+
+
+def dynamic(default: float, allowed: Range | None = None) -> float:
+    """Declares a config field as a dynamic hyper-parameter, a float `train` takes as data (in `HParams`), and its
+    allowed values."""
+    return dataclasses.field(default=default, metadata={DYNAMIC: True, ranges.RANGE: allowed})
+
+
+def inherit(base: type, name: str, default: Any) -> Any:
+    """`base`'s field `name` declared again with another default, its range and marks kept."""
+    (field,) = [field for field in dataclasses.fields(base) if field.name == name]
+    return dataclasses.field(default=default, metadata=field.metadata)
 
 
 @jax.tree_util.register_pytree_with_keys_class
@@ -78,9 +93,11 @@ class RunConfig:
       env_params: overrides of the env's default params as (name, value) pairs.
       eval_env_params: further overrides for evaluation only, e.g. switching off a training curriculum.
       num_envs: envs stepped in parallel.
-      total_env_steps: training budget in env steps (rounded up to whole chunks of updates, so that every
-        chunk is the same compiled program: a shorter last chunk would compile again).
-      updates_per_chunk: updates compiled into one call; the runner logs and checkpoints between calls.
+      total_env_steps: training budget in env steps, rounded up to whole updates and then to whole chunks
+        (`num_updates`), so that every chunk is the same compiled program: a shorter last chunk would compile
+        again.
+      updates_per_chunk: updates compiled into one call; the runner logs and checkpoints between calls. A run
+        whose budget needs fewer updates is one chunk of those (`chunk_updates`).
       checkpoint_every_updates: save the learner state at the first chunk end after this many updates.
       eval_episodes: fresh episodes for the final deterministic evaluation.
       seed: PRNG seed of the run.
@@ -93,13 +110,33 @@ class RunConfig:
     env_kwargs: Pairs = ()
     env_params: Pairs = ()
     eval_env_params: Pairs = ()
-    num_envs: int = 256
-    total_env_steps: int = 1_000_000
-    updates_per_chunk: int = 10
-    checkpoint_every_updates: int = 50
-    eval_episodes: int = 1000
-    seed: int = 0
+    num_envs: int = static(256, COUNT)
+    total_env_steps: int = static(1_000_000, COUNT)
+    updates_per_chunk: int = static(10, COUNT)
+    checkpoint_every_updates: int = static(50, COUNT)
+    eval_episodes: int = static(1000, COUNT)
+    seed: int = static(0, ranges.NON_NEGATIVE)
     init_from: str = ""
+
+    def __post_init__(self) -> None:
+        ranges.check_fields(self)
+
+    @property
+    def env_steps_per_update(self) -> int:
+        """Env steps one update collects (each learner's config defines it)."""
+        raise NotImplementedError(f"{type(self).__name__} does not define env_steps_per_update")
+
+    @property
+    def chunk_updates(self) -> int:
+        """Updates per compiled chunk: `updates_per_chunk`, or the updates the whole budget needs if fewer."""
+        return min(self.updates_per_chunk, -(-self.total_env_steps // self.env_steps_per_update))
+
+    @property
+    def num_updates(self) -> int:
+        """Updates in the run: `total_env_steps` rounded up to whole chunks of `chunk_updates`. A run overshoots
+        its budget by less than one chunk, and a chunk is never longer than the whole budget needs."""
+        chunk_steps = self.env_steps_per_update * self.chunk_updates
+        return -(-self.total_env_steps // chunk_steps) * self.chunk_updates
 
     @classmethod
     def dynamic_fields(cls) -> tuple[str, ...]:
@@ -111,32 +148,30 @@ class RunConfig:
         return HParams(**{name: jnp.asarray(getattr(self, name), jnp.float32) for name in self.dynamic_fields()})
 
     def validate(self) -> None:
-        """Raises ValueError on values no run can use (non-positive sizes, unknown env, bad env params).
-
-        Learners' configs extend this with their own checks (calling `super().validate()` first).
+        """Raises ValueError on a config no run can use: fields that do not fit together (each relation is stated
+        here, or in a learner's config, which extends this after `super().validate()`), an unknown env or env
+        kwarg, or env params out of their ranges. Each field's own range was checked when the config was built.
         """
-        for field in ("num_envs", "total_env_steps", "updates_per_chunk", "checkpoint_every_updates", "eval_episodes"):
-            if getattr(self, field) <= 0:
-                raise ValueError(f"{field} must be positive, got {getattr(self, field)}")
+        steps = self.num_updates * self.env_steps_per_update
+        if steps > ranges.INT32.max:
+            raise ValueError(
+                f"total_env_steps={self.total_env_steps:,} (run as {steps:,} env steps in whole chunks) exceeds "
+                f"the learners' int32 step counter ({ranges.INT32.max:,})"
+            )
         try:
             self.make_eval_env()
         except (KeyError, ValueError, TypeError) as error:
-            raise ValueError(str(error).strip("\"'")) from None
-
-    def whole_chunks(self, env_steps_per_update: int) -> int:
-        """Updates in the run: `total_env_steps` rounded up to whole chunks of `updates_per_chunk`."""
-        chunk_steps = env_steps_per_update * self.updates_per_chunk
-        return max(1, -(-self.total_env_steps // chunk_steps)) * self.updates_per_chunk
+            raise ValueError(error.args[0] if error.args else str(error)) from None
 
     def make_env(self):
         """Returns (env, env_params) described by this config: what training runs on."""
         env = envs.make(self.env, **dict(self.env_kwargs))
-        return env, envs.override_params(env.default_params(), dict(self.env_params))
+        return env, envs.override_params(env.default_params(), dict(self.env_params), prefix="env_params.")
 
     def make_eval_env(self):
         """Returns (env, env_params) that evaluations run on: the training env with `eval_env_params` applied."""
         env, env_params = self.make_env()
-        return env, envs.override_params(env_params, dict(self.eval_env_params))
+        return env, envs.override_params(env_params, dict(self.eval_env_params), prefix="eval_env_params.")
 
 
 def parse_value(text: str, annotation) -> Any:

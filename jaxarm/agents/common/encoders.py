@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm.envs.observation import IMAGE, PROPRIO
+from jaxarm.ranges import Range
 
 
 def scaled_init() -> Callable:
@@ -87,10 +88,8 @@ ENCODERS: Mapping[str, Callable[[], nn.Module]] = {
 """Conv stack name -> constructor (a learner config's `encoder`)."""
 
 
-def check_encoder(name: str) -> None:
-    """ValueError naming the choices for an unknown conv stack."""
-    if name not in ENCODERS:
-        raise ValueError(f"encoder must be one of {', '.join(ENCODERS)}, got {name!r}")
+ENCODER = Range(choices=tuple(ENCODERS))
+"""The allowed values of a config's `encoder`."""
 
 
 class PixelEncoder(nn.Module):

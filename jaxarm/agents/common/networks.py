@@ -6,6 +6,17 @@ from typing import Any, cast
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+import numpy as np
+
+from jaxarm.ranges import Range
+
+ACTIVATIONS = {
+    name: getattr(nn, name)
+    for name in ("relu", "tanh", "swish", "silu", "gelu", "elu", "selu", "celu", "leaky_relu", "softplus", "sigmoid")
+}
+"""Hidden-layer activations by the name configs give (flax.linen's functions)."""
+ACTIVATION = Range(choices=tuple(ACTIVATIONS))
+"""The allowed values of a config's `activation`."""
 
 
 class MLP(nn.Module):
@@ -21,7 +32,7 @@ class MLP(nn.Module):
 
     @nn.compact
     def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
-        act = getattr(nn, self.activation)
+        act = ACTIVATIONS[self.activation]
         for size in self.hidden_sizes:
             x = act(nn.Dense(size, kernel_init=nn.initializers.orthogonal(jnp.sqrt(2.0)))(x))
         return nn.Dense(self.output_size, kernel_init=nn.initializers.orthogonal(self.output_scale))(x)
@@ -31,3 +42,16 @@ def apply_module(module: nn.Module, variables: Mapping[str, Any], *inputs: jax.A
     """`module.apply(variables, *inputs)`, typed as the array it is: flax types `apply` as perhaps also
     returning mutated variables, which it does only when asked to (never in these learners)."""
     return cast(jax.Array, module.apply(variables, *inputs))
+
+
+def mlp_layers(variables: Mapping[str, Any]) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+    """The dense layers of the one `MLP` in a module's flax variables, in order: ([in, out] kernels, [out] biases)
+    as float32 numpy arrays (the form `jaxarm.export.numpy_policy` runs)."""
+    tree = variables["params"]
+    while not any(name.startswith("Dense_") for name in tree):
+        (tree,) = tree.values()  # a module wrapping one MLP (TD3's actor)
+    names = sorted(tree, key=lambda name: int(name.removeprefix("Dense_")))
+    return (
+        tuple(np.asarray(tree[name]["kernel"], np.float32) for name in names),
+        tuple(np.asarray(tree[name]["bias"], np.float32) for name in names),
+    )

@@ -15,6 +15,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from jaxarm.envs import EnvState
+from jaxarm.export.numpy_policy import NumpyPolicy
 
 
 @dataclasses.dataclass(frozen=True)
@@ -25,6 +26,8 @@ class Trainer:
       init: (key, hparams) -> learner state.
       update: (learner state, hparams) -> (learner state, per-update metrics pytree of scalars).
       act: (learner state, obs [B, O]) -> deterministic actions [B, A] (for evaluation).
+      numpy_policy: learner state -> the same deterministic policy as numpy arrays (`NumpyPolicy`, which runs
+        without JAX), or None for a learner that cannot export.
       num_updates: updates in the whole run.
       env_steps_per_update: env steps each update consumes.
       compiler_options: XLA options for the programs that run `update` (`jax.jit(..., compiler_options=...)`),
@@ -37,6 +40,7 @@ class Trainer:
     num_updates: int
     env_steps_per_update: int
     compiler_options: dict[str, Any] = dataclasses.field(default_factory=dict)
+    numpy_policy: Callable[[Any], NumpyPolicy] | None = None
 
 
 def run_updates(trainer: Trainer, state, hparams, num_updates: int):

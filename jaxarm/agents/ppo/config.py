@@ -2,8 +2,10 @@
 
 import dataclasses
 
-from jaxarm.agents.common.config import RunConfig, dynamic
-from jaxarm.agents.common.encoders import check_encoder
+from jaxarm.agents.common.config import RunConfig, dynamic, static
+from jaxarm.agents.common.encoders import ENCODER
+from jaxarm.agents.common.networks import ACTIVATION
+from jaxarm.ranges import COUNT, DISCOUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL
 
 
 @dataclasses.dataclass(frozen=True)
@@ -16,9 +18,9 @@ class PPOConfig(RunConfig):
       num_epochs: passes over each rollout.
       policy_hidden_sizes: hidden layer sizes of the policy MLP.
       value_hidden_sizes: hidden layer sizes of the value MLP.
-      activation: flax.linen activation name for hidden layers.
-      encoder: conv stack in front of the MLPs for camera observations (`jaxarm.agents.common.encoders`:
-        "nature", "impala", "patches"); unused for flat observations.
+      activation: hidden-layer activation, one of `jaxarm.agents.common.networks.ACTIVATIONS`.
+      encoder: conv stack in front of the MLPs for camera observations, one of
+        `jaxarm.agents.common.encoders.ENCODERS`; unused for flat observations.
       encoder_features: width of the encoder's dense output layer.
       shared_encoder: one encoder (the policy's) feeds both heads, trained by both losses; else one each.
       normalize_observations: keep running mean/std of observations in the learner state (of a camera
@@ -36,35 +38,31 @@ class PPOConfig(RunConfig):
       reward_scale: rewards are multiplied by this before GAE.
     """
 
-    rollout_length: int = 16
-    num_minibatches: int = 8
-    num_epochs: int = 4
-    policy_hidden_sizes: tuple[int, ...] = (64, 64)
-    value_hidden_sizes: tuple[int, ...] = (64, 64)
-    activation: str = "tanh"
-    encoder: str = "nature"
-    encoder_features: int = 256
+    rollout_length: int = static(16, COUNT)
+    num_minibatches: int = static(8, COUNT)
+    num_epochs: int = static(4, COUNT)
+    policy_hidden_sizes: tuple[int, ...] = static((64, 64), COUNT)
+    value_hidden_sizes: tuple[int, ...] = static((64, 64), COUNT)
+    activation: str = static("tanh", ACTIVATION)
+    encoder: str = static("nature", ENCODER)
+    encoder_features: int = static(256, COUNT)
     shared_encoder: bool = False
     normalize_observations: bool = True
     normalize_advantages: bool = True
     anneal_learning_rate: bool = True
-    initial_log_std: float = 0.0
-    learning_rate: float = dynamic(3e-4)
-    gamma: float = dynamic(0.99)
-    gae_lambda: float = dynamic(0.95)
-    clip_epsilon: float = dynamic(0.2)
-    entropy_coef: float = dynamic(0.01)
-    value_coef: float = dynamic(0.5)
-    max_grad_norm: float = dynamic(0.5)
-    reward_scale: float = dynamic(1.0)
+    initial_log_std: float = static(0.0)
+    learning_rate: float = dynamic(3e-4, POSITIVE)
+    gamma: float = dynamic(0.99, DISCOUNT)
+    gae_lambda: float = dynamic(0.95, UNIT_INTERVAL)
+    clip_epsilon: float = dynamic(0.2, POSITIVE)
+    entropy_coef: float = dynamic(0.01, NON_NEGATIVE)
+    value_coef: float = dynamic(0.5, POSITIVE)
+    max_grad_norm: float = dynamic(0.5, POSITIVE)
+    reward_scale: float = dynamic(1.0, POSITIVE)
 
     @property
     def env_steps_per_update(self) -> int:
         return self.rollout_length * self.num_envs
-
-    @property
-    def num_updates(self) -> int:
-        return self.whole_chunks(self.env_steps_per_update)
 
     @property
     def minibatch_size(self) -> int:
@@ -73,7 +71,6 @@ class PPOConfig(RunConfig):
     def validate(self) -> None:
         """RunConfig's checks, and that each rollout splits into whole minibatches."""
         super().validate()
-        check_encoder(self.encoder)
         if self.env_steps_per_update % self.num_minibatches:
             raise ValueError(
                 f"rollout_length*num_envs={self.env_steps_per_update} must divide by "

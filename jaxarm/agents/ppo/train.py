@@ -10,18 +10,21 @@ name (`python -m experiments.bench profile` sums time by them).
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from brax.training.acme import running_statistics, specs
 from flax import struct
 
 from jaxarm.agents.common.config import HParams
 from jaxarm.agents.common.encoders import statistics_part
+from jaxarm.agents.common.networks import mlp_layers
 from jaxarm.agents.common.permutation import random_permutation
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.agents.ppo.networks import NetworkParams, make_networks
 from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
+from jaxarm.export.numpy_policy import NumpyPolicy
 
 
 class PPOState(struct.PyTreeNode):
@@ -223,6 +226,27 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         """Deterministic action: tanh of the Gaussian's mean."""
         return networks.deterministic_action(state.params, state.normalizer, obs)
 
+    def numpy_policy(state: PPOState) -> NumpyPolicy:
+        """`act` as arrays: the policy MLP (its first A outputs are the Gaussian's mean) and the normaliser."""
+        if not env.spec.flat_observation:
+            raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
+        obs_size = env.spec.observation_size
+        kernels, biases = mlp_layers(state.params.policy)
+        if config.normalize_observations:
+            mean, std = np.asarray(state.normalizer.mean), np.asarray(state.normalizer.std)
+        else:
+            mean, std = np.zeros(obs_size), np.ones(obs_size)
+        action_size = env.spec.action_size
+        return NumpyPolicy(
+            kernels=kernels,
+            biases=biases,
+            activation=config.activation,
+            obs_mean=mean.astype(np.float32),
+            obs_std=std.astype(np.float32),
+            action_offset=np.zeros(action_size, np.float32),
+            action_scale=np.ones(action_size, np.float32),
+        )
+
     return Trainer(
         init=init,
         update=update,
@@ -230,4 +254,5 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         num_updates=config.num_updates,
         env_steps_per_update=config.env_steps_per_update,
         compiler_options=compiler_options(env),
+        numpy_policy=numpy_policy,
     )

@@ -6,8 +6,10 @@ experiments/configs/td3.py).
 
 import dataclasses
 
-from jaxarm.agents.common.config import RunConfig, dynamic
-from jaxarm.agents.common.encoders import check_encoder
+from jaxarm.agents.common.config import RunConfig, dynamic, inherit, static
+from jaxarm.agents.common.encoders import ENCODER
+from jaxarm.agents.common.networks import ACTIVATION
+from jaxarm.ranges import COUNT, DISCOUNT, NON_NEGATIVE, POSITIVE, Range
 
 
 @dataclasses.dataclass(frozen=True)
@@ -26,9 +28,9 @@ class TD3Config(RunConfig):
       target_noise_clip: the smoothing noise is clipped to ±this.
       reward_scale: rewards are multiplied by this in the critic target.
       hidden_sizes: hidden layer widths of the actor and of each critic.
-      activation: hidden-layer activation (a flax.linen function name).
-      encoder: conv stack each network reads camera observations through (`jaxarm.agents.common.encoders`:
-        "nature", "impala", "patches"); unused for flat observations.
+      activation: hidden-layer activation, one of `jaxarm.agents.common.networks.ACTIVATIONS`.
+      encoder: conv stack each network reads camera observations through, one of
+        `jaxarm.agents.common.encoders.ENCODERS`; unused for flat observations.
       encoder_features: width of the encoder's dense output layer.
       random_shift_pad: DrQ's augmentation: the critics' and the actor's training images shifted by up to
         ±this many pixels (0: off; DrQ used 4 at 84×84).
@@ -42,58 +44,41 @@ class TD3Config(RunConfig):
       grad_steps_per_update: gradient (critic) steps per update; a multiple of `policy_delay`.
     """
 
-    num_envs: int = 16
-    total_env_steps: int = 200_000
-    updates_per_chunk: int = 500
-    checkpoint_every_updates: int = 2_500
+    num_envs: int = inherit(RunConfig, "num_envs", 16)
+    total_env_steps: int = inherit(RunConfig, "total_env_steps", 200_000)
+    updates_per_chunk: int = inherit(RunConfig, "updates_per_chunk", 500)
+    checkpoint_every_updates: int = inherit(RunConfig, "checkpoint_every_updates", 2_500)
 
-    actor_learning_rate: float = dynamic(1e-3)
-    critic_learning_rate: float = dynamic(1e-3)
-    gamma: float = dynamic(0.99)
-    tau: float = dynamic(0.005)
-    exploration_noise: float = dynamic(0.1)
-    target_noise: float = dynamic(0.2)
-    target_noise_clip: float = dynamic(0.5)
-    reward_scale: float = dynamic(1.0)
+    actor_learning_rate: float = dynamic(1e-3, POSITIVE)
+    critic_learning_rate: float = dynamic(1e-3, POSITIVE)
+    gamma: float = dynamic(0.99, DISCOUNT)
+    tau: float = dynamic(0.005, Range(gt=0, le=1))
+    exploration_noise: float = dynamic(0.1, NON_NEGATIVE)
+    target_noise: float = dynamic(0.2, NON_NEGATIVE)
+    target_noise_clip: float = dynamic(0.5, NON_NEGATIVE)
+    reward_scale: float = dynamic(1.0, POSITIVE)
 
-    hidden_sizes: tuple[int, ...] = (256, 256)
-    activation: str = "relu"
-    encoder: str = "nature"
-    encoder_features: int = 256
-    random_shift_pad: int = 0
-    num_critics: int = 2
-    policy_delay: int = 2
+    hidden_sizes: tuple[int, ...] = static((256, 256), COUNT)
+    activation: str = static("relu", ACTIVATION)
+    encoder: str = static("nature", ENCODER)
+    encoder_features: int = static(256, COUNT)
+    random_shift_pad: int = static(0, NON_NEGATIVE)
+    num_critics: int = static(2, COUNT)
+    policy_delay: int = static(2, COUNT)
     target_smoothing: bool = True
-    batch_size: int = 256
-    buffer_size: int = 1_000_000
-    learning_starts: int = 5_000
-    rollout_length: int = 1
-    grad_steps_per_update: int = 4
+    batch_size: int = static(256, COUNT)
+    buffer_size: int = static(1_000_000, COUNT)
+    learning_starts: int = static(5_000, NON_NEGATIVE)
+    rollout_length: int = static(1, COUNT)
+    grad_steps_per_update: int = static(4, COUNT)
 
     @property
     def env_steps_per_update(self) -> int:
         return self.num_envs * self.rollout_length
 
-    @property
-    def num_updates(self) -> int:
-        return self.whole_chunks(self.env_steps_per_update)
-
     def validate(self) -> None:
-        """RunConfig's checks, positive sizes, whole policy-delay blocks, and room for one update's steps."""
+        """RunConfig's checks, whole policy-delay blocks, and room for one update's steps."""
         super().validate()
-        check_encoder(self.encoder)
-        if self.random_shift_pad < 0:
-            raise ValueError(f"random_shift_pad must be >= 0, got {self.random_shift_pad}")
-        for field in (
-            "num_critics",
-            "policy_delay",
-            "batch_size",
-            "buffer_size",
-            "rollout_length",
-            "grad_steps_per_update",
-        ):
-            if getattr(self, field) <= 0:
-                raise ValueError(f"{field} must be positive, got {getattr(self, field)}")
         if self.grad_steps_per_update % self.policy_delay:
             raise ValueError(
                 f"grad_steps_per_update ({self.grad_steps_per_update}) must be a multiple of "

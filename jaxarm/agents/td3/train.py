@@ -14,6 +14,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from flax import struct
 
@@ -21,12 +22,13 @@ from jaxarm.agents.common import replay
 from jaxarm.agents.common.augment import shift_observation
 from jaxarm.agents.common.config import HParams
 from jaxarm.agents.common.encoders import PixelEncoder
-from jaxarm.agents.common.networks import apply_module
+from jaxarm.agents.common.networks import apply_module, mlp_layers
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.td3.config import TD3Config
 from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, polyak_update, smoothed_target_action
 from jaxarm.agents.td3.networks import Actor, Critic, apply_critics, init_critics
 from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
+from jaxarm.export.numpy_policy import NumpyPolicy
 
 
 @struct.dataclass
@@ -126,6 +128,22 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
 
     def act(state: TD3State, obs: jax.Array) -> jax.Array:
         return to_env_action(apply_module(actor, state.actor_params, obs))
+
+    def numpy_policy(state: TD3State) -> NumpyPolicy:
+        """`act` as arrays: the actor's MLP, and the map of its tanh outputs onto the env's action bounds."""
+        if camera:
+            raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
+        kernels, biases = mlp_layers(state.actor_params)
+        half_range = 0.5 * (spec.action_high - spec.action_low)
+        return NumpyPolicy(
+            kernels=kernels,
+            biases=biases,
+            activation=config.activation,
+            obs_mean=np.zeros(spec.observation_size, np.float32),
+            obs_std=np.ones(spec.observation_size, np.float32),
+            action_offset=np.full(action_size, spec.action_low + half_range, np.float32),
+            action_scale=np.full(action_size, half_range, np.float32),
+        )
 
     def init(key: jax.Array, hparams: HParams) -> TD3State:
         del hparams  # nothing in the initial state depends on them
@@ -279,4 +297,5 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         num_updates=config.num_updates,
         env_steps_per_update=config.env_steps_per_update,
         compiler_options=compiler_options(env),
+        numpy_policy=numpy_policy,
     )

@@ -6,6 +6,8 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, Range, ranged
+
 GOAL_FIXED = 0
 """goal_mode: the goal is `fixed_goal` at every reset."""
 GOAL_UNIFORM_WORLD = 1
@@ -17,6 +19,8 @@ GOAL_UNIFORM_REACHABLE = 2
 @struct.dataclass
 class Arm2dParams:
     """Everything a user may randomise or sweep. Link count is static (the constructor's `num_links`).
+
+    Each field declares its allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all are finite.
 
     Attributes:
       link_lengths: [N] link lengths, world units.
@@ -34,18 +38,18 @@ class Arm2dParams:
       max_episode_steps: time limit (truncation).
     """
 
-    link_lengths: jax.Array
-    base_pos: jax.Array
-    world_size: jax.Array
-    goal_size: jax.Array
-    goal_mode: jax.Array
-    fixed_goal: jax.Array
-    action_scale: jax.Array
-    distance_weight: jax.Array
-    goal_bonus: jax.Array
-    success_bonus: jax.Array
-    hold_steps: jax.Array
-    max_episode_steps: jax.Array
+    link_lengths: jax.Array = ranged(POSITIVE)
+    base_pos: jax.Array = ranged()
+    world_size: jax.Array = ranged(POSITIVE)
+    goal_size: jax.Array = ranged(POSITIVE)
+    goal_mode: jax.Array = ranged(Range(choices=(GOAL_FIXED, GOAL_UNIFORM_WORLD, GOAL_UNIFORM_REACHABLE)))
+    fixed_goal: jax.Array = ranged()
+    action_scale: jax.Array = ranged(POSITIVE)
+    distance_weight: jax.Array = ranged()
+    goal_bonus: jax.Array = ranged()
+    success_bonus: jax.Array = ranged()
+    hold_steps: jax.Array = ranged(NON_NEGATIVE)
+    max_episode_steps: jax.Array = ranged(COUNT)
 
 
 @struct.dataclass

@@ -108,16 +108,28 @@ def contact_capacity(mj_model: mujoco.MjModel) -> int:
     )
 
 
-def constraint_capacity(mj_model: mujoco.MjModel) -> int:
-    """Most constraint rows one env of the scene can have: every pair's contacts at its pair's rows (condim
-    rows with an elliptic cone; 1 for condim 1, else 2 (condim − 1) with a pyramidal one), one row per limited
-    joint and tendon, per dof and tendon with friction loss, and every equality's rows."""
-    pyramidal = mj_model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+def _rows_per_contact(mj_model: mujoco.MjModel) -> np.ndarray:
+    """[npair] constraint rows one contact of each pair takes: condim with an elliptic cone; 1 for condim 1,
+    else 2 (condim − 1) with a pyramidal one."""
+    condim = mj_model.pair_dim
+    if mj_model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL:
+        return np.where(condim == 1, 1, 2 * (condim - 1))
+    return condim
+
+
+def constraint_capacity(mj_model: mujoco.MjModel, contacts: int | None = None) -> int:
+    """Most constraint rows one env of the scene can have: its contacts' rows, one row per limited joint and
+    tendon, per dof and tendon with friction loss, and every equality's rows. The contacts are every pair's at
+    its types' maximum, or, given `contacts`, that many of the pairs' costliest kind."""
     types = mj_model.geom_type
-    contact_rows = 0
-    for g1, g2, condim in zip(mj_model.pair_geom1, mj_model.pair_geom2, mj_model.pair_dim, strict=True):
-        rows = (1 if condim == 1 else 2 * (condim - 1)) if pyramidal else condim
-        contact_rows += pair_max_contacts(types[g1], types[g2]) * rows
+    rows = _rows_per_contact(mj_model)
+    if contacts is None:
+        contact_rows = sum(
+            pair_max_contacts(types[g1], types[g2]) * pair_rows
+            for g1, g2, pair_rows in zip(mj_model.pair_geom1, mj_model.pair_geom2, rows, strict=True)
+        )
+    else:
+        contact_rows = contacts * int(np.max(rows, initial=0))
     equality_rows = {
         mujoco.mjtEq.mjEQ_CONNECT: 3,
         mujoco.mjtEq.mjEQ_WELD: 6,
@@ -133,17 +145,22 @@ def constraint_capacity(mj_model: mujoco.MjModel) -> int:
     )
 
 
-def put_scene(mj_model: mujoco.MjModel, impl: Impl, max_envs: int) -> tuple[mjx.Model, mjx.Data]:
-    """(mjx.Model, initial mjx.Data) of the scene for `impl`; Warp's contact buffer (shared by a batch) holds
-    the scene's worst case for `max_envs` envs, its constraint rows the worst case of one env."""
+def put_scene(
+    mj_model: mujoco.MjModel, impl: Impl, max_envs: int, contacts_per_env: int | None = None
+) -> tuple[mjx.Model, mjx.Data]:
+    """(mjx.Model, initial mjx.Data) of the scene for `impl`. Warp's contact buffer (shared by a batch) holds
+    `contacts_per_env` contacts (default: the scene's worst case, `contact_capacity`) for each of `max_envs`
+    envs, and each env's constraint rows the rows of that many contacts (`constraint_capacity`)."""
     if impl == Impl.JAX:
         return mjx.put_model(mj_model, impl="jax"), mjx.make_data(mj_model, impl="jax")
+    if contacts_per_env is not None and contacts_per_env < 1:
+        raise ValueError(f"contacts_per_env must be at least 1, got {contacts_per_env}")
     model = mjx.put_model(mj_model, impl="warp")
     data = mjx.make_data(
         mj_model,
         impl="warp",
-        naconmax=contact_capacity(mj_model) * max_envs,
-        njmax=constraint_capacity(mj_model),
+        naconmax=(contacts_per_env or contact_capacity(mj_model)) * max_envs,
+        njmax=constraint_capacity(mj_model, contacts_per_env),
     )
     return model, data
 

@@ -88,7 +88,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         objects starting from it (slots in cyclic order), and the shaping terms follow it alone, so a policy
         always finds the object to work on in the first slot and several objects become the one-object task
         repeated. With one object nothing changes.
-      impl, max_envs: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
+      impl, max_envs, contacts_per_env: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
     """
 
     # jaxlib 0.10.2's CPU runtime deadlocked on this env at 256 envs (one object) and 128 (three): two batched
@@ -104,6 +104,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         target_first: bool = False,
         impl: str = Impl.JAX,
         max_envs: int = 4096,
+        contacts_per_env: int | None = None,
     ):
         if not 1 <= objects_count <= 5:
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
@@ -115,9 +116,9 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self.layout = make_layout(blocker=blocker, tosser=tosser)
         mj_model = build_model(objects_count, self.layout)
         spawn_centre = (np.array(self.layout.spawn_low) + np.array(self.layout.spawn_high)) / 2
-        super().__init__(
-            mj_model, resolve_ids(mj_model, objects_count), np.r_[spawn_centre, START_HEIGHT], impl, max_envs
-        )
+        start_tcp = np.r_[spawn_centre, START_HEIGHT]
+        ids = resolve_ids(mj_model, objects_count)
+        super().__init__(mj_model, ids, start_tcp, impl, max_envs, contacts_per_env)
         self.grasp_qpos = self.solve_posture(np.r_[spawn_centre, GRASP_HEIGHT])
         action_size = 5 if control_mode == MODE_EE else 8
         self.spec = EnvSpec(observation_shape=(OBJECT_OBS_SIZE * objects_count + 21,), action_shape=(action_size,))

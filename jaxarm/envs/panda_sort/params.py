@@ -4,14 +4,20 @@ vmap over a batch of these is domain randomisation (friction, object masses and 
 through the mjx.Model fields the env replaces each step). Counts and modes are constructor arguments.
 """
 
+from typing import ClassVar
+
 import jax
 import jax.numpy as jnp
 from flax import struct
+
+from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
 
 
 @struct.dataclass
 class PandaSortParams:
     """Task, action and randomisation parameters (scalars unless noted).
+
+    Each field declares its allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all are finite.
 
     The shaping terms pay changes of potentials (see reward.py), so their weights set how strongly each stage
     pulls without creating any reward for lingering; by default one object's stages are worth 1 each.
@@ -60,35 +66,38 @@ class PandaSortParams:
       home_noise: half-width of the uniform noise on the arm's initial joint angles (radians).
     """
 
-    max_episode_steps: jax.Array
-    ee_step: jax.Array
-    ee_yaw_step: jax.Array
-    joint_step: jax.Array
-    ik_damping: jax.Array
-    ik_posture_gain: jax.Array
-    step_reward: jax.Array
-    floor_reward: jax.Array
-    wrong_bin_reward: jax.Array
-    correct_bin_reward: jax.Array
-    reach_weight: jax.Array
-    reach_scale: jax.Array
-    grasp_weight: jax.Array
-    lift_weight: jax.Array
-    carry_weight: jax.Array
-    lift_height: jax.Array
-    carry_scale: jax.Array
-    carry_height: jax.Array
-    held_start_prob: jax.Array
-    ready_start_prob: jax.Array
-    presorted_prob: jax.Array
-    object_size: jax.Array
-    size_scale_low: jax.Array
-    size_scale_high: jax.Array
-    density: jax.Array
-    mass_scale: jax.Array
-    object_friction: jax.Array
-    finger_friction: jax.Array
-    home_noise: jax.Array
+    max_episode_steps: jax.Array = ranged(COUNT)
+    ee_step: jax.Array = ranged(POSITIVE)
+    ee_yaw_step: jax.Array = ranged(NON_NEGATIVE)
+    joint_step: jax.Array = ranged(POSITIVE)
+    ik_damping: jax.Array = ranged(POSITIVE)
+    ik_posture_gain: jax.Array = ranged(UNIT_INTERVAL)
+    step_reward: jax.Array = ranged()
+    floor_reward: jax.Array = ranged()
+    wrong_bin_reward: jax.Array = ranged()
+    correct_bin_reward: jax.Array = ranged()
+    reach_weight: jax.Array = ranged()
+    reach_scale: jax.Array = ranged(POSITIVE)
+    grasp_weight: jax.Array = ranged()
+    lift_weight: jax.Array = ranged()
+    carry_weight: jax.Array = ranged()
+    lift_height: jax.Array = ranged(POSITIVE)
+    carry_scale: jax.Array = ranged(POSITIVE)
+    carry_height: jax.Array = ranged(NON_NEGATIVE)
+    held_start_prob: jax.Array = ranged(UNIT_INTERVAL)
+    ready_start_prob: jax.Array = ranged(UNIT_INTERVAL)
+    presorted_prob: jax.Array = ranged(UNIT_INTERVAL)
+    object_size: jax.Array = ranged(POSITIVE)
+    size_scale_low: jax.Array = ranged(POSITIVE)
+    size_scale_high: jax.Array = ranged(POSITIVE)
+    density: jax.Array = ranged(POSITIVE)
+    mass_scale: jax.Array = ranged(POSITIVE)
+    object_friction: jax.Array = ranged(NON_NEGATIVE)
+    finger_friction: jax.Array = ranged(NON_NEGATIVE)
+    home_noise: jax.Array = ranged(NON_NEGATIVE)
+
+    ORDERED: ClassVar = (("size_scale_low", "size_scale_high"),)
+    """(low, high) pairs of fields that must satisfy low <= high."""
 
 
 def default_params() -> PandaSortParams:

@@ -85,21 +85,24 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     """The Panda inserting a peg held in its hand into a square hole shifted at random every episode.
 
     Args:
-      impl, max_envs, obs_mode, resolution, cameras: as `PandaBase`'s (the module docstring says what each
-        observation mode holds).
+      impl, max_envs, contacts_per_env, obs_mode, resolution, cameras: as `PandaBase`'s (the module docstring
+        says what each observation mode holds).
     """
 
     def __init__(
         self,
         impl: str = Impl.JAX,
         max_envs: int = 4096,
+        contacts_per_env: int | None = None,
         obs_mode: str = "state",
         resolution: int = 64,
         cameras: tuple[str, ...] = CAMERAS,
     ):
         mj_model = build_model()
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
-        super().__init__(mj_model, resolve_ids(mj_model), start_tcp, impl, max_envs, obs_mode, resolution, cameras)
+        super().__init__(
+            mj_model, resolve_ids(mj_model), start_tcp, impl, max_envs, contacts_per_env, obs_mode, resolution, cameras
+        )
         if obs_mode == "state":
             self.spec = EnvSpec(observation_shape=(12,), action_shape=(3,))
         else:

@@ -5,14 +5,20 @@ vmap over a batch of these params trains across clearances too. Geometry that fi
 hole depth) is static, in model.py.
 """
 
+from typing import ClassVar
+
 import jax
 import jax.numpy as jnp
 from flax import struct
+
+from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
 
 
 @struct.dataclass
 class PegInsertParams:
     """Task, action and randomisation parameters (scalars, float32 unless noted).
+
+    Each field declares its allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all are finite.
 
     Attributes:
       max_episode_steps: time limit (truncation), int32, in env steps of 0.04 s.
@@ -31,19 +37,22 @@ class PegInsertParams:
       friction: sliding friction between the peg and the block.
     """
 
-    max_episode_steps: jax.Array
-    ee_step: jax.Array
-    max_lead: jax.Array
-    ik_damping: jax.Array
-    ik_posture_gain: jax.Array
-    clearance: jax.Array
-    hole_shift: jax.Array
-    home_noise: jax.Array
-    progress_weight: jax.Array
-    success_bonus: jax.Array
-    insert_distance: jax.Array
-    max_distance: jax.Array
-    friction: jax.Array
+    max_episode_steps: jax.Array = ranged(COUNT)
+    ee_step: jax.Array = ranged(POSITIVE)
+    max_lead: jax.Array = ranged(POSITIVE)
+    ik_damping: jax.Array = ranged(POSITIVE)
+    ik_posture_gain: jax.Array = ranged(UNIT_INTERVAL)
+    clearance: jax.Array = ranged(POSITIVE)
+    hole_shift: jax.Array = ranged(NON_NEGATIVE)
+    home_noise: jax.Array = ranged(NON_NEGATIVE)
+    progress_weight: jax.Array = ranged()
+    success_bonus: jax.Array = ranged()
+    insert_distance: jax.Array = ranged(POSITIVE)
+    max_distance: jax.Array = ranged(POSITIVE)
+    friction: jax.Array = ranged(NON_NEGATIVE)
+
+    ORDERED: ClassVar = (("insert_distance", "max_distance"),)
+    """(low, high) pairs of fields that must satisfy low <= high."""
 
 
 def default_params() -> PegInsertParams:

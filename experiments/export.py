@@ -1,0 +1,67 @@
+"""Export a run's policy: `python -m experiments.export RUN_DIR [--out DIR]`.
+
+From the run's latest checkpoint, writes into RUN_DIR/export/ (or --out):
+  policy.npz         weights and observation normaliser; `jaxarm.export.numpy_policy.load(path)(obs)` runs it
+                     with numpy alone
+  policy.jax_export  the learner's own `act`, serialised by jax.export (CPU and CUDA);
+                     `jax.export.deserialize(data).call(obs)` runs it for any batch size
+  policy.onnx        the same as an ONNX model, when jax2onnx is installed (`pip install -e ".[export]"`)
+Every form maps flat observations float32 [B, O] (or [O] for the numpy policy) to deterministic actions.
+"""
+
+import argparse
+import pathlib
+import sys
+
+from experiments import configs, rundir
+from jaxarm.agents.common import checkpoint
+from jaxarm.export import policy
+
+
+def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Path]:
+    """Writes the exported forms of `run_dir`'s latest policy into `out_dir`; returns the files written.
+
+    Raises ValueError (or CheckpointError) naming what is wrong before anything is written.
+    """
+    config, _ = rundir.read_config(run_dir)
+    env, _ = config.make_env()
+    observation_size = policy.check_flat_observations(env.spec)
+    trainer = configs.make_trainer(config)
+    state = rundir.restore_state(run_dir, trainer, config)
+    arrays = policy.numpy_policy(trainer, state)
+    serialized = policy.serialized_jax_policy(trainer, state, observation_size)
+    try:
+        onnx_model: bytes | None = policy.onnx_policy(trainer, state, observation_size)
+    except ImportError:
+        onnx_model = None
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = [out_dir / "policy.npz", out_dir / "policy.jax_export"]
+    arrays.save(written[0])
+    written[1].write_bytes(serialized)
+    if onnx_model is not None:
+        written.append(out_dir / "policy.onnx")
+        written[2].write_bytes(onnx_model)
+    return written
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m experiments.export", description=__doc__.splitlines()[0])
+    parser.add_argument("run_dir")
+    parser.add_argument("--out", help="directory for the exported files (default RUN_DIR/export)")
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    run_dir = pathlib.Path(args.run_dir)
+    out_dir = pathlib.Path(args.out) if args.out else run_dir / "export"
+    try:
+        written = export_run(run_dir, out_dir)
+    except (ValueError, checkpoint.CheckpointError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    for path in written:
+        print(f"wrote {path}")
+    if len(written) < 3:
+        print('no policy.onnx: jax2onnx is not installed (pip install -e ".[export]")')
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

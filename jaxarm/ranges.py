@@ -1,0 +1,175 @@
+"""Allowed values of config fields and env params, declared beside each field, and the checks that enforce them.
+
+A field states its range once, in its dataclass metadata (`Range` under the key `RANGE`): run configs through
+`static(...)` and `dynamic(...)` (jaxarm.agents.common.config), env params through `ranged(...)`. The checks
+here are generic: beyond each field's declared range, every float must be finite and every integer must fit in
+int32 (the dtype of jaxarm's step counters, indices and int params). Messages name the field and what it must be,
+in one line. Nothing here runs inside jit: params made inside a compiled program are not checked, and the envs
+clean up what such params break (see jaxarm.envs.base).
+"""
+
+import dataclasses
+import math
+import numbers
+import typing
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+
+RANGE = "range"
+"""The metadata key under which a field declares its `Range`."""
+
+INT32 = np.iinfo(np.int32)
+
+
+@dataclasses.dataclass(frozen=True)
+class Range:
+    """The values a number (or each element of an array) may take, or the strings a choice may take.
+
+    Attributes:
+      gt, ge: exclusive and inclusive lower bounds (None: none).
+      lt, le: exclusive and inclusive upper bounds (None: none).
+      choices: the allowed values of a choice (strings, or an int param's codes); empty for a numeric range.
+    """
+
+    gt: float | None = None
+    ge: float | None = None
+    lt: float | None = None
+    le: float | None = None
+    choices: tuple[Any, ...] = ()
+
+    def admits(self, value: Any) -> bool:
+        """Whether `value` (a scalar, or every element of an array) lies in the range."""
+        if self.choices:
+            return value in self.choices if isinstance(value, str) else bool(np.all(np.isin(value, self.choices)))
+        array = np.asarray(value)
+        below = (self.gt is not None and np.any(array <= self.gt)) or (self.ge is not None and np.any(array < self.ge))
+        above = (self.lt is not None and np.any(array >= self.lt)) or (self.le is not None and np.any(array > self.le))
+        return not (below or above)
+
+    def describe(self) -> str:
+        """The range in words: 'one of a, b', '> 0', '>= 1', 'in (0, 1]'."""
+        if self.choices:
+            return "one of " + ", ".join(str(choice) for choice in self.choices)
+        low = f"({self.gt:g}" if self.gt is not None else f"[{self.ge:g}" if self.ge is not None else None
+        high = f"{self.lt:g})" if self.lt is not None else f"{self.le:g}]" if self.le is not None else None
+        if low and high:
+            return f"in {low}, {high}"
+        if low:
+            return f"{'>' if self.gt is not None else '>='} {low[1:]}"
+        if high:
+            return f"{'<' if self.lt is not None else '<='} {high[:-1]}"
+        return "any value"
+
+
+POSITIVE = Range(gt=0)
+NON_NEGATIVE = Range(ge=0)
+COUNT = Range(ge=1)
+"""An integer count or size of at least one."""
+UNIT_INTERVAL = Range(ge=0, le=1)
+DISCOUNT = Range(gt=0, le=1)
+
+
+def ranged(allowed: Range | None = None) -> Any:
+    """An env params field (no default) whose values must be finite and lie in `allowed` (None: any)."""
+    return dataclasses.field(metadata={RANGE: allowed})
+
+
+def declared_range(field: dataclasses.Field) -> Range | None:
+    """The range `field` declares, None where it declares none (finite, int32-sized values still apply)."""
+    return field.metadata.get(RANGE)
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def _check_number(name: str, value: Any, integer: bool, allowed: Range | None) -> None:
+    """The generic checks of one number (finite float, int32-sized integer), then its declared range."""
+    if integer:
+        if not _is_int(value):
+            raise ValueError(f"{name} must be an integer, got {value!r}")
+        if not INT32.min <= value <= INT32.max:
+            raise ValueError(f"{name} must fit in int32 (at most {INT32.max:,} in magnitude), got {value:,}")
+    else:
+        if not _is_number(value):
+            raise ValueError(f"{name} must be a number, got {value!r}")
+        if not math.isfinite(value):
+            raise ValueError(f"{name} must be finite, got {value}")
+    if allowed is not None and not allowed.admits(value):
+        raise ValueError(f"{name} must be {allowed.describe()}, got {value}")
+
+
+def check_value(name: str, value: Any, annotation: Any, allowed: Range | None) -> None:
+    """Raises ValueError naming `name` unless `value` is of type `annotation` (int, float, bool, str, or a tuple
+    of those, including the (name, value) pairs of env settings) and lies in `allowed` (element-wise for tuples)."""
+    if annotation is bool:
+        if not isinstance(value, (bool, np.bool_)):
+            raise ValueError(f"{name} must be true or false, got {value!r}")
+    elif annotation is int or annotation is float:
+        _check_number(name, value, annotation is int, allowed)
+    elif annotation is str:
+        if not isinstance(value, str):
+            raise ValueError(f"{name} must be a string, got {value!r}")
+        if allowed is not None and not allowed.admits(value):
+            raise ValueError(f"{name} must be {allowed.describe()}, got {value!r}")
+    elif typing.get_origin(annotation) is tuple:
+        args = typing.get_args(annotation)
+        variadic = len(args) == 2 and args[1] is Ellipsis
+        if not isinstance(value, tuple) or not (variadic or len(value) == len(args)):
+            raise ValueError(f"{name} must be a tuple of {'any length' if variadic else len(args)}, got {value!r}")
+        for index, item in enumerate(value):
+            check_value(f"{name}[{index}]", item, args[0] if variadic else args[index], allowed)
+    elif annotation is Any:
+        pass
+    else:
+        raise TypeError(f"no check for {name}'s type {annotation}")
+
+
+def check_fields(instance: Any) -> None:
+    """Checks every field of a dataclass instance of plain Python values against its type and declared range."""
+    hints = typing.get_type_hints(type(instance))
+    for field in dataclasses.fields(instance):
+        check_value(field.name, getattr(instance, field.name), hints[field.name], declared_range(field))
+
+
+def param_array(name: str, value: Any, like: np.ndarray) -> np.ndarray:
+    """`value` as an array of `like`'s dtype; ValueError naming `name` for a non-number, a non-integer or an int32
+    overflow where `like` holds integers, and NaN or inf where it holds floats. Shapes are the caller's to check."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number or an array of numbers, got {value!r}") from None
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be finite, got {value}")
+    if np.issubdtype(like.dtype, np.integer):
+        if not np.all(array == np.round(array)):
+            raise ValueError(f"{name} must be an integer, got {value}")
+        if np.any(array < INT32.min) or np.any(array > INT32.max):
+            raise ValueError(f"{name} must fit in int32 (at most {INT32.max:,} in magnitude), got {value}")
+    return array.astype(like.dtype)
+
+
+def check_params(params: Any, names: Iterable[str] | None = None, prefix: str = "") -> None:
+    """Checks env params (a dataclass of arrays) against each field's declared range, only the fields in `names`
+    when given, then the order relations the params class declares in `ORDERED` ((low, high) field pairs whose
+    values must satisfy low <= high). Messages name a field as `prefix + name`."""
+    fields = {field.name: field for field in dataclasses.fields(params)}
+    for name in fields if names is None else names:
+        value = np.asarray(getattr(params, name))
+        if np.issubdtype(value.dtype, np.floating) and not np.all(np.isfinite(value)):
+            raise ValueError(f"{prefix}{name} must be finite, got {value!s}")
+        allowed = declared_range(fields[name])
+        if allowed is not None and not allowed.admits(value):
+            raise ValueError(f"{prefix}{name} must be {allowed.describe()}, got {value!s}")
+    for low, high in getattr(params, "ORDERED", ()):
+        if np.any(np.asarray(getattr(params, low)) > np.asarray(getattr(params, high))):
+            raise ValueError(
+                f"{prefix}{low} ({np.asarray(getattr(params, low))!s}) must not exceed "
+                f"{prefix}{high} ({np.asarray(getattr(params, high))!s})"
+            )
