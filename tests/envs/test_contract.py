@@ -170,7 +170,7 @@ def test_nan_actions_are_zeroed_inf_actions_clipped_and_both_counted(env_case):
     signs = jnp.where(jnp.arange(env.spec.action_size) % 2 == 0, 1.0, -1.0).reshape(env.spec.action_shape)
     inf_step = plain_step(state, signs * jnp.inf, params)
     bound_step = plain_step(state, jnp.where(signs > 0, env.spec.action_high, env.spec.action_low), params)
-    np.testing.assert_array_equal(inf_step.obs, bound_step.obs)
+    assert_trees_equal(inf_step.obs, bound_step.obs)
     assert int(inf_step.episode.nan_actions) == 1 and int(bound_step.episode.nan_actions) == 0
 
 
