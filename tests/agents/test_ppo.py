@@ -168,3 +168,10 @@ def test_ppo_solves_the_fixed_goal_arm_from_pixels():
     env, env_params = config.make_env()
     result = evaluate(env, env_params, lambda obs: trainer.act(state, obs), jax.random.PRNGKey(1), 100)
     assert float(result.successes.mean()) >= 0.9
+
+
+def test_an_image_too_small_for_the_encoder_is_a_clear_error():
+    config = dataclasses.replace(TINY, env="arm2d_pixels", env_kwargs=(("resolution", 16),), encoder="nature")
+    trainer = make_trainer(config)
+    with pytest.raises(ValueError, match="use a larger resolution or encoder=patches"):
+        trainer.init(jax.random.PRNGKey(0), config.hparams())

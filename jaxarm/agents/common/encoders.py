@@ -38,9 +38,12 @@ class StridedConvs(nn.Module):
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
         for channels, kernel, stride in self.layers:
-            x = nn.relu(
-                nn.Conv(channels, (kernel, kernel), (stride, stride), self.padding, kernel_init=scaled_init())(x)
-            )
+            if min(x.shape[1:3]) < kernel:
+                raise ValueError(
+                    f"a {x.shape[1]}x{x.shape[2]} feature map is smaller than this conv stack's {kernel}x{kernel} "
+                    "kernel: use a larger resolution or encoder=patches"
+                )
+            x = nn.relu(nn.Conv(channels, (kernel, kernel), (stride, stride), "VALID", kernel_init=scaled_init())(x))
         return x
 
 
