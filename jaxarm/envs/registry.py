@@ -125,6 +125,12 @@ register(
     blocker=True,
 )
 register(
+    "panda_sort_pixels",
+    "jaxarm.envs.panda_sort:PandaSort",
+    "Panda sorter seen by an overhead and a wrist camera (64x64 gray and depth) with the tool's state",
+    obs_mode="pixels+proprio",
+)
+register(
     "panda_sort_joint",
     "jaxarm.envs.panda_sort:PandaSort",
     "Panda sorter with joint-delta control",
