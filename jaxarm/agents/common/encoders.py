@@ -27,6 +27,7 @@ from jaxarm.ranges import Range
 
 
 def scaled_init() -> Callable:
+    """Orthogonal initialisation with gain √2 (for relu layers), as the learners' MLPs use."""
     return nn.initializers.orthogonal(jnp.sqrt(2.0))
 
 
