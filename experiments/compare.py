@@ -16,7 +16,7 @@ import sys
 
 import numpy as np
 
-from experiments import plots, rundir
+from jaxarm.runner import plots, rundir
 
 
 @dataclasses.dataclass(frozen=True)

@@ -13,9 +13,10 @@ import argparse
 import pathlib
 import sys
 
-from experiments import configs, rundir
+from experiments import configs
 from jaxarm.agents.common import checkpoint
 from jaxarm.export import policy
+from jaxarm.runner import rundir
 
 
 def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Path]:

@@ -17,11 +17,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from experiments import configs, plots, rundir
-from experiments.stats import confidence_halfwidth
+from experiments import configs
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import Trainer, run_updates
+from jaxarm.runner import plots, rundir
+from jaxarm.runner.cache import enable_compilation_cache
+from jaxarm.runner.stats import confidence_halfwidth
 
 
 @dataclasses.dataclass(frozen=True)
@@ -167,7 +169,9 @@ def write_tables(rows: list[dict], out: pathlib.Path) -> None:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m experiments.sweep", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m experiments.sweep", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--config", required=True)
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--out", help="sweep directory (default runs/sweep-<config>-<timestamp>)")
@@ -181,7 +185,8 @@ def main(argv=None) -> int:
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    out = pathlib.Path(args.out or f"runs/sweep-{args.config}-{time.strftime('%Y%m%d-%H%M%S')}")
+    enable_compilation_cache()
+    out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"sweep-{args.config}")
     out.mkdir(parents=True, exist_ok=True)
     rows, curves = [], {}
     for config in grid.groups:

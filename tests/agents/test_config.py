@@ -9,13 +9,14 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-from experiments import configs, rundir
+from experiments import configs
 from jaxarm import envs, ranges
 from jaxarm.agents.common.config import HParams, RunConfig, apply_overrides, parse_literal
 from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.envs.panda_sort import params as panda_sort_params
 from jaxarm.envs.peg_insert import params as peg_insert_params
+from jaxarm.runner import rundir
 
 
 @pytest.mark.parametrize(

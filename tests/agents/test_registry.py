@@ -2,10 +2,10 @@
 
 import pytest
 
-from experiments import rundir
 from jaxarm.agents import registry
 from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
+from jaxarm.runner import rundir
 
 
 @pytest.mark.parametrize("name", sorted(registry.LEARNERS))

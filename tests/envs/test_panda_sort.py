@@ -482,3 +482,28 @@ def test_render_frame_is_an_rgb_image(env, params, reset):
     frame = env.render(reset(jax.random.key(7), params), params, height=120, width=160)
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
     assert frame.std() > 5.0, "a blank frame"
+
+
+@pytest.mark.mjx
+def test_an_action_reaches_the_servos_after_the_latency(env, params, reset, step):
+    state = reset(jax.random.key(4), params)
+    late = envs.override_params(params, {"action_latency": 1})
+    action = jnp.array([1.0, -1.0, 0.5, 0.5, -1.0])
+    delayed = step(state, action, late)
+    held = step(state, jnp.zeros(5), params)
+    np.testing.assert_array_equal(delayed.sim.qpos, held.sim.qpos)  # the queue starts with zero actions
+    np.testing.assert_array_equal(step(delayed, jnp.zeros(5), late).sim.qpos, step(held, action, params).sim.qpos)
+
+
+@pytest.mark.mjx
+def test_observation_noise_changes_what_is_seen_and_not_what_happens(env, params, reset, step):
+    state = reset(jax.random.key(4), params)
+    noisy = envs.override_params(params, {"obs_noise": 0.01, "object_pose_noise": 0.02})
+    action = jnp.array([0.5, 0.5, -0.5, 0.0, 1.0])
+    clean_step, noisy_step = step(state, action, params), step(state, action, noisy)
+    np.testing.assert_array_equal(clean_step.sim.qpos, noisy_step.sim.qpos)
+    seen = np.asarray(noisy_step.obs - clean_step.obs)
+    tool = seen[OBJECT_OBS_SIZE:]
+    assert 0.005 < tool.std() < 0.02
+    # The object's position carries both noises: sqrt(0.01² + 0.02²) = 0.022 per axis.
+    assert 0.01 < np.abs(seen[:3]).max() < 0.1

@@ -6,7 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from experiments import compare, configs, rundir
+from experiments import compare, configs
+from jaxarm.runner import rundir
 
 
 def write_run(run_dir, num_envs: int, rows: list[tuple[float, float, float, float, float]], device=None):

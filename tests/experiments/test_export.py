@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments import configs, rundir
+from experiments import configs
 from experiments import export as export_cli
 from jaxarm import envs
 from jaxarm.agents.common import checkpoint
@@ -20,6 +20,7 @@ from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.export import numpy_policy
 from jaxarm.interop.gymnasium_env import GymnasiumEnv
+from jaxarm.runner import rundir
 
 TOLERANCE = 1e-5
 CONFIGS = {

@@ -13,10 +13,11 @@ import jax
 import numpy as np
 import pytest
 
-from experiments import configs, run, rundir
+from experiments import configs, run
 from experiments import eval as eval_cli
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.ppo.warm_start import warm_start
+from jaxarm.runner import loop, rundir
 
 SMALL = [
     "num_envs=64",
@@ -77,9 +78,11 @@ def test_evaluation_runs_on_the_eval_env_params_and_reports_the_final_info(tmp_p
 
 
 @pytest.mark.slow
-def test_eval_cli_rewrites_eval_json_and_draws_a_video(finished_run):
+def test_eval_cli_writes_its_own_file_keeps_eval_json_and_draws_a_video(finished_run):
+    training_eval = (finished_run / "eval.json").read_text()
     assert eval_cli.main([str(finished_run), "--episodes", "7", "--video"]) == 0
-    assert json.loads((finished_run / "eval.json").read_text())["episodes"] == 7
+    assert json.loads((finished_run / "eval-7-12345.json").read_text())["episodes"] == 7
+    assert (finished_run / "eval.json").read_text() == training_eval
     assert (finished_run / "video.gif").stat().st_size > 1000
 
 
@@ -121,8 +124,8 @@ def test_nan_stops_the_run_naming_the_update_and_keeps_the_last_good_checkpoint(
     good = final_params(finished_run)
     # Configs refuse NaN; a reward scale this large makes the first value loss of update 25 overflow to inf.
     diverging = dataclasses.replace(config, reward_scale=1e30, total_env_steps=2 * config.total_env_steps)
-    with pytest.raises(run.TrainingDiverged, match=r"update 25 .*last good checkpoint \(update 24\)"):
-        run.train(diverging, preset, finished_run, resume=True)
+    with pytest.raises(loop.TrainingDiverged, match=r"update 25 .*last good checkpoint \(update 24\)"):
+        loop.train(diverging, finished_run, preset=preset, resume=True)
     assert checkpoint.latest_step(finished_run / "checkpoints") == 24
     for kept, before in zip(jax.tree.leaves(final_params(finished_run)), jax.tree.leaves(good), strict=True):
         np.testing.assert_array_equal(kept, before)
@@ -143,7 +146,7 @@ def test_corrupt_or_mismatched_checkpoint_gives_a_clear_error(finished_run, tmp_
     (corrupt / "checkpoints" / "4" / "garbage").write_text("not a checkpoint")
     assert eval_cli.main([str(corrupt), "--episodes", "2"]) == 2
     assert "error:" in capsys.readouterr().err
-    assert not (corrupt / "eval.json").exists()
+    assert not (corrupt / "eval.json").exists() and not (corrupt / "eval-2-12345.json").exists()
 
 
 @pytest.mark.slow

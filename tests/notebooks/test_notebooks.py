@@ -25,7 +25,7 @@ def notebook_paths() -> list[pathlib.Path]:
 
 def test_the_notebooks_are_there():
     names = {path.name for path in notebook_paths()}
-    assert {"01_arm2d.ipynb", "02_panda_sort.ipynb", "03_sweeps.ipynb"} <= names
+    assert {"01_arm2d.ipynb", "02_panda_sort.ipynb", "03_sweeps.ipynb", "04_library_loop.ipynb"} <= names
 
 
 @pytest.mark.parametrize("path", notebook_paths(), ids=lambda path: path.stem)

@@ -5,6 +5,8 @@ renames it), and a process killed at any moment leaves the last finished checkpo
 never writes.
 """
 
+import contextlib
+import logging
 import pathlib
 
 import jax
@@ -13,6 +15,19 @@ import orbax.checkpoint as ocp
 
 class CheckpointError(RuntimeError):
     """A checkpoint is missing, unreadable, or does not match the learner it is restored into."""
+
+
+@contextlib.contextmanager
+def _quiet_reads():
+    """Silences orbax's absl ERROR lines while checkpoints are read: a damaged checkpoint logs one per file per
+    look, and the CheckpointError raised here already says which checkpoint is at fault."""
+    logger = logging.getLogger("absl")
+    level = logger.level
+    logger.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
 
 def _manager(directory: pathlib.Path, create: bool = False) -> ocp.CheckpointManager:
@@ -31,7 +46,7 @@ def latest_step(directory: pathlib.Path) -> int | None:
     """The newest complete checkpoint's step, or None if there is none."""
     if not directory.exists():
         return None
-    with _manager(directory) as manager:
+    with _quiet_reads(), _manager(directory) as manager:
         return manager.latest_step()
 
 
@@ -45,7 +60,7 @@ def restore(directory: pathlib.Path, like, step: int | None = None):
         raise CheckpointError(f"no checkpoint found in {directory}")
     abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, like)
     try:
-        with _manager(directory) as manager:
+        with _quiet_reads(), _manager(directory) as manager:
             restored = manager.restore(step, args=ocp.args.StandardRestore(abstract))
     except Exception as error:  # orbax raises many types for corrupt and mismatched trees
         raise CheckpointError(

@@ -99,7 +99,9 @@ class RunConfig:
       updates_per_chunk: updates compiled into one call; the runner logs and checkpoints between calls. A run
         whose budget needs fewer updates is one chunk of those (`chunk_updates`).
       checkpoint_every_updates: save the learner state at the first chunk end after this many updates.
-      eval_episodes: fresh episodes for the final deterministic evaluation.
+      eval_episodes: fresh episodes for each deterministic evaluation (during training and at its end).
+      eval_every_updates: also evaluate at the first chunk end after each multiple of this many updates,
+        logging "eval/..." in metrics and keeping the best-scoring checkpoint; 0 for the final evaluation only.
       seed: PRNG seed of the run.
       init_from: run directory whose latest checkpoint initialises the networks (a warm start, for learners
         that have one, see `jaxarm.agents.registry`; the env maps the old observation onto its own:
@@ -117,6 +119,13 @@ class RunConfig:
     eval_episodes: int = static(1000, COUNT)
     seed: int = static(0, ranges.NON_NEGATIVE)
     init_from: str = ""
+    eval_every_updates: int = static(0, ranges.NON_NEGATIVE)
+
+    @property
+    def budget_shapes_updates(self) -> str:
+        """What in the learner's updates follows `total_env_steps` (e.g. a learning-rate schedule), "" if nothing:
+        such a run's budget cannot change on resume. Learners' configs say so where it applies."""
+        return ""
 
     def __post_init__(self) -> None:
         ranges.check_fields(self)
@@ -193,7 +202,9 @@ def parse_value(text: str, annotation) -> Any:
         return text
     if typing.get_origin(annotation) is tuple:
         item_type = typing.get_args(annotation)[0]
-        return tuple(parse_value(part, item_type) for part in text.split(",") if part)
+        # `64,64`, `[64,64]` and `(64, 64)` all name the same sizes.
+        parts = text.strip().removeprefix("[").removeprefix("(").removesuffix("]").removesuffix(")").split(",")
+        return tuple(parse_value(part.strip(), item_type) for part in parts if part.strip())
     raise ValueError(f"cannot parse a value of type {annotation}")
 
 

@@ -65,6 +65,10 @@ class PPOConfig(RunConfig):
         return self.rollout_length * self.num_envs
 
     @property
+    def budget_shapes_updates(self) -> str:
+        return "learning-rate schedule (anneal_learning_rate=true)" if self.anneal_learning_rate else ""
+
+    @property
     def minibatch_size(self) -> int:
         return self.env_steps_per_update // self.num_minibatches
 

@@ -35,6 +35,7 @@ class PandaIds:
       hand_body: body id of the hand.
       tcp_site: site id of the tool centre point (between the finger pads).
       arm_limits: [7, 2] arm joint ranges.
+      arm_actuators: [7] actuator ids of the arm joints' servos.
     """
 
     arm_qpos: np.ndarray
@@ -42,6 +43,7 @@ class PandaIds:
     hand_body: int
     tcp_site: int
     arm_limits: np.ndarray
+    arm_actuators: np.ndarray
 
 
 def resolve_panda_ids(model: mujoco.MjModel) -> PandaIds:
@@ -53,6 +55,7 @@ def resolve_panda_ids(model: mujoco.MjModel) -> PandaIds:
         hand_body=model.body("hand").id,
         tcp_site=model.site("tcp").id,
         arm_limits=np.stack([joint(name).range for name in ARM_JOINTS]),
+        arm_actuators=np.array([model.actuator(name).id for name in ARM_JOINTS]),
     )
 
 

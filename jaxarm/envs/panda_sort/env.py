@@ -33,6 +33,7 @@ from jaxarm.envs.observation import observation_parts, pixel_observation
 from jaxarm.envs.panda.base import CAMERAS, PandaBase
 from jaxarm.envs.panda.mjx_impl import Impl, with_geom_sizes
 from jaxarm.envs.panda.robot import FINGER_OPEN, rotation_about_z, tcp_jacobian, yaw_of_quaternion, yaw_of_rotation
+from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
 from jaxarm.envs.panda_sort.curriculum import draw_start, place_in_hand
 from jaxarm.envs.panda_sort.layout import make_layout
 from jaxarm.envs.panda_sort.model import ModelIds, build_model, resolve_ids
@@ -95,6 +96,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         objects starting from it (slots in cyclic order), and the shaping terms follow it alone, so a policy
         always finds the object to work on in the first slot and several objects become the one-object task
         repeated. With one object nothing changes.
+      max_action_latency: the most control steps of action latency the params may ask for (`action_latency`);
+        the state queues that many actions.
       impl, max_envs, contacts_per_env: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
       obs_mode, resolution, cameras: the observation (the module docstring says what each mode holds), as
         `PandaBase`'s.
@@ -111,6 +114,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         blocker: bool = False,
         tosser: bool = False,
         target_first: bool = False,
+        max_action_latency: int = 1,
         impl: str = Impl.JAX,
         max_envs: int = 4096,
         contacts_per_env: int | None = None,
@@ -122,8 +126,11 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
         if control_mode not in (MODE_EE, MODE_JOINT):
             raise ValueError(f"control_mode must be {MODE_EE!r} or {MODE_JOINT!r}, got {control_mode!r}")
+        if max_action_latency < 0:
+            raise ValueError(f"max_action_latency must be >= 0, got {max_action_latency}")
         self.objects_count = objects_count
         self.control_mode = control_mode
+        self.max_action_latency = max_action_latency
         self.target_first = target_first
         self.layout = make_layout(blocker=blocker, tosser=tosser)
         mj_model = build_model(objects_count, self.layout)
@@ -158,7 +165,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
     # --- the physics model of one env -------------------------------------------------------------
 
     def episode_model(self, sim: PandaSortSim, params: PandaSortParams) -> mjx.Model:
-        """The mjx.Model with this episode's object shapes and sizes and the params' randomisation."""
+        """The mjx.Model with this episode's object shapes and sizes and the params' randomisation (objects'
+        masses and friction, the arm servos' gains and damping)."""
         ids, model = self.ids, self.mjx_model
         geom_ids = ids.object_geom.ravel()
         sizes = object_geom_sizes(sim.shape, sim.size).reshape(-1, 3)
@@ -169,6 +177,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         invweight = jnp.stack([1.0 / mass, jnp.mean(1.0 / inertia, axis=-1)], -1)
         friction = model.pair_friction.at[ids.finger_pair, :2].set(params.finger_friction)
         friction = friction.at[ids.object_pair, :2].set(params.object_friction)
+        model = with_servo_scales(model, ids.robot, params.servo_gain_scale, params.joint_damping_scale)
         return with_geom_sizes(model, geom_ids, sizes, rbound).replace(
             body_mass=model.body_mass.at[ids.object_body].set(mass),
             body_inertia=model.body_inertia.at[ids.object_body].set(inertia),
@@ -201,15 +210,20 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
 
     # --- observation and shaping ----------------------------------------------------------------------
 
-    def _observe(self, model: mjx.Model, data: mjx.Data, sim: PandaSortSim, params: PandaSortParams) -> Observation:
+    def _observe(
+        self, model: mjx.Model, data: mjx.Data, sim: PandaSortSim, params: PandaSortParams, key: jax.Array
+    ) -> Observation:
         """[OBJECT_OBS_SIZE N + 21]: per object (zeros when out of play) OBJECT_OBS_SIZE values, then tool
         centre position 3, orientation quaternion 4, linear and angular velocity 6, finger width 1, and the 7
         arm joint angles (the arm is redundant, so the tool pose alone does not tell its posture or nearness
-        to joint limits). Robot quantities come from `data`, object quantities from `sim`.
+        to joint limits). Robot quantities come from `data`, object quantities from `sim`; `key` draws the
+        params' object-pose and observation noise.
         """
         robot = self.ids.robot
+        pose_key, objects_key, tool_key = jax.random.split(key, 3)
         in_play = (sim.outcome == IN_PLAY)[:, None]
         pose = sim.qpos[pose_index(self.ids)]
+        pose = pose.at[:, :3].set(with_noise(pose[:, :3], pose_key, params.object_pose_noise))
         velocity = sim.qvel[velocity_index(self.ids)]
         tcp = data.site_xpos[robot.tcp_site]
         relative_yaw = yaw_of_quaternion(pose[:, 3:]) - yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
@@ -235,10 +249,11 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             jnp.sum(sim.qpos[robot.finger_qpos])[None],
             sim.qpos[robot.arm_qpos],
         ]
+        tool_obs = with_noise(jnp.concatenate(tool), tool_key, params.obs_noise)
         if self.obs_mode != "state":
-            proprio = jnp.concatenate(tool).astype(jnp.float32)
-            return pixel_observation(self.obs_mode, self.camera_image(model, data), proprio)
-        return jnp.concatenate([(objects * in_play)[self.slot_order(sim)].ravel(), *tool]).astype(jnp.float32)
+            return pixel_observation(self.obs_mode, self.camera_image(model, data), tool_obs.astype(jnp.float32))
+        objects = with_noise(objects, objects_key, params.obs_noise) * in_play
+        return jnp.concatenate([objects[self.slot_order(sim)].ravel(), tool_obs]).astype(jnp.float32)
 
     def slot_order(self, sim: PandaSortSim) -> jax.Array:
         """[N] the object slots in the order the observation lists them: from the target on with
@@ -288,23 +303,35 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             outcome=outcome,
             target=start.focus.astype(jnp.int32),
             potential=jnp.zeros(4, jnp.float32),
+            queued_actions=jnp.zeros((self.max_action_latency, *self.spec.action_shape), jnp.float32),
+            noise_key=jax.random.fold_in(key, 2),
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
         sim = place_in_hand(ids, sim, data, start.focus, start.held, start.ready, start.hover)
         sim = sim.replace(potential=self.shaping_potential(data, sim, params))
         # Moving the focus object to the hand changes no robot quantity, so `data` still serves the observation.
-        return sim, self._observe(model, data, sim, params), step_info(RewardTerms.zeros(), sim.outcome)
+        noise_key, obs_key = jax.random.split(sim.noise_key)
+        sim = sim.replace(noise_key=noise_key)
+        return sim, self._observe(model, data, sim, params, obs_key), step_info(RewardTerms.zeros(), sim.outcome)
 
     def _transition(self, sim: PandaSortSim, action: jax.Array, params: PandaSortParams) -> Transition[PandaSortSim]:
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
-        data = data.replace(ctrl=self._ctrl(model, data, action, params))
+        applied, queued = delayed_action(sim.queued_actions, action, params.action_latency)
+        data = data.replace(ctrl=self._ctrl(model, data, applied, params))
         data = self.simulate(model, data)
         outcome = next_outcome(sim.outcome, sim.shape, object_positions(self.ids, data.qpos), self.layout)
         qpos, qvel = park(self.ids, data.qpos, data.qvel, outcome != IN_PLAY)
+        noise_key, obs_key = jax.random.split(sim.noise_key)
         next_sim = sim.replace(
-            qpos=qpos, qvel=qvel, qacc_warmstart=data.qacc_warmstart, ctrl=data.ctrl, outcome=outcome
+            qpos=qpos,
+            qvel=qvel,
+            qacc_warmstart=data.qacc_warmstart,
+            ctrl=data.ctrl,
+            outcome=outcome,
+            queued_actions=queued,
+            noise_key=noise_key,
         )
         data = self.kinematics(model, next_sim)
         next_sim = next_sim.replace(target=next_target(self.ids, data, next_sim))
@@ -313,7 +340,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         info = step_info(terms, outcome)
         return Transition(
             sim=next_sim,
-            obs=self._observe(model, data, next_sim, params),
+            obs=self._observe(model, data, next_sim, params, obs_key),
             reward=terms.total(),
             terminated=info.in_play_count == 0,
             success=info.correct_count == self.objects_count,

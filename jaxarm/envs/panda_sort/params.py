@@ -64,6 +64,16 @@ class PandaSortParams:
       object_friction: sliding friction of objects against tables, bins, the blocker and each other.
       finger_friction: sliding friction between the gripper and objects.
       home_noise: half-width of the uniform noise on the arm's initial joint angles (radians).
+      obs_noise: standard deviation of Gaussian noise added to every observation entry each step (in its own
+        units: metres, radians, m/s), as a sensor would.
+      object_pose_noise: standard deviation of Gaussian noise on each object's observed position (metres), as
+        an object detector would; what the observation derives from it (offsets to the tool and the bin)
+        follows the noisy position.
+      action_latency: control steps (0.04 s) between a policy's action and the servos receiving it, at most
+        the env's `max_action_latency`; the servos hold the commands of earlier steps meanwhile (an episode
+        starts with zero actions queued).
+      servo_gain_scale: factor on the arm servos' stiffness (kp).
+      joint_damping_scale: factor on the arm's damping: the servos' kv and the joints' passive damping.
     """
 
     max_episode_steps: jax.Array = ranged(COUNT)
@@ -95,6 +105,11 @@ class PandaSortParams:
     object_friction: jax.Array = ranged(NON_NEGATIVE)
     finger_friction: jax.Array = ranged(NON_NEGATIVE)
     home_noise: jax.Array = ranged(NON_NEGATIVE)
+    obs_noise: jax.Array = ranged(NON_NEGATIVE)
+    object_pose_noise: jax.Array = ranged(NON_NEGATIVE)
+    action_latency: jax.Array = ranged(NON_NEGATIVE)
+    servo_gain_scale: jax.Array = ranged(POSITIVE)
+    joint_damping_scale: jax.Array = ranged(NON_NEGATIVE)
 
     ORDERED: ClassVar = (("size_scale_low", "size_scale_high"),)
     """(low, high) pairs of fields that must satisfy low <= high."""
@@ -136,4 +151,9 @@ def default_params() -> PandaSortParams:
         object_friction=f32(0.8),
         finger_friction=f32(2.5),
         home_noise=f32(0.02),
+        obs_noise=f32(0.0),
+        object_pose_noise=f32(0.0),
+        action_latency=jnp.array(0, jnp.int32),
+        servo_gain_scale=f32(1.0),
+        joint_damping_scale=f32(1.0),
     )

@@ -19,6 +19,9 @@ class PandaSortSim(struct.PyTreeNode):
       target: [] int32 the slot being worked on: the curricula's object at reset; when it leaves play, the
         in-play object nearest the tool centre. Used only by envs built with `target_first`.
       potential: [4] weighted shaping potentials (reach, grasp, lift, carry) of the current state.
+      queued_actions: [L, A] the last L actions, newest first, not yet all applied (L = the env's
+        `max_action_latency`; `action_latency` picks which one the servos receive).
+      noise_key: PRNG key of the observation noise.
     """
 
     qpos: jax.Array
@@ -31,3 +34,5 @@ class PandaSortSim(struct.PyTreeNode):
     outcome: jax.Array
     target: jax.Array
     potential: jax.Array
+    queued_actions: jax.Array
+    noise_key: jax.Array

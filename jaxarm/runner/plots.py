@@ -11,7 +11,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from experiments.stats import confidence_halfwidth
+from jaxarm.runner.stats import confidence_halfwidth
 
 
 def _figure(width: float, height: float, columns: int = 1, rows: int = 1):
@@ -41,9 +41,11 @@ def learning_curve(rows: list[dict], path: pathlib.Path, title: str, device: str
     """Per-update mean episode return (scatter), its rolling mean and linear trend, and the success rate of
     the training episodes (rolling, weighted by the episodes each update finished).
 
+    Evaluations during training (rows with "eval/success_rate") are drawn as points on the success axis.
     Updates in which no episode finished are left out. The device (by default this process's) is named in
     the title.
     """
+    evaluations = [row for row in rows if "eval/success_rate" in row]
     rows = [row for row in rows if row.get("episodes/episodes", 0) > 0]
     fig, ax = _figure(8, 4.5)
     if rows:
@@ -59,6 +61,14 @@ def learning_curve(rows: list[dict], path: pathlib.Path, title: str, device: str
             ax.plot(steps, slope * steps + intercept, "--", color="gray", label="linear trend")
         twin = ax.twinx()
         twin.plot(steps, rolling_mean(success, window, episodes), color="C2", label="success rate (rolling)")
+        if evaluations:
+            twin.plot(
+                [row["env_steps"] for row in evaluations],
+                [row["eval/success_rate"] for row in evaluations],
+                "o-",
+                color="C3",
+                label="success rate (evaluation)",
+            )
         twin.set_ylim(-0.02, 1.02)
         twin.set_ylabel("success rate")
         twin.legend(loc="lower right")

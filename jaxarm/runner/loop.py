@@ -1,0 +1,288 @@
+"""The training loop: chunks of compiled updates, and between chunks metrics, progress, NaN stop, evaluation and
+checkpoints, into a run directory (rundir.py). `python -m experiments.run` is a thin CLI over `train` and
+`resume`; notebooks and scripts call them directly.
+
+The learner is compiled in chunks of `updates_per_chunk` updates; between chunks the loop logs metrics (JSON
+lines, TensorBoard, optionally wandb), shows progress, checks for NaN/inf, evaluates (`eval_every_updates`)
+and checkpoints the whole learner state. A resumed run continues from the latest checkpoint; on CPU the result
+is bit-identical to an uninterrupted run. Ctrl-C or SIGTERM stops at the next chunk end with a checkpoint.
+With several devices the env batch is split across all of them (data parallel, jaxarm/agents/common/sharding.py).
+"""
+
+import contextlib
+import dataclasses
+import json
+import pathlib
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
+
+import jax
+import numpy as np
+
+from jaxarm.agents import registry
+from jaxarm.agents.common import checkpoint
+from jaxarm.agents.common.config import RunConfig
+from jaxarm.agents.common.sharding import data_mesh, data_parallel
+from jaxarm.agents.common.trainer import make_chunk_runner
+from jaxarm.runner import plots, progress, rundir
+from jaxarm.runner.sinks import Sink, TensorBoardSink, WandbOptions, WandbSink
+
+FINAL_EVAL_SEED_OFFSET = 1_000_003
+"""Evaluations during and at the end of training use key `seed + FINAL_EVAL_SEED_OFFSET`: the same episodes
+each time, so evaluation rows compare checkpoints, not episode draws."""
+
+
+class TrainingDiverged(RuntimeError):
+    """NaN or inf appeared in the metrics or the learner state."""
+
+
+class TrainingInterrupted(RuntimeError):
+    """Ctrl-C or SIGTERM stopped training at a chunk end, after a checkpoint; the message says how to go on."""
+
+
+def first_non_finite(flat_metrics: dict[str, np.ndarray]) -> tuple[int, str] | None:
+    """(index within the chunk, metric name) of the first NaN/inf, or None."""
+    found = [
+        (int(np.argmax(~np.isfinite(values))), name)
+        for name, values in flat_metrics.items()
+        if not np.all(np.isfinite(values))
+    ]
+    return min(found) if found else None
+
+
+def state_is_finite(state) -> bool:
+    leaves = [leaf for leaf in jax.tree.leaves(state) if np.issubdtype(np.asarray(leaf).dtype, np.floating)]
+    return all(bool(np.all(np.isfinite(np.asarray(leaf)))) for leaf in leaves)
+
+
+def metric_rows(flat: dict[str, np.ndarray], first_update: int, wall_time: float, steps_per_second: float):
+    count = len(next(iter(flat.values())))
+    for index in range(count):
+        row = {"updates": first_update + index + 1, "wall_time": wall_time, "steps_per_second": steps_per_second}
+        row.update({name: float(values[index]) for name, values in flat.items()})
+        yield row
+
+
+def crossed(multiple: int, before: int, after: int) -> bool:
+    """Whether a multiple of `multiple` (> 0) lies in (before, after]: cadences that do not move on resume."""
+    return multiple > 0 and after // multiple > before // multiple
+
+
+def better(result: dict, best: dict | None) -> bool:
+    """Whether an evaluation beats the best so far: higher success rate, then higher mean return."""
+    return best is None or (result["success_rate"], result["return_mean"]) > (best["success_rate"], best["return_mean"])
+
+
+class StopRequests:
+    """Ctrl-C (SIGINT) and SIGTERM, while installed, ask the loop to stop at the next chunk end; a second Ctrl-C
+    aborts at once (KeyboardInterrupt). Installed only in the main thread (signals cannot be caught elsewhere)."""
+
+    def __init__(self):
+        self.requested = False
+
+    def _handle(self, signum, frame):
+        if self.requested and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        self.requested = True
+        print(
+            f"\n{signal.Signals(signum).name}: stopping at the next chunk end with a checkpoint "
+            "(Ctrl-C again to abort now)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    @contextlib.contextmanager
+    def installed(self) -> Iterator["StopRequests"]:
+        if threading.current_thread() is not threading.main_thread():
+            yield self
+            return
+        previous = {signum: signal.signal(signum, self._handle) for signum in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield self
+        finally:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
+
+
+@dataclasses.dataclass(frozen=True)
+class Options:
+    """How a run is driven, beside its config (nothing here changes what it computes).
+
+    Attributes:
+      stop_after_s: checkpoint and stop after the first chunk that ends past this many seconds (resume later).
+      wandb: also log to this wandb project; None for no wandb.
+      on_chunk: called with the update count after each chunk's rows are logged (e.g. to watch a run).
+    """
+
+    stop_after_s: float | None = None
+    wandb: WandbOptions | None = None
+    on_chunk: Callable[[int], None] | None = None
+
+
+def train(
+    config: RunConfig, run_dir: pathlib.Path, *, preset: str = "custom", resume: bool = False, options=Options()
+) -> dict:
+    """Trains `config` into `run_dir` and returns the final evaluation (also written to eval.json).
+
+    With `resume`, continues from the directory's latest checkpoint (a directory with none starts afresh).
+    Without, the directory must be new, empty, or hold a run that never reached its first checkpoint. Raises
+    rundir.RunDirError (foreign files, in use, already a run), TrainingDiverged on NaN/inf, TrainingInterrupted
+    after Ctrl-C or SIGTERM; with `options.stop_after_s`, the first chunk past it is checkpointed and the
+    evaluation describes that state.
+    """
+    run_dir = pathlib.Path(run_dir)
+    rundir.check_holds_a_run_or_nothing(run_dir)
+    with rundir.locked(run_dir):
+        return _train_locked(config, preset, run_dir, resume, options)
+
+
+def resume(run_dir: pathlib.Path, overrides: Sequence[str] = (), options=Options()) -> tuple[dict, RunConfig]:
+    """Continues the run in `run_dir` from its latest checkpoint with the `key=value` overrides a resumed run may
+    take (rundir.RESUMABLE_KEYS; recorded in config.json and resumes.jsonl). Returns (evaluation, config)."""
+    run_dir = pathlib.Path(run_dir)
+    # Checked before the lock writes anything: a directory that is no run, or overrides it may not take.
+    config, preset = rundir.read_config(run_dir)
+    config = rundir.apply_resume_overrides(config, list(overrides))
+    with rundir.locked(run_dir):
+        return _train_locked(config, preset, run_dir, True, options, list(overrides)), config
+
+
+def _train_locked(
+    config: RunConfig, preset: str, run_dir: pathlib.Path, resume: bool, options: Options, overrides: Sequence[str] = ()
+) -> dict:
+    """`train`, with the lock held; a resume's `overrides` are recorded once its checkpoint is restored."""
+    trainer = registry.make_trainer(config)
+    hparams = config.hparams()
+    checkpoints = run_dir / "checkpoints"
+    has_run = (run_dir / "config.json").exists()
+    if has_run and not rundir.any_checkpoint_files(run_dir):
+        # Died before its first checkpoint (Ctrl-C while compiling, NaN at once, a full disk): nothing to keep.
+        print(f"{run_dir} has no checkpoint yet: starting it afresh", file=sys.stderr)
+        rundir.clear_run(run_dir)
+        resume = False
+    elif has_run and not resume:
+        raise rundir.RunDirError(f"{run_dir} already holds a run; use --resume {run_dir} or another --out")
+    elif resume and not has_run:
+        raise rundir.RunDirError(f"{run_dir} is not a run directory: no config.json")
+    if resume:
+        state = rundir.restore_state(run_dir, trainer, config)
+        done_updates = int(state.updates)
+        if overrides:
+            rundir.record_resume(run_dir, config, preset, overrides, done_updates)
+        rundir.truncate_metrics(run_dir, done_updates)
+        wall_offset = max([row["wall_time"] for row in rundir.read_metrics(run_dir)], default=0.0)
+    else:
+        state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams)
+        if config.init_from:
+            state = rundir.warm_starter(config)(state)
+        # Written once the start state exists: a warm start that fails leaves no half-made run directory.
+        rundir.write_config(run_dir, config, preset)
+        done_updates, wall_offset = 0, 0.0
+    if jax.device_count() > 1:
+        state = data_parallel(state, data_mesh())
+    evaluator = rundir.make_evaluator(trainer, config, config.eval_episodes)
+    eval_key = jax.random.PRNGKey(config.seed + FINAL_EVAL_SEED_OFFSET)
+    best_path = run_dir / "best.json"
+    best = json.loads(best_path.read_text()) if resume and best_path.exists() else None
+    runners: dict[int, Callable] = {}
+    last_saved = done_updates
+    start = time.perf_counter()
+    stop = StopRequests()
+    with contextlib.ExitStack() as stack:
+        sinks: list[Sink] = [TensorBoardSink(run_dir / "tensorboard")]
+        if options.wandb:
+            sinks.append(WandbSink(options.wandb, run_dir, json.loads((run_dir / "config.json").read_text())))
+        for sink in sinks:
+            stack.callback(sink.close)
+        stack.enter_context(stop.installed())
+        bar = stack.enter_context(progress.Progress(trainer.num_updates * trainer.env_steps_per_update))
+        log = stack.enter_context((run_dir / "metrics.jsonl").open("a"))
+        bar.advance_to(done_updates * trainer.env_steps_per_update)
+        while done_updates < trainer.num_updates:
+            count = min(config.updates_per_chunk, trainer.num_updates - done_updates)
+            runner = runners.setdefault(count, make_chunk_runner(trainer, count))
+            chunk_start = time.perf_counter()
+            state, metrics = runner(state, hparams)
+            flat = rundir.flatten_metrics(jax.device_get(metrics))
+            chunk_time = time.perf_counter() - chunk_start
+            bad = first_non_finite(flat)
+            if bad is not None or not state_is_finite(state):
+                raise TrainingDiverged(diverged_message(bad, done_updates, count, checkpoints))
+            rows = list(
+                metric_rows(
+                    flat,
+                    done_updates,
+                    wall_offset + time.perf_counter() - start,
+                    count * trainer.env_steps_per_update / chunk_time,
+                )
+            )
+            if crossed(config.eval_every_updates, done_updates, done_updates + count):
+                result = evaluator(state, eval_key)
+                rows[-1].update({f"eval/{name}": value for name, value in result.items() if isinstance(value, float)})
+                if better(result, best):
+                    best = {"updates": done_updates + count, **result}
+                    checkpoint.save(run_dir / "best", done_updates + count, state)
+                    rundir.write_json(best_path, best)
+            for row in rows:
+                log.write(json.dumps(row) + "\n")
+                for sink in sinks:
+                    sink.write(row)
+            log.flush()
+            done_updates += count
+            out_of_time = options.stop_after_s is not None and time.perf_counter() - start > options.stop_after_s
+            if (
+                done_updates - last_saved >= config.checkpoint_every_updates
+                or done_updates == trainer.num_updates
+                or out_of_time
+                or stop.requested
+            ):
+                checkpoint.save(checkpoints, done_updates, state)
+                last_saved = done_updates
+            bar.update(done_updates * trainer.env_steps_per_update, rows[-1]["steps_per_second"], flat)
+            if options.on_chunk:
+                options.on_chunk(done_updates)
+            if stop.requested:
+                raise TrainingInterrupted(
+                    f"interrupted: checkpoint at update {done_updates} of {trainer.num_updates} saved in "
+                    f"{checkpoints}; continue with: python -m experiments.run --resume {run_dir}"
+                )
+            if out_of_time:
+                break
+    train_time = wall_offset + time.perf_counter() - start
+    result = evaluator(state, eval_key)
+    result["train_wall_time"] = train_time
+    result["env_steps"] = int(state.env_steps)
+    result["finished"] = done_updates == trainer.num_updates
+    rundir.write_json(run_dir / "eval.json", result)
+    plots.learning_curve(rundir.read_metrics(run_dir), run_dir / "curve.png", title=preset)
+    return result
+
+
+def diverged_message(bad: tuple[int, str] | None, done_updates: int, count: int, checkpoints: pathlib.Path) -> str:
+    """Where NaN/inf appeared (`bad`: index in the chunk and metric, or None when only the state shows it) and
+    what is kept."""
+    where = (
+        f"update {done_updates + bad[0] + 1} ({bad[1]})"
+        if bad
+        else f"updates {done_updates + 1}-{done_updates + count}"
+    )
+    latest = checkpoint.latest_step(checkpoints)
+    if latest is None:
+        return (
+            f"NaN or inf at {where}; training stopped before its first checkpoint, so there is nothing to keep. "
+            "Change the config and start again (the same --out starts afresh)."
+        )
+    return (
+        f"NaN or inf at {where}; training stopped. The last good checkpoint (update {latest}) in {checkpoints} "
+        "is intact."
+    )
+
+
+def load_run(run_dir: pathlib.Path) -> tuple[RunConfig, Any]:
+    """(config, latest learner state) of the run in `run_dir`, for notebooks and scripts."""
+    config, _ = rundir.read_config(run_dir)
+    return config, rundir.restore_state(run_dir, registry.make_trainer(config), config)

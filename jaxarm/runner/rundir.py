@@ -1,0 +1,303 @@
+"""A run directory: its config, metrics log, checkpoints and evaluation, shared by training, eval and sweep.
+
+Layout of `runs/<config>-<timestamp>/`:
+  config.json      the resolved config (with "preset", and "agent": the learner's name in jaxarm.agents.registry)
+  resumes.jsonl    one JSON row per `--resume` that changed settings: the overrides and the update it resumed at
+  metrics.jsonl    one JSON row per update (evaluation during training adds "eval/..." to its update's row)
+  tensorboard/     TensorBoard event files, against env steps
+  checkpoints/     orbax checkpoints of the whole learner state, named by update count
+  best/            the checkpoint that scored best in evaluation during training; best.json says which
+  curve.png        learning curve
+  eval.json        deterministic evaluation at the end of training
+  eval-<episodes>-<seed>.json, video.gif, video.mp4   written by `experiments.eval`
+  export/          the policy exported by `experiments.export`
+  .lock            held (flock) by the one process writing to the directory
+
+A directory becomes a run when its config.json is written; until its first checkpoint, starting it again (or
+`--resume`) starts it afresh. Nothing here deletes or overwrites a file that is not one of the above.
+"""
+
+import contextlib
+import dataclasses
+import errno
+import fcntl
+import json
+import os
+import pathlib
+import shutil
+import time
+import typing
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
+
+import jax
+import numpy as np
+
+from jaxarm.agents import registry
+from jaxarm.agents.common import checkpoint
+from jaxarm.agents.common.config import RunConfig, apply_overrides
+from jaxarm.agents.common.evaluate import evaluate
+
+RUN_FILES = ("config.json", "resumes.jsonl", "metrics.jsonl", "tensorboard", "checkpoints", "best", "best.json")
+"""What training writes; with `OUTPUT_FILES`, what a run directory may hold."""
+OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock")
+OUTPUT_PATTERNS = ("eval-*.json", "wandb", ".*.tmp")
+
+
+class RunDirError(ValueError):
+    """A run directory cannot be used as asked (foreign files, in use, damaged); the message says what to do."""
+
+
+def new_run_dir(preset: str, root: str = "runs") -> pathlib.Path:
+    """Creates and returns a fresh `root/<preset>-<timestamp>`, with `-2`, `-3`, ... appended when a run started
+    in the same second holds that name (the directory is made atomically, so parallel runs never share one)."""
+    stem = pathlib.Path(root) / f"{preset}-{time.strftime('%Y%m%d-%H%M%S')}"
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    for index in range(1, 10_000):
+        path = stem if index == 1 else stem.with_name(f"{stem.name}-{index}")
+        try:
+            path.mkdir()
+        except FileExistsError:
+            continue
+        return path
+    raise RunDirError(f"10,000 runs named {stem}-* exist; pass --out")
+
+
+def foreign_files(run_dir: pathlib.Path) -> list[str]:
+    """Names in `run_dir` that no jaxarm run writes (sorted)."""
+    if not run_dir.is_dir():
+        return []
+    return sorted(
+        path.name
+        for path in run_dir.iterdir()
+        if path.name not in RUN_FILES + OUTPUT_FILES and not any(path.match(pattern) for pattern in OUTPUT_PATTERNS)
+    )
+
+
+def check_holds_a_run_or_nothing(run_dir: pathlib.Path) -> None:
+    """RunDirError, before anything is written, when `run_dir` holds files but no run (no config.json)."""
+    if run_dir.is_dir() and not (run_dir / "config.json").exists():
+        held = sorted(path.name for path in run_dir.iterdir() if path.name != ".lock")
+        if held:
+            raise RunDirError(
+                f"{run_dir} holds files but no run ({', '.join(held[:5])}; no config.json); choose another --out "
+                "(nothing was written)"
+            )
+
+
+def any_checkpoint_files(run_dir: pathlib.Path) -> bool:
+    """Whether `run_dir/checkpoints` holds anything (complete or not: what is there is never deleted)."""
+    directory = run_dir / "checkpoints"
+    return directory.is_dir() and any(directory.iterdir())
+
+
+@contextlib.contextmanager
+def locked(run_dir: pathlib.Path) -> Iterator[pathlib.Path]:
+    """Holds `run_dir`'s lock for the `with` block (creating the directory if need be); RunDirError, with nothing
+    written, when the directory holds foreign files or another process holds the lock. A directory that was
+    missing or empty and holds only the lock afterwards is removed again."""
+    if run_dir.exists() and not run_dir.is_dir():
+        raise RunDirError(f"{run_dir} is a file, not a run directory; choose another --out")
+    foreign = foreign_files(run_dir)
+    if foreign:
+        shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
+        raise RunDirError(
+            f"{run_dir} holds files that are not part of a jaxarm run ({shown}); move them out or use another "
+            "directory (nothing was written)"
+        )
+    created = not run_dir.exists() or not any(run_dir.iterdir())
+    run_dir.mkdir(parents=True, exist_ok=True)
+    path = run_dir / ".lock"
+    try:
+        handle = path.open("a+")
+    except PermissionError:
+        raise RunDirError(f"{run_dir} is not writable; copy the run somewhere writable and retry") from None
+    try:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as error:
+            if error.errno not in (errno.EAGAIN, errno.EACCES):
+                raise
+            handle.seek(0)
+            holder = handle.read().strip() or "unknown"
+            raise RunDirError(
+                f"{run_dir} is in use by another process (pid {holder}, holding {path}); wait for it to finish "
+                "or use another directory (nothing was written)"
+            ) from None
+        handle.seek(0)
+        handle.truncate()
+        handle.write(str(os.getpid()))
+        handle.flush()
+        yield run_dir
+    finally:
+        if created and [entry.name for entry in run_dir.iterdir()] == [".lock"]:
+            path.unlink()
+            run_dir.rmdir()
+        handle.close()
+
+
+def clear_run(run_dir: pathlib.Path) -> None:
+    """Deletes what training wrote into `run_dir` (a run that died before its first checkpoint), nothing else."""
+    for name in RUN_FILES + ("curve.png", "eval.json"):
+        path = run_dir / name
+        if path.is_dir():
+            shutil.rmtree(path)
+        elif path.exists():
+            path.unlink()
+
+
+def _as_tuples(value):
+    return tuple(_as_tuples(item) for item in value) if isinstance(value, list) else value
+
+
+def write_config(run_dir: pathlib.Path, config: RunConfig, preset: str) -> None:
+    run_dir.mkdir(parents=True, exist_ok=True)
+    data = {"preset": preset, "agent": registry.name_of(config), **dataclasses.asdict(config)}
+    write_json(run_dir / "config.json", data)
+
+
+def read_config(run_dir: pathlib.Path) -> tuple[RunConfig, str]:
+    """The config saved in `run_dir` (validated) and its preset name; ValueError if missing, unreadable or invalid."""
+    path = run_dir / "config.json"
+    if not path.exists():
+        raise RunDirError(f"{run_dir} is not a run directory: no config.json")
+    try:
+        data = json.loads(path.read_text())
+        preset, agent = data.pop("preset"), data.pop("agent")
+        cls = registry.get(agent).config_class
+        hints = typing.get_type_hints(cls)
+        fields = {
+            name: _as_tuples(value) if typing.get_origin(hints[name]) is tuple else value
+            for name, value in data.items()
+        }
+        config = cls(**fields)
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
+        raise RunDirError(
+            f"{path} is corrupt or from another version ({type(error).__name__}: {error}); fix or restore that file"
+        ) from None
+    config.validate()
+    return config, preset
+
+
+def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig, best: bool = False):
+    """The latest checkpointed learner state of `run_dir`, or with `best` the one that scored best in evaluation
+    during training (CheckpointError if none or mismatched)."""
+    like = jax.eval_shape(trainer.init, jax.random.PRNGKey(config.seed), config.hparams())
+    return checkpoint.restore(run_dir / ("best" if best else "checkpoints"), like)
+
+
+def warm_starter(config: RunConfig) -> Callable[[Any], Any]:
+    """fresh learner state -> the same warm-started from the latest checkpoint of the run in `config.init_from`,
+    by the learner's own warm start (`jaxarm.agents.registry.Learner.warm_start`). ValueError or CheckpointError
+    when that run cannot serve."""
+    source_dir = pathlib.Path(config.init_from)
+    source, _ = read_config(source_dir)
+    learner = registry.learner_for(config)
+    warm_start = learner.warm_start
+    if warm_start is None or registry.learner_for(source) is not learner:
+        with_warm_starts = [name for name, each in registry.LEARNERS.items() if each.warm_start is not None]
+        raise ValueError(
+            f"init_from: warm starts exist for {', '.join(with_warm_starts)} only, from a run of the same learner "
+            f"({source_dir} is {registry.name_of(source)}, this run {registry.name_of(config)})"
+        )
+    trained = restore_state(source_dir, learner.make_trainer(source), source)
+    index = config.make_env()[0].observation_source_index(source.make_env()[0])
+    return lambda state: warm_start(state, trained, index)
+
+
+def make_evaluator(trainer, config: RunConfig, episodes: int) -> Callable[[Any, jax.Array], dict]:
+    """(learner state, key) -> deterministic-policy results on `episodes` fresh episodes of the eval env, as a
+    JSON-ready dict; compiled once, on the first call."""
+    env, env_params = config.make_eval_env()
+    run = jax.jit(lambda learner, key: evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, episodes))
+    return lambda state, key: {**run(state, key).summary(), "device": jax.devices()[0].device_kind}
+
+
+def evaluate_state(trainer, config: RunConfig, state, episodes: int, seed: int) -> dict:
+    """Deterministic-policy results on `episodes` fresh episodes, as a JSON-ready dict."""
+    return make_evaluator(trainer, config, episodes)(state, jax.random.PRNGKey(seed))
+
+
+def write_json(path: pathlib.Path, data: dict) -> None:
+    """Writes `data` to `path` whole or not at all (a temporary file renamed over it): a process killed while
+    writing leaves the previous file."""
+    temporary = path.with_name(f".{path.name}.tmp")
+    temporary.write_text(json.dumps(data, indent=2))
+    temporary.replace(path)
+
+
+def eval_path(run_dir: pathlib.Path, episodes: int, seed: int) -> pathlib.Path:
+    """Where `experiments.eval` writes an evaluation of `episodes` episodes from `seed` (eval.json stays training's)."""
+    return run_dir / f"eval-{episodes}-{seed}.json"
+
+
+def read_metrics(run_dir: pathlib.Path, drop_partial_last: bool = False) -> list[dict]:
+    """The rows of `run_dir/metrics.jsonl` ([] if there is none). RunDirError naming the file and line for a row
+    that is not JSON; with `drop_partial_last`, a last line without its newline (a process killed while writing
+    it) is left out instead."""
+    path = run_dir / "metrics.jsonl"
+    if not path.exists():
+        return []
+    text = path.read_text()
+    lines = text.splitlines()
+    if drop_partial_last and lines and not text.endswith("\n"):
+        lines = lines[:-1]
+    rows = []
+    for number, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        try:
+            rows.append(json.loads(line))
+        except json.JSONDecodeError as error:
+            raise RunDirError(f"{path} line {number} is not a JSON row ({error}); delete that line and retry") from None
+    return rows
+
+
+def truncate_metrics(run_dir: pathlib.Path, max_update: int) -> None:
+    """Drops metric rows after `max_update` (rows a killed run logged past its last checkpoint, or half wrote)."""
+    rows = [row for row in read_metrics(run_dir, drop_partial_last=True) if row["updates"] <= max_update]
+    (run_dir / "metrics.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
+
+
+def flatten_metrics(metrics, prefix: str = "") -> dict[str, np.ndarray]:
+    """A (nested) flax struct of arrays [K] -> {"episodes/return_mean": array [K], ...}."""
+    if not dataclasses.is_dataclass(metrics):
+        return {prefix.rstrip("/"): np.asarray(metrics)}
+    flat = {}
+    for field in dataclasses.fields(metrics):
+        flat.update(flatten_metrics(getattr(metrics, field.name), f"{prefix}{field.name}/"))
+    return flat
+
+
+RESUMABLE_KEYS = ("total_env_steps", "checkpoint_every_updates", "eval_every_updates", "eval_episodes")
+"""Config fields `--resume RUN key=value` may change: they set how long the run goes on, how often it is saved
+and evaluated, and how, but neither the compiled update nor what it computes. `eval_env_params.NAME` may change
+too. `total_env_steps` only where the learner's schedule does not depend on it (`RunConfig.budget_shapes_updates`)."""
+
+
+def apply_resume_overrides(config: RunConfig, overrides: Sequence[str]) -> RunConfig:
+    """`config` with the `key=value` overrides a resumed run may take; RunDirError listing those for any other."""
+    allowed = [*RESUMABLE_KEYS, "eval_env_params.NAME"]
+    for item in overrides:
+        key = item.partition("=")[0]
+        if key.startswith("eval_env_params."):
+            continue
+        if key not in RESUMABLE_KEYS:
+            raise RunDirError(
+                f"--resume cannot change {key!r}: it would change the compiled learner or what it computes; "
+                f"a resumed run may change {', '.join(allowed)}"
+            )
+        if key == "total_env_steps" and config.budget_shapes_updates:
+            raise RunDirError(
+                f"--resume cannot change total_env_steps of this run: its {config.budget_shapes_updates} follows "
+                "the budget set at the start; start a new run (init_from=RUN warm-starts it)"
+            )
+    return apply_overrides(config, overrides)
+
+
+def record_resume(run_dir: pathlib.Path, config: RunConfig, preset: str, overrides: Sequence[str], update: int) -> None:
+    """Writes the overridden config to config.json and appends the overrides to resumes.jsonl."""
+    row = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "resumed_at_update": update, "overrides": list(overrides)}
+    with (run_dir / "resumes.jsonl").open("a") as log:
+        log.write(json.dumps(row) + "\n")
+    write_config(run_dir, config, preset)

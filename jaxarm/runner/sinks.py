@@ -1,0 +1,66 @@
+"""Where a run's metric rows go besides metrics.jsonl: TensorBoard (always) and Weights & Biases (when asked).
+
+A sink takes each row (a flat dict of floats with "updates" and "env_steps") and draws it against env steps,
+the x-axis every learner and batch size shares. wandb is an optional extra (`pip install jaxarm[wandb]`),
+imported only when a run asks for it; offline mode is wandb's own (`WANDB_MODE=offline`, or `offline=True`).
+"""
+
+import dataclasses
+import importlib
+import pathlib
+from typing import Any, Protocol
+
+
+class Sink(Protocol):
+    def write(self, row: dict[str, float]) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class TensorBoardSink:
+    """Event files under `directory`, each metric against env steps."""
+
+    def __init__(self, directory: pathlib.Path):
+        from tensorboardX import SummaryWriter
+
+        self.writer = SummaryWriter(str(directory))
+
+    def write(self, row: dict[str, float]) -> None:
+        for name, value in row.items():
+            self.writer.add_scalar(name, value, int(row["env_steps"]))
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+@dataclasses.dataclass(frozen=True)
+class WandbOptions:
+    """A wandb run to log to: its project, and offline (files under the run directory, synced later)."""
+
+    project: str
+    offline: bool = False
+
+
+class WandbSink:
+    """One wandb run per run directory (its name; resumed runs continue it), each metric against env steps."""
+
+    def __init__(self, options: WandbOptions, run_dir: pathlib.Path, config: dict[str, Any]):
+        try:
+            wandb = importlib.import_module("wandb")
+        except ImportError:
+            raise ValueError("--wandb needs the wandb package: pip install 'jaxarm[wandb]'") from None
+        self.run = wandb.init(
+            project=options.project,
+            name=run_dir.name,
+            id=run_dir.name,
+            resume="allow",
+            dir=str(run_dir),
+            config=config,
+            mode="offline" if options.offline else None,
+        )
+
+    def write(self, row: dict[str, float]) -> None:
+        self.run.log(row, step=int(row["env_steps"]))
+
+    def close(self) -> None:
+        self.run.finish()

@@ -1,0 +1,191 @@
+"""What the entry points offer: --help on each, --show, the compilation cache, metric sinks and video files."""
+
+import json
+import os
+import pathlib
+import subprocess
+import sys
+import types
+
+import numpy as np
+import pytest
+
+from experiments import bench, compare, run, sweep
+from experiments import eval as eval_cli
+from jaxarm.runner import cache, sinks, video
+
+SMALL = [
+    "num_envs=64",
+    "rollout_length=16",
+    "num_minibatches=2",
+    "total_env_steps=8192",
+    "updates_per_chunk=4",
+    "checkpoint_every_updates=4",
+    "eval_episodes=4",
+]
+
+
+@pytest.mark.parametrize("entry", [run.main, eval_cli.main, sweep.main, compare.main, bench.main])
+def test_help_exits_0_on_every_entry_point(entry, capsys):
+    with pytest.raises(SystemExit) as exited:
+        entry(["--help"])
+    assert exited.value.code == 0
+    assert "usage:" in capsys.readouterr().out
+
+
+def test_bench_lists_its_suites_and_refuses_an_unknown_one(capsys):
+    with pytest.raises(SystemExit):
+        bench.main(["--help"])
+    out = capsys.readouterr().out
+    assert all(suite in out for suite in bench.SUITES)
+    with pytest.raises(SystemExit) as exited:
+        bench.main(["nonesuch"])
+    assert exited.value.code == 2 and "invalid choice: 'nonesuch'" in capsys.readouterr().err
+
+
+def test_show_lists_config_fields_and_env_params_with_defaults_and_docs(capsys):
+    assert run.main(["--config", "ppo_arm2d", "--show", "learning_rate=1e-3"]) == 0
+    out = capsys.readouterr().out
+    assert "learning_rate (float [dynamic], > 0) = 0.001  (default 0.0003)" in out
+    assert "Adam step size (linearly annealed to 0 when `anneal_learning_rate`)." in out
+    assert "policy_hidden_sizes (tuple[int, ...], >= 1) = (64, 64)" in out
+    assert "eval_every_updates (int, >= 0) = 0" in out and 'logging "eval/..." in metrics' in out
+    assert "env_params.success_bonus = 10.0  (default 0.0)" in out
+    assert "env_params.goal_mode (one of 0, 1, 2) = 2  (default 0)" in out
+    assert "reward on the step that completes the hold" in out
+    assert "env_params.max_episode_steps (>= 1) = 200" in out and "time limit (truncation)." in out
+
+
+def test_cache_directory_follows_the_environment(tmp_path):
+    home = {"HOME": str(tmp_path)}
+    assert cache.cache_dir(home) == tmp_path / ".cache" / "jaxarm" / "jax"
+    assert cache.cache_dir({**home, "XDG_CACHE_HOME": "/x"}) == pathlib.Path("/x/jaxarm/jax")
+    assert cache.cache_dir({**home, cache.ENV_VAR: str(tmp_path / "c")}) == tmp_path / "c"
+    assert cache.cache_dir({**home, cache.ENV_VAR: "off"}) is None
+    assert cache.cache_dir({**home, "JAX_COMPILATION_CACHE_DIR": "/jax"}) is None, "JAX's own setting wins"
+
+
+def test_the_cache_directory_gets_used(tmp_path):
+    """A fresh process (the test session's own cache is set by JAX_COMPILATION_CACHE_DIR, which would win)."""
+    env = {key: value for key, value in os.environ.items() if key != "JAX_COMPILATION_CACHE_DIR"}
+    env.update({cache.ENV_VAR: str(tmp_path / "cache"), "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0"})
+    program = (
+        "import jax, jax.numpy as jnp\n"
+        "from jaxarm.runner.cache import enable_compilation_cache\n"
+        "print(enable_compilation_cache())\n"
+        "jax.jit(lambda x: jnp.sin(x) @ x)(jnp.ones((8, 8))).block_until_ready()\n"
+    )
+    done = subprocess.run([sys.executable, "-c", program], env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == str(tmp_path / "cache")
+    assert any((tmp_path / "cache").iterdir()), "nothing was written to the cache"
+
+
+class Recorder:
+    def __init__(self):
+        self.calls = []
+
+    def add_scalar(self, name, value, step):
+        self.calls.append((name, value, step))
+
+    def close(self):
+        pass
+
+
+def test_tensorboard_draws_against_env_steps(tmp_path):
+    sink = sinks.TensorBoardSink(tmp_path)
+    sink.writer.close()
+    sink.writer = Recorder()
+    sink.write({"updates": 3, "env_steps": 3072, "loss": 0.5})
+    assert ("loss", 0.5, 3072) in sink.writer.calls and {step for _, _, step in sink.writer.calls} == {3072}
+
+
+@pytest.fixture
+def fake_wandb(monkeypatch):
+    """A stand-in `wandb` module recording what the runner asks of it."""
+    record: dict = {"logged": [], "finished": 0}
+
+    def init(**kwargs):
+        record["init"] = kwargs
+        return types.SimpleNamespace(
+            log=lambda row, step: record["logged"].append((row, step)),
+            finish=lambda: record.__setitem__("finished", record["finished"] + 1),
+        )
+
+    monkeypatch.setitem(sys.modules, "wandb", types.SimpleNamespace(init=init))
+    return record
+
+
+def test_wandb_is_imported_only_when_asked_and_honours_offline(fake_wandb, tmp_path, capsys):
+    assert run.main(["--config", "ppo_arm2d_fixed", *SMALL, "--out", str(tmp_path / "plain")]) == 0
+    assert "init" not in fake_wandb
+    out = tmp_path / "tracked"
+    assert (
+        run.main(["--config", "ppo_arm2d_fixed", *SMALL, "--out", str(out), "--wandb", "arms", "--wandb-offline"]) == 0
+    )
+    init = fake_wandb["init"]
+    assert init["project"] == "arms" and init["mode"] == "offline" and init["name"] == "tracked"
+    assert init["config"]["num_envs"] == 64 and init["dir"] == str(out)
+    rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
+    assert [step for _, step in fake_wandb["logged"]] == [row["env_steps"] for row in rows]
+    assert fake_wandb["finished"] == 1
+
+
+def test_wandb_missing_is_a_one_line_error(monkeypatch, tmp_path, capsys):
+    monkeypatch.setitem(sys.modules, "wandb", None)  # import wandb raises ImportError
+    assert run.main(["--config", "ppo_arm2d_fixed", *SMALL, "--out", str(tmp_path / "r"), "--wandb", "arms"]) == 2
+    assert "pip install 'jaxarm[wandb]'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("suffix", ["gif", "mp4"])
+def test_videos_are_written_as_gif_and_mp4(suffix, tmp_path):
+    import imageio.v3 as iio
+
+    frames = [np.full((48, 64, 3), value, np.uint8) for value in range(0, 250, 25)]
+    path = tmp_path / f"video.{suffix}"
+    video.write_video(path, frames)
+    read = iio.imread(path)
+    assert read.shape[0] == len(frames) and read.shape[1:3] == (48, 64)
+
+
+def test_a_missing_gl_platform_gets_a_one_line_hint():
+    import jax
+    import mujoco
+
+    from jaxarm import envs
+
+    class Headless:
+        def __getattr__(self, name):
+            return getattr(env, name)
+
+        def render(self, state, params):
+            raise mujoco.FatalError("an OpenGL platform library has not been loaded into this process")
+
+    env = envs.make("arm2d")
+    params = env.default_params().replace(max_episode_steps=np.int32(3))
+    trainer = types.SimpleNamespace(act=lambda learner, obs: np.zeros((obs.shape[0], 2), np.float32))
+    with pytest.raises(video.RenderError, match=r"set MUJOCO_GL=egl \(GPU\) or MUJOCO_GL=osmesa \(CPU\)"):
+        video.episode_frames(Headless(), params, trainer, None, jax.random.PRNGKey(0), 1)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        "gamma=2",
+        "learning_rate=-1",
+        "gae_lambda=5",
+        "max_grad_norm=0",
+        "num_minibatches=0",
+        "rollout_length=0",
+        "activation=foo",
+        "env_params.goal_size=-40",
+        "env_params.success_bonus=nan",
+        "env_params.max_episode_steps=0",
+        "env_params.max_episode_steps=1e10",
+    ],
+)
+def test_a_bad_value_is_refused_before_any_directory_is_written(bad, tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    assert run.main(["--config", "ppo_arm2d", bad, "--out", str(run_dir)]) == 2
+    assert bad.split("=")[0].split(".")[-1] in capsys.readouterr().err
+    assert not run_dir.exists()

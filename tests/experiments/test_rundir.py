@@ -1,0 +1,223 @@
+"""Run directories that cannot collide, cannot start broken and never lose a user's files; resumes that extend a
+run; Ctrl-C; evaluation during training. All on arm2d with budgets of a few seconds."""
+
+import dataclasses
+import json
+import os
+import pathlib
+import shutil
+import signal
+
+import jax
+import numpy as np
+import pytest
+
+from experiments import configs, run
+from jaxarm.agents.common import checkpoint
+from jaxarm.agents.common.config import apply_overrides
+from jaxarm.runner import loop, rundir
+
+SMALL = [
+    "num_envs=64",
+    "rollout_length=16",
+    "num_minibatches=2",
+    "total_env_steps=24576",
+    "updates_per_chunk=4",
+    "checkpoint_every_updates=4",
+    "eval_episodes=20",
+]
+"""24 updates in 6 chunks (as in test_run.py, so the compiled chunk is shared)."""
+
+
+def run_cli(*args):
+    return run.main(["--config", "ppo_arm2d_fixed", *SMALL, *args])
+
+
+def final_leaves(run_dir: pathlib.Path):
+    config, _ = rundir.read_config(run_dir)
+    return jax.tree.leaves(rundir.restore_state(run_dir, configs.make_trainer(config), config))
+
+
+def assert_same_learner(run_dir: pathlib.Path, other: pathlib.Path):
+    for left, right in zip(final_leaves(run_dir), final_leaves(other), strict=True):
+        np.testing.assert_array_equal(left, right)
+
+
+def snapshot(directory: pathlib.Path) -> dict[str, bytes]:
+    return {str(path.relative_to(directory)): path.read_bytes() for path in directory.rglob("*") if path.is_file()}
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp("runs") / "reference"
+    assert run_cli("--out", str(run_dir)) == 0
+    return run_dir
+
+
+def test_runs_started_in_the_same_second_without_out_both_finish(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(rundir.time, "strftime", lambda _: "20260101-000000")
+    assert run_cli() == 0
+    assert run_cli() == 0
+    made = sorted(path.name for path in (tmp_path / "runs").iterdir())
+    assert made == ["ppo_arm2d_fixed-20260101-000000", "ppo_arm2d_fixed-20260101-000000-2"]
+    for name in made:
+        assert checkpoint.latest_step(tmp_path / "runs" / name / "checkpoints") == 24
+
+
+def test_a_second_process_on_a_run_directory_is_refused_and_changes_nothing(reference, capsys):
+    before = snapshot(reference)
+    with rundir.locked(reference):  # another open file description: flock refuses it as it would another process
+        before = snapshot(reference)
+        assert run.main(["--resume", str(reference)]) == 2
+        assert "in use by another process" in capsys.readouterr().err
+        assert run_cli("--out", str(reference)) == 2
+        assert snapshot(reference) == before
+
+
+def test_a_foreign_directory_is_refused_and_its_files_untouched(reference, tmp_path, capsys):
+    foreign = tmp_path / "mine"
+    foreign.mkdir()
+    (foreign / "metrics.jsonl").write_text("my own metrics\n")
+    (foreign / "eval.json").write_text("{}")
+    before = snapshot(foreign)
+    assert run_cli("--out", str(foreign)) == 2, "files of a run's names but no config.json are not a run"
+    assert "holds files but no run (eval.json, metrics.jsonl; no config.json)" in capsys.readouterr().err
+    assert snapshot(foreign) == before and sorted(path.name for path in foreign.iterdir()) == sorted(before)
+
+    with_notes = tmp_path / "annotated"
+    shutil.copytree(reference, with_notes)
+    (with_notes / "notes.txt").write_text("my notes")
+    before = snapshot(with_notes)
+    assert run.main(["--resume", str(with_notes)]) == 2
+    assert "not part of a jaxarm run (notes.txt)" in capsys.readouterr().err
+    assert snapshot(with_notes) == before
+
+
+def test_nan_before_the_first_checkpoint_says_so_and_the_run_starts_again(reference, tmp_path):
+    config, preset = rundir.read_config(reference)
+    run_dir = tmp_path / "nan"
+    # A reward scale this large makes the first value loss overflow to inf.
+    diverging = dataclasses.replace(config, reward_scale=1e30)
+    with pytest.raises(loop.TrainingDiverged) as raised:
+        loop.train(diverging, run_dir, preset=preset)
+    message = str(raised.value)
+    assert "update 1 " in message and "before its first checkpoint" in message and "None" not in message
+    assert (run_dir / "config.json").exists() and not rundir.any_checkpoint_files(run_dir)
+    assert run_cli("--out", str(run_dir)) == 0, "re-running a run that never checkpointed starts it afresh"
+    assert_same_learner(run_dir, reference)
+
+
+def test_resume_of_a_run_that_died_before_its_first_checkpoint_starts_it(reference, tmp_path):
+    run_dir = tmp_path / "died"
+    run_dir.mkdir()
+    shutil.copy(reference / "config.json", run_dir / "config.json")
+    (run_dir / "metrics.jsonl").write_text('{"updates": 1, "wall_ti')  # killed while writing its first row
+    assert run.main(["--resume", str(run_dir)]) == 0
+    assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 25))
+    assert_same_learner(run_dir, reference)
+
+
+def test_damaged_files_are_named_with_what_to_do(reference, tmp_path, capsys):
+    half_written = tmp_path / "half"
+    shutil.copytree(reference, half_written)
+    with (half_written / "metrics.jsonl").open("a") as log:
+        log.write('{"updates": 25, "wall_t')
+    assert run.main(["--resume", str(half_written)]) == 0, "a half-written last row is dropped on resume"
+    assert [row["updates"] for row in rundir.read_metrics(half_written)] == list(range(1, 25))
+
+    lines = (reference / "metrics.jsonl").read_text().splitlines()
+    (half_written / "metrics.jsonl").write_text("\n".join([*lines[:2], "garbage", *lines[2:]]) + "\n")
+    with pytest.raises(rundir.RunDirError, match=r"metrics.jsonl line 3 is not a JSON row .*delete that line"):
+        rundir.read_metrics(half_written)
+
+    (half_written / "config.json").write_text('{"preset": ')
+    assert run.main(["--resume", str(half_written)]) == 2
+    error = capsys.readouterr().err
+    assert f"{half_written / 'config.json'} is corrupt" in error and "fix or restore" in error
+    assert error.count("\n") == 1
+
+
+def test_ctrl_c_checkpoints_at_the_chunk_end_and_resume_is_bit_identical(reference, tmp_path, capsys, monkeypatch):
+    run_dir = tmp_path / "interrupted"
+    make_runner = loop.make_chunk_runner
+
+    def interrupting_runner(trainer, count):
+        chunk = make_runner(trainer, count)
+        calls = []
+
+        def run_chunk(state, hparams):
+            calls.append(1)
+            if len(calls) == 2:  # Ctrl-C while the second chunk runs
+                os.kill(os.getpid(), signal.SIGINT)
+            return chunk(state, hparams)
+
+        return run_chunk
+
+    monkeypatch.setattr(loop, "make_chunk_runner", interrupting_runner)
+    assert run_cli("checkpoint_every_updates=12", "--out", str(run_dir)) == 130
+    error = capsys.readouterr().err
+    assert "SIGINT: stopping at the next chunk end" in error
+    assert f"continue with: python -m experiments.run --resume {run_dir}" in error
+    assert checkpoint.latest_step(run_dir / "checkpoints") == 8, "checkpointed at the chunk end, off its cadence"
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler, "the handler is removed again"
+    monkeypatch.undo()
+    assert run.main(["--resume", str(run_dir)]) == 0
+    assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 25))
+    assert_same_learner(run_dir, reference)
+
+
+def test_resume_extends_the_budget_as_if_it_had_been_set_at_the_start(tmp_path, capsys):
+    constant = ["anneal_learning_rate=false", "--out"]
+    assert run_cli(*constant, str(tmp_path / "short")) == 0
+    assert run.main(["--resume", str(tmp_path / "short"), "total_env_steps=32768", "eval_episodes=10"]) == 0
+    assert run_cli("total_env_steps=32768", "eval_episodes=10", *constant, str(tmp_path / "long")) == 0
+    assert [row["updates"] for row in rundir.read_metrics(tmp_path / "short")] == list(range(1, 33))
+    assert_same_learner(tmp_path / "short", tmp_path / "long")
+    config, _ = rundir.read_config(tmp_path / "short")
+    assert config.total_env_steps == 32768
+    (record,) = [json.loads(line) for line in (tmp_path / "short" / "resumes.jsonl").read_text().splitlines()]
+    assert record["overrides"] == ["total_env_steps=32768", "eval_episodes=10"] and record["resumed_at_update"] == 24
+
+
+def test_resume_refuses_overrides_that_change_the_learner_and_changes_nothing(reference, capsys):
+    before = snapshot(reference)
+    assert run.main(["--resume", str(reference), "learning_rate=1e-2"]) == 2
+    error = capsys.readouterr().err
+    assert "cannot change 'learning_rate'" in error and "may change total_env_steps, checkpoint_every_updates" in error
+    assert run.main(["--resume", str(reference), "total_env_steps=99999"]) == 2
+    assert "learning-rate schedule (anneal_learning_rate=true)" in capsys.readouterr().err
+    assert snapshot(reference) == before
+
+
+def test_a_resume_that_cannot_restore_records_nothing(reference, tmp_path, capsys):
+    damaged = tmp_path / "damaged"
+    shutil.copytree(reference, damaged)
+    for path in (damaged / "checkpoints").rglob("*"):
+        if path.is_file():
+            path.write_text("garbage")
+    before = snapshot(damaged)
+    assert run.main(["--resume", str(damaged), "eval_episodes=5"]) == 2
+    error = capsys.readouterr().err
+    assert "cannot be restored" in error and error.count("\n") == 1, "one line, orbax's own log lines silenced"
+    assert snapshot(damaged) == before and not (damaged / "resumes.jsonl").exists()
+
+
+def test_evaluation_during_training_logs_rows_keeps_the_best_and_draws_them(tmp_path):
+    run_dir = tmp_path / "evaluated"
+    assert run_cli("eval_every_updates=8", "--out", str(run_dir)) == 0
+    rows = rundir.read_metrics(run_dir)
+    assert [row["updates"] for row in rows if "eval/success_rate" in row] == [8, 16, 24]
+    best = json.loads((run_dir / "best.json").read_text())
+    evaluated = [row for row in rows if "eval/success_rate" in row]
+    top = max(evaluated, key=lambda row: (row["eval/success_rate"], row["eval/return_mean"]))
+    assert best["updates"] == top["updates"] and best["success_rate"] == top["eval/success_rate"]
+    assert checkpoint.latest_step(run_dir / "best") == best["updates"]
+    final = json.loads((run_dir / "eval.json").read_text())
+    assert final["success_rate"] == evaluated[-1]["eval/success_rate"], "same episodes as the final evaluation"
+
+
+def test_lists_parse_with_brackets_too():
+    base = configs.get("ppo_arm2d")
+    for text in ("32,16", "[32,16]", "(32, 16)"):
+        assert apply_overrides(base, [f"policy_hidden_sizes={text}"]).policy_hidden_sizes == (32, 16)
