@@ -1,9 +1,13 @@
-"""Evaluate a saved run: `python -m experiments.eval RUN_DIR [--episodes N] [--seed S] [--video gif|mp4]`.
+"""Evaluate a saved run: `python -m experiments.eval RUN_DIR [--episodes N] [--seed S] [--video gif|mp4]
+[--perturb NAME=V1,V2 ...]`.
 
 Loads the run's config and latest checkpoint (or the best one from evaluation during training, `--best`),
 runs the deterministic policy on N fresh episodes, prints the result and writes it to its own file,
 eval-<episodes>-<seed>.json (training's eval.json is kept). With --video it writes video.gif or video.mp4 of a
-few episodes drawn without a window. The run directory is locked while this writes.
+few episodes drawn without a window. With --perturb it evaluates the policy under single changes of the eval
+env's params instead (each param's values in one compiled program, beside the nominal params) and writes a
+robustness table and plot (robustness-<episodes>-<seed>.json, .md and .png). The run directory is locked while
+this writes.
 """
 
 import argparse
@@ -16,7 +20,7 @@ import jax
 from experiments import configs
 from experiments.run import quiet_libraries
 from jaxarm.agents.common import checkpoint
-from jaxarm.runner import rundir, video
+from jaxarm.runner import robustness, rundir, video
 from jaxarm.runner.cache import enable_compilation_cache
 
 VIDEO_EPISODES = 3
@@ -37,6 +41,12 @@ def main(argv=None) -> int:
         "--best", action="store_true", help="evaluate the best checkpoint (best/) instead of the latest"
     )
     parser.add_argument("--seed", type=int, default=12345)
+    parser.add_argument(
+        "--perturb",
+        nargs="+",
+        metavar="NAME=V1,V2",
+        help="evaluate under each value of each env param (e.g. finger_friction=0.8,1.5 mass_scale=0.5,3)",
+    )
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     run_dir = pathlib.Path(args.run_dir)
     try:
@@ -47,6 +57,9 @@ def main(argv=None) -> int:
         trainer = configs.make_trainer(config)
         with rundir.locked(run_dir):
             state = rundir.restore_state(run_dir, trainer, config, best=args.best)
+            if args.perturb:
+                write_robustness(run_dir, config, trainer, state, args)
+                return 0
             start = time.perf_counter()
             result = rundir.evaluate_state(trainer, config, state, args.episodes, args.seed)
             result["checkpoint_update"] = int(state.updates)
@@ -72,6 +85,23 @@ def main(argv=None) -> int:
         quiet_libraries()
         return 2
     return 0
+
+
+def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> None:
+    """Evaluates `state` under `args.perturb`, prints the table and writes it with its rows and plot."""
+    perturbations = dict(robustness.parse_perturbation(text) for text in args.perturb)
+    env, env_params = config.make_eval_env()
+    robustness.check_perturbations(env_params, perturbations)
+    key = jax.random.PRNGKey(args.seed)
+    start = time.perf_counter()
+    rows = robustness.evaluate_perturbations(env, env_params, trainer.act, state, key, args.episodes, perturbations)
+    text = robustness.table(rows)
+    print(f"{text}\n({args.episodes} episodes a row, {time.perf_counter() - start:.1f} s with compilation)")
+    stem = run_dir / f"robustness-{args.episodes}-{args.seed}"
+    rundir.write_json(stem.with_suffix(".json"), {"device": jax.devices()[0].device_kind, "rows": rows})
+    stem.with_suffix(".md").write_text(text + "\n")
+    robustness.plot(rows, stem.with_suffix(".png"), f"{run_dir.name}: robustness")
+    print(f"wrote {stem}.json, .md and .png")
 
 
 if __name__ == "__main__":

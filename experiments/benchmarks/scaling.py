@@ -30,6 +30,8 @@ from experiments.benchmarks.record import add_out_argument, write_record  # noqa
 from experiments.benchmarks.timing import compile_updates, env_seconds, timed  # noqa: E402
 from experiments.benchmarks.training import base_ppo_config  # noqa: E402
 from jaxarm import envs  # noqa: E402
+from jaxarm.agents.common.config import with_pair  # noqa: E402
+from jaxarm.agents.ppo import PPOConfig  # noqa: E402
 
 
 def parse_sizes(text: str) -> list[int]:
@@ -51,9 +53,18 @@ def safe_sizes(env_name: str, sizes: list[int]) -> list[int]:
     return [size for size in sizes if size <= limit]
 
 
-def ppo_seconds(env_name: str, num_envs: int, num_updates: int, **overrides) -> tuple[float, float]:
-    """(seconds of `num_updates` PPO updates, compile seconds) at `num_envs` envs; `overrides` edit the config."""
-    config = dataclasses.replace(base_ppo_config(env_name), num_envs=num_envs, **overrides)
+def scaling_config(env_name: str, impl: str, max_envs: int) -> PPOConfig:
+    """The PPO preset of `env_name`; for an MJX env with `impl` "warp", on Warp with buffers for `max_envs` envs."""
+    config = base_ppo_config(env_name)
+    if impl == "jax" or not envs.make(env_name).uses_mjx:
+        return config
+    kwargs = with_pair(with_pair(config.env_kwargs, "impl", impl), "max_envs", max_envs)
+    return dataclasses.replace(config, env_kwargs=kwargs)
+
+
+def ppo_seconds(base: PPOConfig, num_envs: int, num_updates: int, **overrides) -> tuple[float, float]:
+    """(seconds of `num_updates` PPO updates, compile seconds) at `num_envs` envs; `overrides` edit `base`."""
+    config = dataclasses.replace(base, num_envs=num_envs, **overrides)
     compiled, state, hparams, compile_seconds = compile_updates(config, num_updates)
     timed(compiled, state, hparams)  # warm-up
     seconds = min(timed(compiled, state, hparams) for _ in range(2))
@@ -76,14 +87,13 @@ class Measure:
     max_units: int
 
 
-def env_measure(env_name: str) -> Measure:
-    config = base_ppo_config(env_name)
+def env_measure(config: PPOConfig) -> Measure:
     return Measure(lambda size, units: env_seconds(config, size, units), lambda size: size, 10, 1000)
 
 
-def ppo_measure(env_name: str) -> Measure:
-    rollout_length = base_ppo_config(env_name).rollout_length
-    return Measure(lambda size, units: ppo_seconds(env_name, size, units), lambda size: size * rollout_length, 1, 20)
+def ppo_measure(config: PPOConfig) -> Measure:
+    per_unit = config.rollout_length
+    return Measure(lambda size, units: ppo_seconds(config, size, units), lambda size: size * per_unit, 1, 20)
 
 
 def sweep(sizes: list[int], measure: Measure, target_steps: int, max_seconds: float) -> list[tuple[int, float, float]]:
@@ -106,11 +116,10 @@ def sweep(sizes: list[int], measure: Measure, target_steps: int, max_seconds: fl
     return rows
 
 
-def time_breakdown(env_name: str, num_updates: int) -> list[tuple[str, float]]:
+def time_breakdown(config: PPOConfig, num_updates: int) -> list[tuple[str, float]]:
     """[(phase, milliseconds per update)] of our PPO at the preset's env count (see the module docstring)."""
-    config = base_ppo_config(env_name)
-    full, _ = ppo_seconds(env_name, config.num_envs, num_updates)
-    no_sgd, _ = ppo_seconds(env_name, config.num_envs, num_updates, num_epochs=0)
+    full, _ = ppo_seconds(config, config.num_envs, num_updates)
+    no_sgd, _ = ppo_seconds(config, config.num_envs, num_updates, num_epochs=0)
     env_only, _ = env_seconds(config, config.num_envs, config.rollout_length * num_updates)
     sgd_steps = config.num_epochs * config.num_minibatches
     per_update = 1000.0 / num_updates
@@ -154,6 +163,9 @@ def main(argv: Sequence[str]) -> None:
     parser.add_argument("--max-seconds", type=float, default=45.0, help="longest predicted timed call per size")
     parser.add_argument("--quick", action="store_true", help="CPU smoke run: fewer steps, calls under 5 s")
     parser.add_argument("--plot", default="benchmarks_scaling.png", help="where the PNG goes")
+    parser.add_argument(
+        "--impl", default="jax", help='MJX implementation of the Panda envs: "jax" or "warp" (warp-lang, NVIDIA GPU)'
+    )
     add_out_argument(parser)
     args = parser.parse_args(argv)
     target_steps = 200_000 if args.quick else 4_000_000
@@ -167,13 +179,15 @@ def main(argv: Sequence[str]) -> None:
         print(f"not registered, skipped: {', '.join(skipped)}")
 
     curves = {}
+    configs: dict[str, PPOConfig] = {}
     for name in env_names:
         env_sizes, ppo_sizes = (safe_sizes(name, parse_sizes(text)) for text in (args.env_sizes, args.ppo_sizes))
+        configs[name] = scaling_config(name, args.impl, max([*env_sizes, *ppo_sizes, base_ppo_config(name).num_envs]))
         print(f"{name}: env stepping", flush=True)
-        curves[f"{name}: env stepping"] = sweep(env_sizes, env_measure(name), target_steps, max_seconds)
+        curves[f"{name}: env stepping"] = sweep(env_sizes, env_measure(configs[name]), target_steps, max_seconds)
         print(f"{name}: PPO training", flush=True)
         # An update is ~50x dearer per env step than stepping alone: a quarter of the work keeps large sizes in.
-        curves[f"{name}: PPO training"] = sweep(ppo_sizes, ppo_measure(name), target_steps // 4, max_seconds)
+        curves[f"{name}: PPO training"] = sweep(ppo_sizes, ppo_measure(configs[name]), target_steps // 4, max_seconds)
 
     print("\n| env | measurement | parallel envs | env steps/s | compile s |")
     print("|---|---|---:|---:|---:|")
@@ -194,13 +208,13 @@ def main(argv: Sequence[str]) -> None:
 
     breakdowns = {}
     for name in env_names:
-        config = base_ppo_config(name)
+        config = configs[name]
         if not any(size >= config.num_envs for size, _, _ in curves[f"{name}: PPO training"]):
             continue  # the sweep found the preset's size too slow for --max-seconds
         print(f"\nwhere a PPO update's time goes: {name}, preset {config.num_envs:,} envs (ms per update)")
         print("| phase | ms / update | share |")
         print("|---|---:|---:|")
-        breakdown = time_breakdown(name, num_updates=2 if args.quick else 10)
+        breakdown = time_breakdown(config, num_updates=2 if args.quick else 10)
         for phase, milliseconds in breakdown:
             share = "" if phase.startswith(" ") else f"{milliseconds / breakdown[0][1]:.0%}"
             print(f"| {phase} | {milliseconds:.1f} | {share} |")
@@ -209,4 +223,4 @@ def main(argv: Sequence[str]) -> None:
     path = pathlib.Path(args.plot)
     plot(curves, path, f"jaxarm throughput on {device} ({jax.device_count()} device(s), 1 used)")
     print(f"\nplot: {path.resolve()}")
-    write_record(args.out, "scaling", argv, records, breakdown_at_preset=breakdowns, plot=str(path))
+    write_record(args.out, "scaling", argv, records, impl=args.impl, breakdown_at_preset=breakdowns, plot=str(path))

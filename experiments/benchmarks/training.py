@@ -44,6 +44,7 @@ from experiments import configs
 from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import env_seconds
 from jaxarm import envs
+from jaxarm.agents.common.config import with_pair
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import run_updates
 from jaxarm.agents.ppo import PPOConfig, make_trainer
@@ -339,6 +340,11 @@ def main(argv: Sequence[str]) -> None:
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
+        "--impl",
+        default="jax",
+        help='MJX implementation of a Panda env for both learners: "jax" or "warp" (warp-lang, an NVIDIA GPU)',
+    )
+    parser.add_argument(
         "--learners",
         choices=("both", "jaxarm", "brax"),
         default="both",
@@ -354,6 +360,14 @@ def main(argv: Sequence[str]) -> None:
         args.num_envs = args.num_envs or QUICK_NUM_ENVS
         args.env_steps = args.env_steps or QUICK_ENV_STEPS
     config = dataclasses.replace(ppo_config(args.env, args.num_envs, args.env_steps), seed=args.seed)
+    if args.impl != "jax":
+        # Warp's contact buffer is shared by the batch: sized for this run's envs.
+        kwargs = with_pair(with_pair(config.env_kwargs, "impl", args.impl), "max_envs", config.num_envs)
+        config = dataclasses.replace(config, env_kwargs=kwargs)
+        try:
+            config.validate()
+        except ValueError as error:
+            parser.error(f"--impl {args.impl}: {error}")
     import brax
 
     print(
@@ -361,10 +375,10 @@ def main(argv: Sequence[str]) -> None:
         f"jax {jax.__version__}, brax {brax.__version__}"
     )
     print(
-        f"env {config.env} {dict(config.env_params)}; {config.num_envs:,} envs × {config.rollout_length} steps "
-        f"per update, {config.num_updates} updates, {config.num_minibatches} minibatches × {config.num_epochs} "
-        f"epochs, MLPs {config.policy_hidden_sizes}/{config.value_hidden_sizes} {config.activation}, "
-        f"γ {config.gamma}; "
+        f"env {config.env} ({args.impl}) {dict(config.env_params)}; {config.num_envs:,} envs × "
+        f"{config.rollout_length} steps per update, {config.num_updates} updates, {config.num_minibatches} "
+        f"minibatches × {config.num_epochs} epochs, MLPs {config.policy_hidden_sizes}/{config.value_hidden_sizes} "
+        f"{config.activation}, γ {config.gamma}; "
         f"lr ours {config.learning_rate:g} (linear decay), brax {args.brax_learning_rate:g} (constant)",
         flush=True,
     )
@@ -394,6 +408,7 @@ def main(argv: Sequence[str]) -> None:
         argv,
         [result_row(name, result) for name, result in results.items()],
         env=config.env,
+        impl=args.impl,
         num_envs=config.num_envs,
         rollout_length=config.rollout_length,
         num_updates=config.num_updates,

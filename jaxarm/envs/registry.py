@@ -137,7 +137,10 @@ register(
     control_mode="joint",
 )
 register(
-    "panda_sort_tosser", "jaxarm.envs.panda_sort:PandaSort", "Panda sorter with the bins across a gap", tosser=True
+    "panda_sort_tosser",
+    "jaxarm.envs.panda_sort:PandaSort",
+    "Panda sorter with the bins out of reach: a tosser",
+    tosser=True,
 )
 register(
     "peg_insert",

@@ -254,6 +254,9 @@ def _train_locked(
                 break
     train_time = wall_offset + time.perf_counter() - start
     result = evaluator(state, eval_key)
+    if config.randomize:
+        randomized = rundir.make_evaluator(trainer, config, config.eval_episodes, randomized=True)(state, eval_key)
+        result.update({f"randomized/{name}": value for name, value in randomized.items() if name != "device"})
     result["train_wall_time"] = train_time
     result["env_steps"] = int(state.env_steps)
     result["finished"] = done_updates == trainer.num_updates

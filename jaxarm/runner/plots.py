@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from jaxarm.runner.stats import confidence_halfwidth
 
 
-def _figure(width: float, height: float, columns: int = 1, rows: int = 1):
+def figure(width: float, height: float, columns: int = 1, rows: int = 1):
     figure = Figure(figsize=(width, height))
     FigureCanvasAgg(figure)
     return figure, figure.subplots(rows, columns)
@@ -47,7 +47,7 @@ def learning_curve(rows: list[dict], path: pathlib.Path, title: str, device: str
     """
     evaluations = [row for row in rows if "eval/success_rate" in row]
     rows = [row for row in rows if row.get("episodes/episodes", 0) > 0]
-    fig, ax = _figure(8, 4.5)
+    fig, ax = figure(8, 4.5)
     if rows:
         steps = np.array([row["env_steps"] for row in rows], float)
         returns = np.array([row["episodes/return_mean"] for row in rows])
@@ -86,7 +86,7 @@ def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
     `curves` maps a setting's label to (env_steps, success_rate, return_mean), each [seeds, updates], with
     NaN where a seed finished no episode in that update (those points are left out of the mean).
     """
-    fig, (success_ax, return_ax) = _figure(12, 4.5, columns=2)
+    fig, (success_ax, return_ax) = figure(12, 4.5, columns=2)
     for index, (label, (steps, success, returns)) in enumerate(curves.items()):
         x = np.asarray(steps, float)[0]
         for ax, values in ((success_ax, success), (return_ax, returns)):
@@ -110,7 +110,7 @@ def run_comparison(curves: dict, path: pathlib.Path, title: str) -> None:
     `curves` maps a run's label to (env_steps, wall_seconds, success, returns), each [updates]. The title
     names the device.
     """
-    fig, axes = _figure(12, 8, columns=2, rows=2)
+    fig, axes = figure(12, 8, columns=2, rows=2)
     for index, (label, (steps, wall, success, returns)) in enumerate(curves.items()):
         for row, values in enumerate((success, returns)):
             for column, x in enumerate((steps, wall)):

@@ -10,6 +10,7 @@ Layout of `runs/<config>-<timestamp>/`:
   curve.png        learning curve
   eval.json        deterministic evaluation at the end of training
   eval-<episodes>-<seed>.json, video.gif, video.mp4   written by `experiments.eval`
+  robustness-<episodes>-<seed>.json, .md, .png   written by `experiments.eval --perturb`
   export/          the policy exported by `experiments.export`
   .lock            held (flock) by the one process writing to the directory
 
@@ -41,7 +42,7 @@ from jaxarm.agents.common.evaluate import evaluate
 RUN_FILES = ("config.json", "resumes.jsonl", "metrics.jsonl", "tensorboard", "checkpoints", "best", "best.json")
 """What training writes; with `OUTPUT_FILES`, what a run directory may hold."""
 OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock")
-OUTPUT_PATTERNS = ("eval-*.json", "wandb", ".*.tmp")
+OUTPUT_PATTERNS = ("eval-*.json", "robustness-*.json", "robustness-*.md", "robustness-*.png", "wandb", ".*.tmp")
 
 
 class RunDirError(ValueError):
@@ -205,10 +206,13 @@ def warm_starter(config: RunConfig) -> Callable[[Any], Any]:
     return lambda state: warm_start(state, trained, index)
 
 
-def make_evaluator(trainer, config: RunConfig, episodes: int) -> Callable[[Any, jax.Array], dict]:
-    """(learner state, key) -> deterministic-policy results on `episodes` fresh episodes of the eval env, as a
-    JSON-ready dict; compiled once, on the first call."""
-    env, env_params = config.make_eval_env()
+def make_evaluator(
+    trainer, config: RunConfig, episodes: int, randomized: bool = False
+) -> Callable[[Any, jax.Array], dict]:
+    """(learner state, key) -> deterministic-policy results on `episodes` fresh episodes of the eval env (with
+    the config's `randomize` params drawn per episode if `randomized`), as a JSON-ready dict; compiled once, on
+    the first call."""
+    env, env_params = config.make_eval_env(randomized)
     run = jax.jit(lambda learner, key: evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, episodes))
     return lambda state, key: {**run(state, key).summary(), "device": jax.devices()[0].device_kind}
 

@@ -27,7 +27,12 @@ CAMERA_VARIANTS = ["arm2d_pixels"]
 """Variants whose observation differs in kind (a camera image in a dict), which get the whole contract too."""
 FULL_CONTRACT = [names[0] for names in envs.families().values()] + CAMERA_VARIANTS
 VARIANTS = [name for names in envs.families().values() for name in names[1:] if name not in CAMERA_VARIANTS]
-WORKER_GROUPS = {"panda_sort": "panda_sort_contract", "panda_sort3": "panda_sort", "peg_insert": "peg_insert"}
+WORKER_GROUPS = {
+    "panda_sort": "panda_sort_contract",
+    "panda_sort3": "panda_sort",
+    "panda_sort_tosser": "panda_sort_tosser",
+    "peg_insert": "peg_insert",
+}
 """Env -> the xdist group its contract tests run in. panda_sort3 and peg_insert join their test files' groups,
 whose programs they share. panda_sort's contract keeps a group of its own, so that its tests share their
 rollout in one worker while test_panda_sort.py, the largest group, runs in the other: on two workers that

@@ -179,3 +179,47 @@ def test_a_warm_start_begins_from_the_trained_networks_and_statistics(finished_r
     assert run_cli(*SMALL, f"init_from={tmp_path / 'nowhere'}", "--out", str(tmp_path / "cold")) == 2
     assert "not a run directory" in capsys.readouterr().err
     assert not (tmp_path / "cold" / "config.json").exists(), "a failed warm start left a run behind"
+
+
+def test_a_randomised_run_reports_nominal_and_randomised_evaluations(tmp_path):
+    run_dir = tmp_path / "randomised"
+    assert run_cli(*SMALL, "randomize.action_scale=0.5..1.5", "--out", str(run_dir)) == 0
+    config, _ = rundir.read_config(run_dir)
+    assert dict(config.randomize) == {"action_scale": "0.5..1.5"}
+    result = json.loads((run_dir / "eval.json").read_text())
+    assert {"success_rate", "randomized/success_rate", "randomized/return_mean"} <= set(result)
+    assert result["randomized/return_mean"] != result["return_mean"]
+
+
+def test_robustness_rows_vmap_each_params_values_and_match_the_nominal(finished_run, capsys):
+    argv = [str(finished_run), "--episodes", "12", "--perturb", "action_scale=0.1,0.002", "goal_size=0.05"]
+    assert eval_cli.main(argv) == 0
+    rows = json.loads((finished_run / "robustness-12-12345.json").read_text())["rows"]
+    assert [(row["param"], row["value"]) for row in rows] == [
+        ("nominal", None),
+        ("action_scale", 0.1),
+        ("action_scale", 0.002),
+        ("goal_size", 0.05),
+    ]
+    nominal, same, frozen, _ = rows
+    # action_scale 0.1 is the nominal value: the vmapped program reproduces the nominal episodes exactly.
+    assert same["return_mean"] == nominal["return_mean"] and same["success_rate"] == nominal["success_rate"]
+    # An arm that barely moves reaches only goals it starts on.
+    assert frozen["success_rate"] < 0.5 * nominal["success_rate"] and frozen["return_mean"] < nominal["return_mean"]
+    assert "| action_scale | 0.002 |" in (finished_run / "robustness-12-12345.md").read_text()
+    assert (finished_run / "robustness-12-12345.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize(
+    ("perturb", "message"),
+    [
+        ("action_scale", "NAME=V1,V2"),
+        ("action_scale=fast", "NAME=V1,V2"),
+        ("action_scael=0.1", "action_scale"),
+        ("action_scale=0", "must be > 0"),
+        ("max_episode_steps=5", "rollout's length"),
+    ],
+)
+def test_bad_perturbations_are_refused_in_one_line(finished_run, capsys, perturb, message):
+    assert eval_cli.main([str(finished_run), "--episodes", "4", "--perturb", perturb]) == 2
+    assert message in capsys.readouterr().err

@@ -8,13 +8,15 @@ Compiling dominates the notebooks' run time (MJX alone takes 1-2 minutes on 2 CP
 the test session's persistent compilation cache (tests/conftest.py) and read back what the other tests compiled.
 """
 
+import os
 import pathlib
 
 import nbformat
 import pytest
 from nbclient import NotebookClient
 
-NOTEBOOKS = pathlib.Path(__file__).resolve().parents[2] / "notebooks"
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+NOTEBOOKS = ROOT / "notebooks"
 CELL_TIMEOUT_S = 600
 """Per cell. The longest cell (MJX's first compile of the Panda sorter) takes about 2 minutes on 2 busy cores."""
 
@@ -48,8 +50,10 @@ def test_notebook_has_one_parameters_cell(path):
 @pytest.mark.slow
 @pytest.mark.parametrize("path", notebook_paths(), ids=lambda path: path.stem)
 def test_notebook_runs_with_its_default_parameters(path, tmp_path, monkeypatch):
-    # The kernel inherits the environment: the notebooks' tempfile directories go to tmp_path.
+    # The kernel inherits the environment: the notebooks' tempfile directories go to tmp_path, and the checkout's
+    # root is on its path, as in a Jupyter started there (the presets, `experiments`, are not installed).
     monkeypatch.setenv("TMPDIR", str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
     notebook = nbformat.read(path, as_version=4)
     client = NotebookClient(
         notebook, timeout=CELL_TIMEOUT_S, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}

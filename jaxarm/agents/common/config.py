@@ -20,6 +20,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm import envs, ranges
+from jaxarm.envs.randomize import Randomized, parse_ranges
 from jaxarm.envs.registry import closest_match_hint
 from jaxarm.ranges import COUNT, Range
 
@@ -92,6 +93,9 @@ class RunConfig:
       env_kwargs: static env constructor arguments as (name, value) pairs.
       env_params: overrides of the env's default params as (name, value) pairs.
       eval_env_params: further overrides for evaluation only, e.g. switching off a training curriculum.
+      randomize: env params drawn afresh per env at every training reset, as (name, range) pairs: "LOW..HIGH"
+        uniform, "log:LOW..HIGH" log-uniform, integers over the whole numbers in range (domain randomisation,
+        `jaxarm.envs.randomize`). Evaluations run the nominal params; the final one also the randomised ones.
       num_envs: envs stepped in parallel.
       total_env_steps: training budget in env steps, rounded up to whole updates and then to whole chunks
         (`num_updates`), so that every chunk is the same compiled program: a shorter last chunk would compile
@@ -112,6 +116,7 @@ class RunConfig:
     env_kwargs: Pairs = ()
     env_params: Pairs = ()
     eval_env_params: Pairs = ()
+    randomize: Pairs = ()
     num_envs: int = static(256, COUNT)
     total_env_steps: int = static(1_000_000, COUNT)
     updates_per_chunk: int = static(10, COUNT)
@@ -168,18 +173,23 @@ class RunConfig:
                 f"the learners' int32 step counter ({ranges.INT32.max:,})"
             )
         try:
-            self.make_eval_env()
+            self.make_eval_env(randomized=True)
         except (KeyError, ValueError, TypeError) as error:
             raise ValueError(error.args[0] if error.args else str(error)) from None
 
-    def make_env(self):
-        """Returns (env, env_params) described by this config: what training runs on."""
+    def make_env(self, randomized: bool = True):
+        """Returns (env, env_params) described by this config: what training runs on, with the `randomize` params
+        drawn at every reset (`randomized=False`: the nominal env)."""
         env = envs.make(self.env, **dict(self.env_kwargs))
-        return env, envs.override_params(env.default_params(), dict(self.env_params), prefix="env_params.")
+        params = envs.override_params(env.default_params(), dict(self.env_params), prefix="env_params.")
+        if randomized and self.randomize:
+            env = Randomized(env, parse_ranges(dict(self.randomize)))
+        return env, params
 
-    def make_eval_env(self):
-        """Returns (env, env_params) that evaluations run on: the training env with `eval_env_params` applied."""
-        env, env_params = self.make_env()
+    def make_eval_env(self, randomized: bool = False):
+        """Returns (env, env_params) that evaluations run on: the nominal training env (`randomized`: with the
+        `randomize` params drawn per episode) with `eval_env_params` applied."""
+        env, env_params = self.make_env(randomized)
         return env, envs.override_params(env_params, dict(self.eval_env_params), prefix="eval_env_params.")
 
 
@@ -232,8 +242,9 @@ def apply_overrides(config: RunConfig, overrides: Iterable[str]) -> RunConfig:
             raise ValueError(f"override {item!r} is not of the form key=value")
         key, text = item.split("=", 1)
         group, _, name = key.partition(".")
-        if name and group in ("env_kwargs", "env_params", "eval_env_params"):
-            pairs: dict[str, Any] = {group: with_pair(getattr(config, group), name, parse_literal(text))}
+        if name and group in ("env_kwargs", "env_params", "eval_env_params", "randomize"):
+            value = text if group == "randomize" else parse_literal(text)  # ranges stay text: "0.8..3.0"
+            pairs: dict[str, Any] = {group: with_pair(getattr(config, group), name, value)}
             config = dataclasses.replace(config, **pairs)
             continue
         if key not in fields:

@@ -91,7 +91,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         5 actions; the tool keeps pointing down) or "joint" (7 joint-target deltas and a finger command; 8
         actions). The finger command maps [-1, 1] to closed..open.
       blocker: adds a thin bar between the spawn region and the bins.
-      tosser: puts the bins on a second table across a gap.
+      tosser: puts the bins on a second table out of the arm's reach: objects must be thrown (layout.py).
       target_first: one object at a time is the target (`PandaSortSim.target`): the observation lists the
         objects starting from it (slots in cyclic order), and the shaping terms follow it alone, so a policy
         always finds the object to work on in the first slot and several objects become the one-object task

@@ -67,17 +67,23 @@ def _bin_row(x_first: float, y: float, pitch: float = 0.15) -> tuple[tuple[float
     return tuple((x_first + k * pitch, y) for k in range(3))
 
 
+TOSS_BIN_Y = 1.33
+"""y of the tosser's bin row: the bins' nearest wall stands 1.25 m from the robot's base, 0.3 m beyond the
+tool centre's longest reach at table height (0.92 m, sampled over the joint ranges; tests/envs/
+test_panda_sort_tosser.py checks it), so only a throw can score."""
+
+
 def make_layout(blocker: bool = False, tosser: bool = False) -> Layout:
-    """The default scene, optionally with a blocker bar or with the bins on a second table across a gap."""
+    """The default scene, optionally with a blocker bar or with the bins out of reach on a second table (a
+    tosser: objects must be thrown)."""
     tables: tuple[BoxGeom, ...]
     if tosser:
-        # Objects on the near table (y < 0.22), bins on a second table beyond a 15 cm gap; the bins are
-        # shifted towards the robot in x so that they stay within the Panda's 0.85 m reach.
+        # Objects on the near table (y < 0.22); bins on a far table, across a gap of about a metre of floor.
         tables = (
             BoxGeom((0.375, -0.115, -0.02), (0.475, 0.335, 0.02)),
-            BoxGeom((0.375, 0.56, -0.02), (0.475, 0.19, 0.02)),
+            BoxGeom((0.375, TOSS_BIN_Y, -0.02), (0.475, 0.15, 0.02)),
         )
-        bins = _bin_row(0.21, 0.52)
+        bins = _bin_row(0.21, TOSS_BIN_Y)
     else:
         tables = (BoxGeom((0.375, 0.025, -0.02), (0.475, 0.475, 0.02)),)
         bins = _bin_row(0.36, 0.36)

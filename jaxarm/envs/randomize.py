@@ -1,0 +1,130 @@
+"""Domain randomisation: an env whose params are drawn afresh, per env, at every reset.
+
+`Randomized(env, ranges)` keeps the wrapped env's contract. Each reset draws the named params from their
+ranges (uniform, or log-uniform; integers uniformly over the whole numbers in the range) on top of the params
+it is given and keeps them in the state for the episode, so under `AutoReset` and `VmapEnv` every env of a
+batch runs its own physics and every new episode new physics. Everything else (the time limit, statistics) reads
+the params the caller passes.
+"""
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any, Generic, TypeVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from jaxarm.envs.base import Env, EnvState, Transition
+
+Sim = TypeVar("Sim")
+
+
+@dataclasses.dataclass(frozen=True)
+class ParamRange:
+    """Where one param is drawn from: [low, high], uniformly or (`log`) log-uniformly."""
+
+    low: float
+    high: float
+    log: bool = False
+
+    @classmethod
+    def parse(cls, text: str) -> "ParamRange":
+        """'LOW..HIGH' (uniform) or 'log:LOW..HIGH' (log-uniform, both positive); ValueError otherwise."""
+        body = str(text).strip()
+        log = body.startswith("log:")
+        bounds = body.removeprefix("log:").split("..")
+        try:
+            low, high = (float(bound) for bound in bounds)
+        except ValueError:
+            raise ValueError(f"a range is LOW..HIGH or log:LOW..HIGH, got {text!r}") from None
+        found = cls(low, high, log=log)
+        if not (np.isfinite(low) and np.isfinite(high) and low <= high):
+            raise ValueError(f"a range needs finite LOW <= HIGH, got {text!r}")
+        if found.log and low <= 0:
+            raise ValueError(f"a log range needs LOW > 0, got {text!r}")
+        return found
+
+    def sample(self, key: jax.Array, like: jax.Array) -> jax.Array:
+        """A value of `like`'s shape and dtype from the range (integers: each whole number in it equally likely)."""
+        if jnp.issubdtype(like.dtype, jnp.integer):
+            return jax.random.randint(key, like.shape, int(np.ceil(self.low)), int(np.floor(self.high)) + 1, like.dtype)
+        if self.log:
+            log_value = jax.random.uniform(key, like.shape, minval=np.log(self.low), maxval=np.log(self.high))
+            return jnp.exp(log_value).astype(like.dtype)
+        return jax.random.uniform(key, like.shape, like.dtype, self.low, self.high)
+
+
+def parse_ranges(pairs: Mapping[str, Any]) -> dict[str, ParamRange]:
+    """{param name: 'LOW..HIGH' text} -> {param name: ParamRange}; ValueError naming the param at fault."""
+    parsed = {}
+    for name, text in pairs.items():
+        try:
+            parsed[name] = ParamRange.parse(text)
+        except ValueError as error:
+            raise ValueError(f"randomize.{name}: {error}") from None
+    return parsed
+
+
+class RandomizedSim(struct.PyTreeNode, Generic[Sim]):
+    """The wrapped env's sim and the params drawn for its episode."""
+
+    inner: Sim
+    params: Any
+
+
+class Randomized(Env):
+    """`env` with the params in `ranges` drawn afresh at every reset (see the module docstring).
+
+    Raises ValueError for a name that is not one of the env's params.
+    """
+
+    def __init__(self, env: Env, ranges: Mapping[str, ParamRange]):
+        fields = {field.name for field in dataclasses.fields(env.default_params())}
+        unknown = sorted(set(ranges) - fields)
+        if unknown:
+            raise ValueError(
+                f"randomize: {', '.join(unknown)} not among the env's params ({', '.join(sorted(fields))})"
+            )
+        self.env = env
+        self.ranges = dict(ranges)
+        self.spec = env.spec
+        self.cpu_max_envs = env.cpu_max_envs
+        self.uses_mjx = env.uses_mjx
+
+    def __getattr__(self, name: str) -> Any:
+        # Whatever else the wrapped env offers (counts, layouts, ids) is the same here.
+        return getattr(self.__dict__["env"], name)
+
+    @property
+    def unwrapped(self) -> Env:
+        return getattr(self.env, "unwrapped", self.env)
+
+    def default_params(self):
+        return self.env.default_params()
+
+    def episode_params(self, key: jax.Array, params):
+        """`params` with every randomised field drawn from its range."""
+        keys = jax.random.split(key, max(len(self.ranges), 1))
+        drawn = {
+            name: allowed.sample(each, getattr(params, name))
+            for each, (name, allowed) in zip(keys, sorted(self.ranges.items()), strict=False)
+        }
+        return params.replace(**drawn)
+
+    def _reset(self, key: jax.Array, params) -> tuple[RandomizedSim, jax.Array, Any]:
+        params_key, reset_key = jax.random.split(key)
+        episode = self.episode_params(params_key, params)
+        sim, obs, info = self.env._reset(reset_key, episode)
+        return RandomizedSim(inner=sim, params=episode), obs, info
+
+    def _transition(self, sim: RandomizedSim, action: jax.Array, params) -> Transition[RandomizedSim]:
+        out = self.env._transition(sim.inner, action, sim.params)
+        return dataclasses.replace(out, sim=sim.replace(inner=out.sim))
+
+    def observation_source_index(self, source: Env) -> np.ndarray:
+        return self.env.observation_source_index(getattr(source, "unwrapped", source))
+
+    def render(self, state: EnvState[RandomizedSim], params) -> np.ndarray:
+        return self.env.render(state.replace(sim=state.sim.inner), state.sim.params)

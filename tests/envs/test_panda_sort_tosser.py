@@ -1,0 +1,78 @@
+"""The tosser (`panda_sort_tosser`): its bins stand beyond anything the arm can reach, and an object thrown with
+the right ballistic velocity lands in the aimed bin and scores as in the sorter."""
+
+import itertools
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+from jaxarm.envs.panda_sort import SHAPE_CUBE, SHAPE_SPHERE
+from tests.envs.compiled import compiled, same_worker
+from tests.envs.test_panda_sort import with_object
+
+pytestmark = same_worker("panda_sort_tosser")
+
+REACH_SAMPLES = 20_000
+GRAVITY = 9.81
+
+
+def wall_distances(layout) -> np.ndarray:
+    """Horizontal distance from the robot's base (the origin) to the nearest point of each bin wall."""
+    nearest = []
+    for wall in layout.bin_walls:
+        centre, half = np.array(wall.center[:2]), np.array(wall.half[:2])
+        nearest.append(np.linalg.norm(np.maximum(np.abs(centre) - half, 0.0)))
+    return np.array(nearest)
+
+
+def test_no_pose_of_the_arm_reaches_a_bin():
+    env = compiled("panda_sort_tosser").env
+    model, robot = env.mj_model, env.ids.robot
+    data = mujoco.MjData(model)
+    robot_geoms = [
+        g for g in range(model.ngeom) if model.body_rootid[model.geom_bodyid[g]] == model.body_rootid[robot.hand_body]
+    ]
+    rng = np.random.default_rng(0)
+    tool_reach = farthest = 0.0
+    for _ in range(REACH_SAMPLES):
+        data.qpos[robot.arm_qpos] = rng.uniform(robot.arm_limits[:, 0], robot.arm_limits[:, 1])
+        mujoco.mj_kinematics(model, data)
+        tcp = data.site_xpos[robot.tcp_site]
+        if abs(tcp[2]) < 0.1:
+            tool_reach = max(tool_reach, float(np.hypot(*tcp[:2])))
+        extents = np.hypot(*data.geom_xpos[robot_geoms, :2].T) + model.geom_rbound[robot_geoms]
+        farthest = max(farthest, float(extents.max()))
+    nearest_wall = wall_distances(env.layout).min()
+    assert tool_reach > 0.85, "the sampling found the Panda's reach"
+    assert nearest_wall >= tool_reach + 0.3
+    assert farthest < nearest_wall, "no part of the arm (bounding spheres) reaches a bin wall"
+
+
+def ballistic_velocity(start: np.ndarray, target: np.ndarray, flight_s: float) -> np.ndarray:
+    """[3] launch velocity carrying a point from `start` to `target` in `flight_s` seconds under gravity alone."""
+    return (target - start) / flight_s + np.array([0.0, 0.0, GRAVITY * flight_s / 2])
+
+
+@pytest.mark.mjx
+@pytest.mark.parametrize(
+    ("shape", "aimed", "reward"), [(SHAPE_CUBE, SHAPE_CUBE, 500.0), (SHAPE_SPHERE, SHAPE_CUBE, 200.0)]
+)
+def test_a_thrown_object_lands_in_the_aimed_bin_and_scores(shape, aimed, reward):
+    shared = compiled("panda_sort_tosser")
+    env, params = shared.env, shared.params
+    size = 0.025
+    release = np.array([0.4, 0.6, 0.35])  # beyond the near table's edge, where a throw lets go
+    target = np.array([*env.layout.bin_centers[aimed], size])
+    velocity = ballistic_velocity(release, target, flight_s=0.6)
+    state = shared.reset(jax.random.key(0), params)
+    state = with_object(env, state, shape, size, [*release, 1, 0, 0, 0], [*velocity, 0, 0, 0])
+    rewards = []
+    for _ in itertools.repeat(None, 30):  # 1.2 s: the flight and then some
+        state = shared.step(state, jnp.zeros(env.spec.action_shape), params)
+        terms = state.info.reward_terms
+        rewards.append((float(terms.correct_bin), float(terms.wrong_bin), float(terms.floor)))
+    scored = [value for step in rewards for value in step if value != 0]
+    assert scored == [reward], rewards
