@@ -1,7 +1,7 @@
 """Pure-functional JAX environments: `make(name)`, `names()`, and the contract in `base`."""
 
 from jaxarm._runtime import compiler_options
-from jaxarm.envs.base import Env, EnvSpec, EnvState, EpisodeStats, Transition, check_action
+from jaxarm.envs.base import Env, EnvSpec, EnvState, EpisodeStats, Observation, Transition, check_action
 from jaxarm.envs.registry import describe, families, make, names, override_params, register
 from jaxarm.envs.wrappers import AutoReset, VmapEnv, Wrapper
 
@@ -11,6 +11,7 @@ __all__ = [
     "EnvSpec",
     "EnvState",
     "EpisodeStats",
+    "Observation",
     "Transition",
     "VmapEnv",
     "Wrapper",

@@ -24,6 +24,7 @@ Stepping a plain (not auto-reset) env past the end of its episode changes nothin
 
 import abc
 import dataclasses
+from collections.abc import Mapping
 from typing import Any, Generic, Protocol, TypeVar
 
 import jax
@@ -45,29 +46,62 @@ Params = TypeVar("Params", bound=HasEpisodeLimit)
 Sim = TypeVar("Sim")
 
 
-@dataclasses.dataclass(frozen=True)
+Observation = Any
+"""What an env observes: a float32 array, or a dict of named arrays (e.g. {"image": uint8 [H, W, C],
+"proprio": float32 [P]}) whose shapes and dtypes `EnvSpec.observation_parts` declares."""
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
 class EnvSpec:
     """Static description of an env's spaces.
 
+    An observation is either one flat float32 array (`observation_shape`) or a dict of named arrays with their
+    own shapes and dtypes (`observation_parts`, e.g. a camera image as uint8); exactly one of the two is given.
+
     Attributes:
-      observation_shape: shape of one observation, e.g. (9,).
+      observation_shape: shape of one flat float32 observation, e.g. (9,); None when `observation_parts` is set.
       action_shape: shape of one action, e.g. (2,).
       action_low: lower bound of each action component; actions are clipped to it.
       action_high: upper bound of each action component.
+      observation_parts: name -> shape and dtype of each part of a dict observation; None for a flat one.
     """
 
-    observation_shape: tuple[int, ...]
+    observation_shape: tuple[int, ...] | None = None
     action_shape: tuple[int, ...]
     action_low: float = -1.0
     action_high: float = 1.0
+    observation_parts: Mapping[str, jax.ShapeDtypeStruct] | None = None
+
+    def __post_init__(self) -> None:
+        if (self.observation_shape is None) == (self.observation_parts is None):
+            raise ValueError("EnvSpec needs exactly one of observation_shape (flat) and observation_parts (a dict)")
+
+    @property
+    def observation(self) -> Any:
+        """The observation's structure: a `jax.ShapeDtypeStruct`, or a dict of them (`observation_parts`)."""
+        if self.observation_parts is not None:
+            return dict(self.observation_parts)
+        return jax.ShapeDtypeStruct(self.observation_shape, jnp.float32)
+
+    @property
+    def flat_observation(self) -> bool:
+        """The observation is one float32 array (not a dict of parts)."""
+        return self.observation_parts is None
 
     @property
     def observation_size(self) -> int:
+        """Values in one flat observation; ValueError for a dict observation, which has no single size."""
+        if self.observation_shape is None:
+            raise ValueError(f"a dict observation ({', '.join(self.observation_parts or {})}) has no single size")
         return int(np.prod(self.observation_shape))
 
     @property
     def action_size(self) -> int:
         return int(np.prod(self.action_shape))
+
+    def zero_observation(self, batch_shape: tuple[int, ...] = ()) -> Observation:
+        """An all-zero observation with leading `batch_shape`, every part in its own dtype."""
+        return jax.tree.map(lambda part: jnp.zeros(batch_shape + part.shape, part.dtype), self.observation)
 
 
 @struct.dataclass
@@ -104,11 +138,12 @@ class EnvState(struct.PyTreeNode, Generic[Sim]):
 
     Attributes:
       sim: the env's own physics/task state (a typed pytree, defined by the env).
-      obs: [*observation_shape] observation after this step (after an auto-reset: the new episode's first).
+      obs: observation after this step (after an auto-reset: the new episode's first); an array
+        [*observation_shape] or a dict of parts (`EnvSpec.observation_parts`).
       reward: [] reward of the last step.
       terminated: [] bool, the task ended (no bootstrapping from `final_obs`).
       truncated: [] bool, the time limit ended the episode (bootstrap from `final_obs`).
-      final_obs: [*observation_shape] observation reached by the last step, before any auto-reset.
+      final_obs: observation reached by the last step, before any auto-reset (same structure as `obs`).
       step_count: [] int32, steps taken in the current episode.
       episode: running statistics of the current episode.
       last_episode: statistics of the most recently finished episode (valid where `done`).
@@ -117,11 +152,11 @@ class EnvState(struct.PyTreeNode, Generic[Sim]):
     """
 
     sim: Sim
-    obs: jax.Array
+    obs: Observation
     reward: jax.Array
     terminated: jax.Array
     truncated: jax.Array
-    final_obs: jax.Array
+    final_obs: Observation
     step_count: jax.Array
     episode: EpisodeStats
     last_episode: EpisodeStats
@@ -139,16 +174,26 @@ class Transition(Generic[Sim]):
     """What an env's task logic returns for one step; the base class does the rest."""
 
     sim: Sim
-    obs: jax.Array
+    obs: Observation
     reward: jax.Array
     terminated: jax.Array
     success: jax.Array
     info: Any
 
 
-def observation_healthy(obs: jax.Array) -> jax.Array:
-    """[] bool: every value of `obs` is finite and within `DIVERGENCE_LIMIT` (see the module docstring)."""
-    return jnp.all(jnp.abs(obs) < DIVERGENCE_LIMIT)  # False for NaN too
+def observation_healthy(obs: Observation) -> jax.Array:
+    """[] bool: every float part of `obs` is finite and below `DIVERGENCE_LIMIT` in magnitude (False for NaN);
+    integer parts (camera images) cannot diverge."""
+    healthy = jnp.ones((), jnp.bool_)
+    for part in jax.tree.leaves(obs):
+        if jnp.issubdtype(part.dtype, jnp.floating):
+            healthy &= jnp.all(jnp.abs(part) < DIVERGENCE_LIMIT)
+    return healthy
+
+
+def zeroed_unless(healthy: jax.Array, obs: Observation) -> Observation:
+    """`obs` where `healthy`, else all zeros (every part in its own dtype)."""
+    return jax.tree.map(lambda part: jnp.where(healthy, part, jnp.zeros_like(part)), obs)
 
 
 def check_action(action: np.ndarray, spec: EnvSpec) -> np.ndarray:
@@ -181,7 +226,7 @@ class Env(abc.ABC, Generic[Params, Sim]):
         """The env's default params (a pytree of arrays)."""
 
     @abc.abstractmethod
-    def _reset(self, key: jax.Array, params: Params) -> tuple[Sim, jax.Array, Any]:
+    def _reset(self, key: jax.Array, params: Params) -> tuple[Sim, Observation, Any]:
         """Samples a fresh episode: returns (sim, first observation, info)."""
 
     @abc.abstractmethod
@@ -208,7 +253,7 @@ class Env(abc.ABC, Generic[Params, Sim]):
         reset_key, carry_key = jax.random.split(key)
         sim, raw_obs, info = self._reset(reset_key, params)
         healthy = observation_healthy(raw_obs)
-        obs = jnp.where(healthy, raw_obs, 0.0)
+        obs = zeroed_unless(healthy, raw_obs)
         return EnvState(
             sim=sim,
             obs=obs,
@@ -230,7 +275,7 @@ class Env(abc.ABC, Generic[Params, Sim]):
         action = jnp.clip(jnp.nan_to_num(action, nan=0.0), self.spec.action_low, self.spec.action_high)
         out = self._transition(state.sim, action, params)
         healthy = observation_healthy(out.obs) & jnp.isfinite(out.reward)
-        obs = jnp.where(healthy, out.obs, 0.0)
+        obs = zeroed_unless(healthy, out.obs)
         reward = jnp.where(healthy, out.reward, 0.0).astype(jnp.float32)
         terminated = out.terminated | ~healthy
         step_count = state.step_count + 1

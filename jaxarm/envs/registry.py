@@ -93,6 +93,18 @@ def override_params(params, overrides: Mapping[str, Any], prefix: str = "env par
 
 
 register("arm2d", "jaxarm.envs.arm2d:Arm2d", "2-link planar reaching arm (the classic tutorial arm)")
+register(
+    "arm2d_pixels",
+    "jaxarm.envs.arm2d:Arm2d",
+    "2-link arm seen by a 64x64 grayscale camera from above (links and goal), no state",
+    obs_mode="pixels",
+)
+register(
+    "arm2d_pixels_proprio",
+    "jaxarm.envs.arm2d:Arm2d",
+    "2-link arm: camera image (the goal is seen only there) and the link ends' positions",
+    obs_mode="pixels+proprio",
+)
 register("arm2d_squid", "jaxarm.envs.arm2d:Arm2d", "5-link planar reaching arm ('squid arm')", num_links=5)
 register(
     "panda_sort",
@@ -113,6 +125,12 @@ register(
     blocker=True,
 )
 register(
+    "panda_sort_pixels",
+    "jaxarm.envs.panda_sort:PandaSort",
+    "Panda sorter seen by an overhead and a wrist camera (64x64 gray and depth) with the tool's state",
+    obs_mode="pixels+proprio",
+)
+register(
     "panda_sort_joint",
     "jaxarm.envs.panda_sort:PandaSort",
     "Panda sorter with joint-delta control",
@@ -128,4 +146,10 @@ register(
     "peg_insert",
     "jaxarm.envs.peg_insert:PegInsert",
     "Franka Panda (MJX) inserting a peg into a square hole shifted at random, end-effector control",
+)
+register(
+    "peg_insert_pixels",
+    "jaxarm.envs.peg_insert:PegInsert",
+    "peg insertion seen by a scene and a wrist camera (64x64 gray and depth) with the arm's own state",
+    obs_mode="pixels+proprio",
 )

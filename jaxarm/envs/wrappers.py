@@ -57,7 +57,7 @@ class AutoReset(Wrapper):
 
         return stepped.replace(
             sim=jax.tree.map(pick, fresh.sim, stepped.sim),
-            obs=pick(fresh.obs, stepped.obs),
+            obs=jax.tree.map(pick, fresh.obs, stepped.obs),
             step_count=pick(fresh.step_count, stepped.step_count),
             episode=jax.tree.map(pick, fresh.episode, stepped.episode),
             key=pick(fresh.key, stepped.key),

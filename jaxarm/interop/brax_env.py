@@ -53,8 +53,12 @@ class BraxEnv(brax_base.Env):
         self._stepper = AutoReset(env) if auto_reset else env
 
     @property
-    def observation_size(self) -> int:
-        return self.env.spec.observation_size
+    def observation_size(self) -> brax_base.ObservationSize:
+        """The flat observation's size, or each part's shape for a dict observation (brax's convention)."""
+        spec = self.env.spec
+        if spec.flat_observation:
+            return spec.observation_size
+        return {name: part.shape for name, part in spec.observation_parts.items()}
 
     @property
     def action_size(self) -> int:

@@ -6,7 +6,8 @@ params are an argument, not a constant). Actions arrive from outside jit, so the
 
 Seeding follows Gymnasium: `reset(seed=s)` seeds the adapter's `np_random`, and every reset (seeded or
 not) draws its JAX key from it, so the same seed gives the same episodes. Observation spaces are unbounded
-Boxes (jaxarm envs do not declare observation bounds; `check_env` warns about that and nothing else).
+Boxes (jaxarm envs do not declare observation bounds; `check_env` warns about that and nothing else); a dict
+observation (camera images) is a Dict space of such Boxes, its uint8 parts bounded by 0 and 255.
 
 `render()` returns an RGB frame (uint8 [H, W, 3]) from the jaxarm env's own `render(state, params)` when
 the env has one; `render_mode` must then be "rgb_array".
@@ -30,8 +31,25 @@ from gymnasium.vector.utils import batch_space
 from jaxarm.envs import AutoReset, Env, EnvState, VmapEnv, check_action
 
 
-def _observation_space(env) -> gym.spaces.Box:
-    return gym.spaces.Box(-np.inf, np.inf, env.spec.observation_shape, np.float32)
+def _observation_space(env) -> gym.spaces.Space:
+    """An unbounded float32 Box, or for a dict observation a Dict of Boxes (uint8 parts bounded by 0 and 255)."""
+
+    def box(part: jax.ShapeDtypeStruct) -> gym.spaces.Box:
+        dtype = np.dtype(part.dtype)
+        if np.issubdtype(dtype, np.integer):
+            bounds = np.iinfo(dtype)
+            return gym.spaces.Box(int(bounds.min), int(bounds.max), part.shape, dtype)
+        return gym.spaces.Box(-np.inf, np.inf, part.shape, dtype)
+
+    spec = env.spec
+    if spec.flat_observation:
+        return box(spec.observation)
+    return gym.spaces.Dict({name: box(part) for name, part in spec.observation_parts.items()})
+
+
+def _numpy(tree):
+    """A pytree of device arrays as writable numpy arrays (Gymnasium callers may modify what they get)."""
+    return jax.tree.map(np.array, jax.device_get(tree))
 
 
 def _action_space(env) -> gym.spaces.Box:
@@ -86,7 +104,7 @@ class GymnasiumEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         self.state = self._reset(_draw_key(self.np_random), self.params)
-        return np.array(self.state.obs), _env_info(self.state)
+        return _numpy(self.state.obs), _env_info(self.state)
 
     def step(self, action):
         if self.state is None:
@@ -96,7 +114,7 @@ class GymnasiumEnv(gym.Env):
         obs, reward, terminated, truncated = jax.device_get(
             (self.state.obs, self.state.reward, self.state.terminated, self.state.truncated)
         )
-        return np.array(obs), float(reward), bool(terminated), bool(truncated), _env_info(self.state)
+        return _numpy(obs), float(reward), bool(terminated), bool(truncated), _env_info(self.state)
 
     def render(self):
         if self.render_mode is None:
@@ -139,7 +157,7 @@ class GymnasiumVectorEnv(VectorEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         self.state = self._reset(_draw_key(self.np_random), self.params)
-        return np.array(self.state.obs), {}
+        return _numpy(self.state.obs), {}
 
     def step(self, actions):
         if self.state is None:

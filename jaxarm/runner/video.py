@@ -14,6 +14,7 @@ import jax
 import numpy as np
 
 from jaxarm.agents.common.evaluate import rollout_episodes
+from jaxarm.envs.observation import with_camera_views
 
 FORMATS = ("gif", "mp4")
 FRAME_SECONDS = 0.04
@@ -24,7 +25,8 @@ class RenderError(RuntimeError):
 
 
 def episode_frames(env, env_params, trainer, state, key, episodes: int) -> list[np.ndarray]:
-    """Frames of `episodes` deterministic episodes played one after another, each until it ends.
+    """Frames of `episodes` deterministic episodes played one after another, each until it ends; a policy that
+    sees has its camera's image beside each frame.
 
     The rollout is one compiled program taking the learner state as an argument (not baked in as constants), so
     the persistent compilation cache serves it to every later video of the same config.
@@ -41,7 +43,8 @@ def episode_frames(env, env_params, trainer, state, key, episodes: int) -> list[
         for episode in range(episodes):
             length = int(states.episode.length[-1, episode])
             for step in range(length):
-                frames.append(env.render(jax.tree.map(operator.itemgetter((step, episode)), states), env_params))
+                state_now = jax.tree.map(operator.itemgetter((step, episode)), states)
+                frames.append(with_camera_views(env.render(state_now, env_params), state_now.obs))
     except Exception as error:  # mujoco.FatalError and GL loaders' errors share no base class
         if "gl" in str(error).lower() or "display" in str(error).lower():
             raise RenderError(

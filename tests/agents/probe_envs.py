@@ -3,6 +3,8 @@
 Each isolates one thing a learner can get wrong:
 - `TargetActionEnv`: one step, reward −Σ(a − obs)²; the optimal action is the observation itself and the
   optimal value is 0. Tests that the policy learns an observation-dependent continuous action.
+- `ImageTargetEnv`: `TargetActionEnv` seen through a camera: one step, the target is −0.5 or +0.5 and shows only
+  as a dark or bright uint8 image; the optimal action is the target. Tests that a learner reads images.
 - `ConstantRewardEnv`: constant observation, reward `reward` every step, episodes of `max_episode_steps`
   steps. With `terminate` the episode ends by termination after one step, so V = Q = reward; without it
   the time limit truncates, and a learner that bootstraps on truncation (as it must) learns
@@ -14,6 +16,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from jaxarm.envs.base import Env, EnvSpec, Transition
+from jaxarm.envs.observation import IMAGE
 
 
 @struct.dataclass
@@ -88,5 +91,46 @@ class ConstantRewardEnv(Env[ConstantRewardParams, ProbeSim]):
             reward=params.reward.astype(jnp.float32),
             terminated=params.terminate,
             success=params.terminate,
+            info=(),
+        )
+
+
+@struct.dataclass
+class ImageTargetSim:
+    """The episode's target [1] (−0.5 or +0.5) and the image that shows it."""
+
+    target: jax.Array
+    image: jax.Array
+
+
+class ImageTargetEnv(Env[TargetActionParams, ImageTargetSim]):
+    """One-step episodes observing {"image": uint8 [R, R, 1]}, all 0 for target −0.5 and all 255 for +0.5;
+    reward −(a − target)², then terminated."""
+
+    def __init__(self, resolution: int = 8):
+        self.resolution = resolution
+        image = jax.ShapeDtypeStruct((resolution, resolution, 1), jnp.uint8)
+        self.spec = EnvSpec(observation_parts={IMAGE: image}, action_shape=(1,))
+
+    def default_params(self) -> TargetActionParams:
+        return TargetActionParams(target_range=jnp.array(0.5, jnp.float32), max_episode_steps=jnp.array(1, jnp.int32))
+
+    def image(self, bright: jax.Array) -> jax.Array:
+        return jnp.full((self.resolution, self.resolution, 1), 255 * bright, jnp.uint8)
+
+    def _reset(self, key, params):
+        bright = jax.random.bernoulli(key)
+        sim = ImageTargetSim(
+            target=jnp.where(bright, params.target_range, -params.target_range)[None], image=self.image(bright)
+        )
+        return sim, {IMAGE: sim.image}, ()
+
+    def _transition(self, sim, action, params):
+        return Transition(
+            sim=sim,
+            obs={IMAGE: sim.image},
+            reward=-jnp.sum(jnp.square(action - sim.target)),
+            terminated=jnp.ones((), jnp.bool_),
+            success=jnp.ones((), jnp.bool_),
             info=(),
         )

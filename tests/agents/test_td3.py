@@ -11,12 +11,13 @@ import pytest
 from experiments.configs import td3 as td3_presets
 from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint, replay
+from jaxarm.agents.common.augment import random_shift
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import make_train
 from jaxarm.agents.td3 import TD3Config, make_trainer
 from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, polyak_update, smoothed_target_action
 from jaxarm.agents.td3.networks import Critic, apply_critics
-from tests.agents.probe_envs import ConstantRewardEnv, TargetActionEnv
+from tests.agents.probe_envs import ConstantRewardEnv, ImageTargetEnv, TargetActionEnv
 
 SMALL = dict(
     hidden_sizes=(32, 32),
@@ -205,3 +206,31 @@ def test_ddpg_solves_fixed_goal_arm2d():
         jax.random.PRNGKey(42)
     )
     assert float(result.successes.mean()) >= 0.9
+
+
+def test_actor_and_critics_learn_from_images_with_random_shifts():
+    # The target (−0.5 or +0.5) shows only as a dark or bright image, which a shift leaves as it is.
+    env = ImageTargetEnv()
+    config = TD3Config(
+        num_envs=8,
+        learning_starts=256,
+        total_env_steps=2_000,
+        grad_steps_per_update=4,
+        encoder="patches",
+        encoder_features=16,
+        random_shift_pad=2,
+        **SMALL,
+    )
+    trainer, state, _ = train(config, env, env.default_params())
+    assert state.replay.items.obs["image"].dtype == jnp.uint8
+    images = {"image": jnp.stack([env.image(jnp.array(False)), env.image(jnp.array(True))])}
+    np.testing.assert_allclose(trainer.act(state, images)[:, 0], [-0.5, 0.5], atol=0.1)
+
+
+def test_random_shift_moves_each_image_by_at_most_the_pad():
+    images = jnp.zeros((64, 8, 8, 1), jnp.uint8).at[:, 4, 4, 0].set(255)
+    shifted = random_shift(jax.random.PRNGKey(0), images, 2)
+    assert shifted.shape == images.shape and shifted.dtype == jnp.uint8
+    rows, columns = np.nonzero(np.asarray(shifted[..., 0]))[1:]
+    assert len(rows) == 64  # one lit pixel each, none lost at the border
+    assert set(rows) == set(range(2, 7)) and set(columns) == set(range(2, 7))

@@ -154,3 +154,11 @@ def test_brax_sac_trains_through_the_adapter():
     assert metrics["training/sps"] > 0
     assert_finite_metrics(metrics)
     assert all(np.all(np.isfinite(leaf)) for leaf in jax.tree.leaves(policy_params))
+
+
+def test_camera_observations_pass_through_with_brax_shapes():
+    env = envs.make("arm2d_pixels_proprio", resolution=16)
+    wrapped = wrap_for_training(BraxEnv(env, env.default_params()), episode_length=200)
+    assert wrapped.observation_size == {"image": (16, 16, 1), "proprio": (4,)}
+    states = run_steps(wrapped, 2)
+    assert states[-1].obs["image"].shape == (NUM_ENVS, 16, 16, 1) and states[-1].obs["image"].dtype == jnp.uint8

@@ -99,3 +99,20 @@ def test_vector_env_auto_resets_on_the_same_step():
     # The returned observation is the new episode's; the one the episode ended on is in final_obs.
     assert not np.allclose(infos["final_obs"], obs)
     assert not vector.step(actions)[3].any()
+
+
+def test_camera_observations_are_a_dict_space_that_passes_the_checker():
+    env = envs.make("arm2d_pixels_proprio", resolution=16)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_env(GymnasiumEnv(env, render_mode="rgb_array"))
+    gym_env = GymnasiumEnv(env)
+    obs, _ = gym_env.reset(seed=0)
+    assert obs["image"].dtype == np.uint8 and obs["image"].shape == (16, 16, 1) and obs["proprio"].shape == (4,)
+    assert obs in gym_env.observation_space
+    assert gym_env.step(np.zeros(2, np.float32))[0] in gym_env.observation_space
+    vector = GymnasiumVectorEnv(env, NUM_ENVS, envs.override_params(env.default_params(), {"max_episode_steps": 1}))
+    obs, _ = vector.reset(seed=0)
+    assert obs["image"].shape == (NUM_ENVS, 16, 16, 1) and obs in vector.observation_space
+    obs, _, _, truncated, infos = vector.step(np.zeros((NUM_ENVS, 2), np.float32))
+    assert truncated.all() and infos["final_obs"] in vector.observation_space

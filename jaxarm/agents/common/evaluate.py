@@ -37,34 +37,50 @@ class EvalResult:
         }
 
 
-def rollout_episodes(
-    env, env_params, policy: Callable[[jax.Array], jax.Array], key, episodes: int, max_steps: int
-) -> EnvState:
-    """Runs `episodes` fresh episodes to their end (no auto-reset) with `policy: obs [B, O] -> action [B, A]`.
-
-    Returns the env states after every step, [max_steps, episodes, ...]; an env that has finished stays
-    frozen at its last state (its `done` stays true).
-    """
+def episode_step(env, env_params, policy: Callable[[Any], jax.Array], episodes: int):
+    """One step of `episodes` envs without auto-reset, `policy: obs [B, ...] -> action [B, A]`: an env that
+    has finished stays frozen at its last state (its `done` stays true). Returns (reset, step) functions."""
     batch = VmapEnv(env, episodes)
 
-    def body(state, _):
+    def step(state: EnvState) -> EnvState:
         stepped = batch.step(state, policy(state.obs), env_params)
         finished = state.done
 
         def keep_finished(old, new):
             return jnp.where(finished.reshape(finished.shape + (1,) * (new.ndim - 1)), old, new)
 
-        state = jax.tree.map(keep_finished, state, stepped)
+        return jax.tree.map(keep_finished, state, stepped)
+
+    return batch.reset, step
+
+
+def rollout_episodes(
+    env, env_params, policy: Callable[[Any], jax.Array], key, episodes: int, max_steps: int
+) -> EnvState:
+    """Runs `episodes` fresh episodes to their end (no auto-reset) with `policy: obs [B, ...] -> action [B, A]`.
+
+    Returns the env states after every step, [max_steps, episodes, ...]; an env that has finished stays
+    frozen at its last state (its `done` stays true).
+    """
+    reset, step = episode_step(env, env_params, policy, episodes)
+
+    def body(state, _):
+        state = step(state)
         return state, state
 
-    _, states = jax.lax.scan(body, batch.reset(key, env_params), None, length=max_steps)
+    _, states = jax.lax.scan(body, reset(key, env_params), None, length=max_steps)
     return states
 
 
 def evaluate(env, env_params, policy, key, episodes: int) -> EvalResult:
-    """Runs `episodes` fresh episodes with a deterministic `policy` and returns their results (jit-able)."""
+    """Runs `episodes` fresh episodes with a deterministic `policy` and returns their results (jit-able).
+
+    Only the last state is kept (not every step's, as `rollout_episodes` does): camera observations of a
+    thousand episodes over every step would not fit in memory.
+    """
     max_steps = int(env_params.max_episode_steps)
-    final = jax.tree.map(lambda leaf: leaf[-1], rollout_episodes(env, env_params, policy, key, episodes, max_steps))
+    reset, step = episode_step(env, env_params, policy, episodes)
+    final = jax.lax.fori_loop(0, max_steps, lambda _, state: step(state), reset(key, env_params))
     return EvalResult(
         returns=final.episode.return_,
         lengths=final.episode.length,

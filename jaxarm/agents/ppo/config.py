@@ -3,6 +3,7 @@
 import dataclasses
 
 from jaxarm.agents.common.config import RunConfig, dynamic, static
+from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
 from jaxarm.ranges import COUNT, DISCOUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL
 
@@ -18,7 +19,12 @@ class PPOConfig(RunConfig):
       policy_hidden_sizes: hidden layer sizes of the policy MLP.
       value_hidden_sizes: hidden layer sizes of the value MLP.
       activation: hidden-layer activation, one of `jaxarm.agents.common.networks.ACTIVATIONS`.
-      normalize_observations: keep running mean/std of observations in the learner state.
+      encoder: conv stack in front of the MLPs for camera observations, one of
+        `jaxarm.agents.common.encoders.ENCODERS`; unused for flat observations.
+      encoder_features: width of the encoder's dense output layer.
+      shared_encoder: one encoder (the policy's) feeds both heads, trained by both losses; else one each.
+      normalize_observations: keep running mean/std of observations in the learner state (of a camera
+        observation, its proprio part only).
       normalize_advantages: standardise advantages per minibatch.
       anneal_learning_rate: decay the learning rate linearly to 0 over the run.
       initial_log_std: initial policy standard deviation's log (pre-tanh).
@@ -38,6 +44,9 @@ class PPOConfig(RunConfig):
     policy_hidden_sizes: tuple[int, ...] = static((64, 64), COUNT)
     value_hidden_sizes: tuple[int, ...] = static((64, 64), COUNT)
     activation: str = static("tanh", ACTIVATION)
+    encoder: str = static("nature", ENCODER)
+    encoder_features: int = static(256, COUNT)
+    shared_encoder: bool = False
     normalize_observations: bool = True
     normalize_advantages: bool = True
     anneal_learning_rate: bool = True

@@ -1,7 +1,10 @@
 """PPO's policy and value networks, built once from a config and shared by the learner, warm starts and tests.
 
-Both read raw observations through the learner's running normaliser (brax's), when the config keeps one. The
-policy is brax's tanh-squashed Gaussian, whose parameters an MLP computes.
+Both read raw observations through the learner's running normaliser (brax's), when the config keeps one (of
+a camera observation, its proprio part only). The policy is brax's tanh-squashed Gaussian, whose parameters an
+MLP computes. A camera observation passes through a conv encoder first (`encoders.PixelEncoder`): one per
+network, or with `shared_encoder` the policy's alone, whose features the value head reads too (the value
+loss then trains the encoder as well).
 """
 
 import dataclasses
@@ -14,12 +17,15 @@ from brax.training import distribution
 from brax.training.acme import running_statistics
 from flax import struct
 
+from jaxarm.agents.common.encoders import EncodedMLP, PixelEncoder, statistics_part, with_statistics_part
 from jaxarm.agents.common.networks import MLP, apply_module
 from jaxarm.agents.ppo.config import PPOConfig
+from jaxarm.envs import EnvSpec, Observation
 
 
 class NetworkParams(struct.PyTreeNode):
-    """Parameters of the policy and value MLPs (flax variable dicts)."""
+    """Parameters of the policy and value networks (flax variable dicts; with a shared encoder, the policy's
+    holds it)."""
 
     policy: Mapping[str, Any]
     value: Mapping[str, Any]
@@ -27,58 +33,85 @@ class NetworkParams(struct.PyTreeNode):
 
 @dataclasses.dataclass(frozen=True)
 class PPONetworks:
-    """PPO's policy and value functions of (params, normaliser, raw observations [B, O]).
+    """PPO's policy and value functions of (params, normaliser, raw observations [B, ...]).
 
     Attributes:
       action_dist: brax's tanh-squashed Gaussian over [A] actions.
-      policy_net: MLP from a normalised observation to the distribution's parameters (mean, raw scale) [B, 2A].
-      value_net: MLP from a normalised observation to V [B, 1].
+      policy_net: from a normalised observation to the distribution's parameters (mean, raw scale) [B, 2A].
+      value_net: from a normalised observation to V [B, 1]; with a shared encoder, from the encoder's features.
+      shared_encoder: the policy's encoder, which the value head reads through; None where each network has
+        its own or there is none (flat observations).
       normalize_observations: read observations through the running normaliser (else raw).
       scale_offset: added to the policy's raw scale; brax maps the raw scale through softplus, so this sets the
         initial standard deviation (pre-tanh) to exp(`initial_log_std`).
     """
 
     action_dist: distribution.NormalTanhDistribution
-    policy_net: MLP
-    value_net: MLP
+    policy_net: MLP | EncodedMLP
+    value_net: MLP | EncodedMLP
+    shared_encoder: PixelEncoder | None
     normalize_observations: bool
     scale_offset: float
 
-    def init(self, policy_key: jax.Array, value_key: jax.Array, obs_size: int) -> NetworkParams:
-        """Fresh parameters for observations of `obs_size` values."""
-        dummy = jnp.zeros((1, obs_size))
-        return NetworkParams(
-            policy=self.policy_net.init(policy_key, dummy), value=self.value_net.init(value_key, dummy)
-        )
+    def init(self, policy_key: jax.Array, value_key: jax.Array, spec: EnvSpec) -> NetworkParams:
+        """Fresh parameters for `spec`'s observations."""
+        dummy = spec.zero_observation((1,))
+        policy = self.policy_net.init(policy_key, dummy)
+        value_input = dummy
+        if self.shared_encoder is not None:
+            value_input = shared_features(self.shared_encoder, policy, dummy)
+        return NetworkParams(policy=policy, value=self.value_net.init(value_key, value_input))
 
-    def normalize(self, normalizer: running_statistics.RunningStatisticsState, obs: jax.Array) -> jax.Array:
-        """Observations [B, O] as the networks see them."""
+    def normalize(self, normalizer: running_statistics.RunningStatisticsState, obs: Observation) -> Observation:
+        """Observations [B, ...] as the networks see them (a camera observation's proprio part normalised)."""
         if not self.normalize_observations:
             return obs
-        return running_statistics.normalize(obs, normalizer)
+        return with_statistics_part(obs, running_statistics.normalize(statistics_part(obs), normalizer))
 
-    def policy_params(self, params: NetworkParams, normalizer, obs: jax.Array) -> jax.Array:
-        """The action distribution's parameters [B, 2A] at observations [B, O]."""
+    def policy_params(self, params: NetworkParams, normalizer, obs: Observation) -> jax.Array:
+        """The action distribution's parameters [B, 2A] at observations [B, ...]."""
         out = apply_module(self.policy_net, params.policy, self.normalize(normalizer, obs))
         loc, raw_scale = jnp.split(out, 2, axis=-1)
         return jnp.concatenate([loc, raw_scale + self.scale_offset], axis=-1)
 
-    def value(self, params: NetworkParams, normalizer, obs: jax.Array) -> jax.Array:
-        """V [B] at observations [B, O]."""
-        return apply_module(self.value_net, params.value, self.normalize(normalizer, obs))[..., 0]
+    def value(self, params: NetworkParams, normalizer, obs: Observation) -> jax.Array:
+        """V [B] at observations [B, ...]."""
+        inputs = self.normalize(normalizer, obs)
+        if self.shared_encoder is not None:
+            inputs = shared_features(self.shared_encoder, params.policy, inputs)
+        return apply_module(self.value_net, params.value, inputs)[..., 0]
 
-    def deterministic_action(self, params: NetworkParams, normalizer, obs: jax.Array) -> jax.Array:
-        """The policy's mode, tanh of the Gaussian's mean [B, A], at observations [B, O]."""
+    def deterministic_action(self, params: NetworkParams, normalizer, obs: Observation) -> jax.Array:
+        """The policy's mode, tanh of the Gaussian's mean [B, A], at observations [B, ...]."""
         return self.action_dist.mode(self.policy_params(params, normalizer, obs))
 
 
-def make_networks(config: PPOConfig, action_size: int) -> PPONetworks:
-    """PPO's networks for `config`'s sizes, activation and initial spread, acting on [action_size] actions."""
+def shared_features(encoder: PixelEncoder, policy: Mapping[str, Any], obs: Observation) -> jax.Array:
+    """Features [B, F + P] of (normalised) camera observations through the encoder inside the policy's params."""
+    return apply_module(encoder, {"params": policy["params"]["encoder"]}, obs)
+
+
+def make_networks(config: PPOConfig, action_size: int, camera: bool = False) -> PPONetworks:
+    """PPO's networks for `config`'s sizes, activation and initial spread, acting on [action_size] actions; with
+    `camera`, for dict observations (`config.encoder` in front of the MLPs)."""
     action_dist = distribution.NormalTanhDistribution(event_size=action_size)
+    policy_head = MLP(config.policy_hidden_sizes, action_dist.param_size, config.activation, output_scale=0.01)
+    value_head = MLP(config.value_hidden_sizes, 1, config.activation)
+    policy_net: MLP | EncodedMLP = policy_head
+    value_net: MLP | EncodedMLP = value_head
+    shared_encoder = None
+    if camera:
+        policy_encoder = PixelEncoder(config.encoder, config.encoder_features)
+        policy_net = EncodedMLP(policy_encoder, policy_head)
+        if config.shared_encoder:
+            shared_encoder = policy_encoder
+        else:
+            value_net = EncodedMLP(PixelEncoder(config.encoder, config.encoder_features), value_head)
     return PPONetworks(
         action_dist=action_dist,
-        policy_net=MLP(config.policy_hidden_sizes, action_dist.param_size, config.activation, output_scale=0.01),
-        value_net=MLP(config.value_hidden_sizes, 1, config.activation),
+        policy_net=policy_net,
+        value_net=value_net,
+        shared_encoder=shared_encoder,
         normalize_observations=config.normalize_observations,
         scale_offset=float(jnp.log(jnp.expm1(jnp.exp(config.initial_log_std)))),
     )

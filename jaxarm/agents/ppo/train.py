@@ -16,13 +16,14 @@ from brax.training.acme import running_statistics, specs
 from flax import struct
 
 from jaxarm.agents.common.config import HParams
+from jaxarm.agents.common.encoders import statistics_part
 from jaxarm.agents.common.networks import mlp_layers
 from jaxarm.agents.common.permutation import random_permutation
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.agents.ppo.networks import NetworkParams, make_networks
-from jaxarm.envs import AutoReset, EnvState, VmapEnv, compiler_options
+from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
 from jaxarm.export.numpy_policy import NumpyPolicy
 
 
@@ -32,7 +33,7 @@ class PPOState(struct.PyTreeNode):
     Attributes:
       params: network parameters.
       opt_state: Adam state over `params`.
-      normalizer: brax running mean/std of observations.
+      normalizer: brax running mean/std of observations (of a camera observation, its proprio part).
       env_state: [num_envs] batched env state.
       key: PRNG key (raw uint32[2]).
       env_steps: env steps taken so far.
@@ -63,7 +64,7 @@ class PPOMetrics:
 class Samples:
     """Flattened training samples, [N, ...] per field."""
 
-    obs: jax.Array
+    obs: Observation
     raw_action: jax.Array
     log_prob: jax.Array
     advantage: jax.Array
@@ -72,15 +73,15 @@ class Samples:
 
 @struct.dataclass
 class Rollout:
-    """One rollout, [T, B, ...] per field. Observations are raw (not normalised)."""
+    """One rollout, [T, B, ...] per field. Observations are raw (not normalised; camera frames stay uint8)."""
 
-    obs: jax.Array
+    obs: Observation
     raw_action: jax.Array
     log_prob: jax.Array
     reward: jax.Array
     terminated: jax.Array
     done: jax.Array
-    final_obs: jax.Array
+    final_obs: Observation
 
 
 def make_optimizer(hparams: HParams, learning_rate) -> optax.GradientTransformation:
@@ -94,17 +95,17 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
     if env is None:
         env, env_params = config.make_env()
     batch_env = VmapEnv(AutoReset(env), config.num_envs)
-    networks = make_networks(config, env.spec.action_size)
+    networks = make_networks(config, env.spec.action_size, camera=not env.spec.flat_observation)
     action_dist = networks.action_dist
-    obs_size = env.spec.observation_size
+    statistics_shape = statistics_part(env.spec.zero_observation()).shape
 
     def init(key, hparams: HParams) -> PPOState:
         policy_key, value_key, env_key, run_key = jax.random.split(key, 4)
-        params = networks.init(policy_key, value_key, obs_size)
+        params = networks.init(policy_key, value_key, env.spec)
         return PPOState(
             params=params,
             opt_state=make_optimizer(hparams, hparams.learning_rate).init(params),
-            normalizer=running_statistics.init_state(specs.Array((obs_size,), jnp.float32)),
+            normalizer=running_statistics.init_state(specs.Array(statistics_shape, jnp.float32)),
             env_state=batch_env.reset(env_key, env_params),
             key=run_key,
             env_steps=jnp.zeros((), jnp.int32),
@@ -151,7 +152,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         """(normaliser updated with the rollout's observations, [T·B] training samples with GAE targets)."""
         normalizer = state.normalizer
         if config.normalize_observations:
-            normalizer = running_statistics.update(normalizer, rollout.obs)
+            normalizer = running_statistics.update(normalizer, statistics_part(rollout.obs))
         values = networks.value(state.params, normalizer, rollout.obs)
         next_values = networks.value(state.params, normalizer, rollout.final_obs)
         advantages, targets = losses.gae(
@@ -227,6 +228,9 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
 
     def numpy_policy(state: PPOState) -> NumpyPolicy:
         """`act` as arrays: the policy MLP (its first A outputs are the Gaussian's mean) and the normaliser."""
+        if not env.spec.flat_observation:
+            raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
+        obs_size = env.spec.observation_size
         kernels, biases = mlp_layers(state.params.policy)
         if config.normalize_observations:
             mean, std = np.asarray(state.normalizer.mean), np.asarray(state.normalizer.std)

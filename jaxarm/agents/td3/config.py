@@ -7,6 +7,7 @@ experiments/configs/td3.py).
 import dataclasses
 
 from jaxarm.agents.common.config import RunConfig, dynamic, inherit, static
+from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
 from jaxarm.ranges import COUNT, DISCOUNT, NON_NEGATIVE, POSITIVE, Range
 
@@ -28,6 +29,11 @@ class TD3Config(RunConfig):
       reward_scale: rewards are multiplied by this in the critic target.
       hidden_sizes: hidden layer widths of the actor and of each critic.
       activation: hidden-layer activation, one of `jaxarm.agents.common.networks.ACTIVATIONS`.
+      encoder: conv stack each network reads camera observations through, one of
+        `jaxarm.agents.common.encoders.ENCODERS`; unused for flat observations.
+      encoder_features: width of the encoder's dense output layer.
+      random_shift_pad: DrQ's augmentation: the critics' and the actor's training images shifted by up to
+        ±this many pixels (0: off; DrQ used 4 at 84×84).
       num_critics: critics trained on the same target; the target takes their minimum (2: TD3, 1: DDPG).
       policy_delay: critic steps per actor and target-network step (2: TD3, 1: DDPG).
       target_smoothing: add clipped noise to the target action (TD3); False for DDPG.
@@ -54,6 +60,9 @@ class TD3Config(RunConfig):
 
     hidden_sizes: tuple[int, ...] = static((256, 256), COUNT)
     activation: str = static("relu", ACTIVATION)
+    encoder: str = static("nature", ENCODER)
+    encoder_features: int = static(256, COUNT)
+    random_shift_pad: int = static(0, NON_NEGATIVE)
     num_critics: int = static(2, COUNT)
     policy_delay: int = static(2, COUNT)
     target_smoothing: bool = True

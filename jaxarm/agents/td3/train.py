@@ -3,7 +3,9 @@
 One `update`: step all `num_envs` envs `rollout_length` times (uniform random actions before
 `learning_starts`, then the actor plus Gaussian noise), add the transitions to the on-device replay
 buffer, then run `grad_steps_per_update` gradient steps in blocks of `policy_delay` critic steps followed
-by one actor step and one Polyak step of both target networks. Hyper-parameters arrive as `HParams`
+by one actor step and one Polyak step of both target networks. Camera observations are stored as uint8 frames
+and read through conv encoders (networks.py), with DrQ's random shift on training batches when
+`random_shift_pad` > 0. Hyper-parameters arrive as `HParams`
 data, so `jax.vmap(make_train(trainer))(keys, hparams)` trains seeds × hyper-parameters at once.
 """
 
@@ -17,13 +19,15 @@ import optax
 from flax import struct
 
 from jaxarm.agents.common import replay
+from jaxarm.agents.common.augment import shift_observation
 from jaxarm.agents.common.config import HParams
+from jaxarm.agents.common.encoders import PixelEncoder
 from jaxarm.agents.common.networks import apply_module, mlp_layers
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.td3.config import TD3Config
 from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, polyak_update, smoothed_target_action
 from jaxarm.agents.td3.networks import Actor, Critic, apply_critics, init_critics
-from jaxarm.envs import AutoReset, EnvState, VmapEnv, compiler_options
+from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
 from jaxarm.export.numpy_policy import NumpyPolicy
 
 
@@ -32,17 +36,17 @@ class Experience:
     """One stored transition (leaves gain a leading [N] axis in batches).
 
     Attributes:
-      obs: [O] observation the action was taken in.
+      obs: observation the action was taken in ([O], or a camera observation's parts; frames as uint8).
       action: [A] action in the actor's [-1, 1] units.
       reward: [] reward of the step.
-      next_obs: [O] observation the step reached, before any auto-reset (`EnvState.final_obs`).
+      next_obs: observation the step reached, before any auto-reset (`EnvState.final_obs`).
       terminated: [] bool, the task ended (no bootstrap); a time-limit truncation is not termination.
     """
 
-    obs: jax.Array
+    obs: Observation
     action: jax.Array
     reward: jax.Array
-    next_obs: jax.Array
+    next_obs: Observation
     terminated: jax.Array
 
 
@@ -90,6 +94,11 @@ class TD3Metrics:
     q_mean: jax.Array
 
 
+def make_encoder(config: TD3Config, camera: bool) -> PixelEncoder | None:
+    """A fresh conv encoder for one network when the env observes a camera; None for flat observations."""
+    return PixelEncoder(config.encoder, config.encoder_features) if camera else None
+
+
 def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     """Builds the TD3 / DDPG trainer for `config`. `env`, `env_params` replace the config's env (probe envs)."""
     config.validate()
@@ -98,8 +107,18 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     batch_env = VmapEnv(AutoReset(env), config.num_envs)
     spec = env.spec
     action_size = spec.action_size
-    actor = Actor(config.hidden_sizes, action_size, config.activation)
-    critic = Critic(config.hidden_sizes, config.activation)
+    camera = not spec.flat_observation
+    actor = Actor(config.hidden_sizes, action_size, config.activation, encoder=make_encoder(config, camera))
+    critic = Critic(config.hidden_sizes, config.activation, encoder=make_encoder(config, camera))
+    shift = camera and config.random_shift_pad > 0
+
+    def augment(key: jax.Array, stream: int, obs: Observation) -> Observation:
+        """`obs` randomly shifted when augmenting, with a key folded from `key` (whose own draws, and so the
+        numbers of runs without augmentation, stay as they are)."""
+        if not shift:
+            return obs
+        return shift_observation(jax.random.fold_in(key, stream), obs, config.random_shift_pad)
+
     # optax.adam(lr) holds no state that depends on lr, so it is rebuilt per step from the traced
     # hyper-parameter; the step size stays data and vmaps.
     optimizer_state_init = optax.adam(0.0).init
@@ -112,6 +131,8 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
 
     def numpy_policy(state: TD3State) -> NumpyPolicy:
         """`act` as arrays: the actor's MLP, and the map of its tanh outputs onto the env's action bounds."""
+        if camera:
+            raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
         kernels, biases = mlp_layers(state.actor_params)
         half_range = 0.5 * (spec.action_high - spec.action_low)
         return NumpyPolicy(
@@ -127,7 +148,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     def init(key: jax.Array, hparams: HParams) -> TD3State:
         del hparams  # nothing in the initial state depends on them
         actor_key, critic_key, env_key, state_key = jax.random.split(key, 4)
-        obs = jnp.zeros(spec.observation_shape, jnp.float32)
+        obs = spec.zero_observation()
         action = jnp.zeros((action_size,), jnp.float32)
         actor_params = actor.init(actor_key, obs)
         critic_params = init_critics(critic, critic_key, config.num_critics, obs, action)
@@ -179,6 +200,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     def critic_step(carry, inputs, hparams: HParams, target_actor_params, target_critic_params):
         critic_params, opt_state = carry
         batch, noise_key = inputs
+        batch = batch.replace(obs=augment(noise_key, 1, batch.obs), next_obs=augment(noise_key, 2, batch.next_obs))
         next_action = apply_module(actor, target_actor_params, batch.next_obs)
         if config.target_smoothing:
             noise = hparams.target_noise * jax.random.normal(noise_key, next_action.shape)
@@ -218,7 +240,11 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             (batches, jax.random.split(noise_key, config.policy_delay)),
         )
         actor_params, actor_opt_state, loss = actor_step(
-            state.actor_params, state.actor_opt_state, critic_params, batches.obs[-1], hparams
+            state.actor_params,
+            state.actor_opt_state,
+            critic_params,
+            augment(key, 1, jax.tree.map(lambda leaf: leaf[-1], batches.obs)),
+            hparams,
         )
         state = state.replace(
             actor_params=actor_params,

@@ -6,6 +6,10 @@ finger is strictly inside the goal square, terminated once the goal has been hel
 consecutive steps, truncated at 200 steps. Observation for N links (4N + 1 values): every link end's
 position / (world/2), then every (goal − link end) / world, then on_goal. For N = 2 that is the tutorial's
 [elbow/200, finger/200, (goal−elbow)/400, (goal−finger)/400, on_goal].
+
+`obs_mode` "pixels" observes a top-down grayscale image of links and goal instead (`camera.py`,
+{"image": uint8 [R, R, 1]}); "pixels+proprio" adds the link ends' positions / (world/2) ({"proprio": [2N]}),
+so that the goal is seen only in the image.
 """
 
 import jax
@@ -20,8 +24,10 @@ from jaxarm.envs.arm2d.arm import (
     link_end_positions,
     sample_goal,
 )
+from jaxarm.envs.arm2d.camera import grayscale_image
 from jaxarm.envs.arm2d.render import draw_frame
-from jaxarm.envs.base import Env, EnvSpec, Transition
+from jaxarm.envs.base import Env, EnvSpec, Observation, Transition
+from jaxarm.envs.observation import check_obs_mode, observation_parts, pixel_observation
 
 
 @struct.dataclass
@@ -34,13 +40,22 @@ class Arm2dInfo:
 
 
 class Arm2d(Env[Arm2dParams, Arm2dSim]):
-    """N-link planar reaching arm. Constructor args are static: `num_links` fixes the shapes."""
+    """N-link planar reaching arm. Constructor args are static: `num_links` fixes the shapes, `obs_mode`
+    ("state", "pixels", "pixels+proprio") what is observed, `resolution` the camera image's side in pixels."""
 
-    def __init__(self, num_links: int = 2):
+    def __init__(self, num_links: int = 2, obs_mode: str = "state", resolution: int = 64):
         if num_links < 1:
             raise ValueError(f"num_links must be >= 1, got {num_links}")
+        check_obs_mode(obs_mode, resolution)
         self.num_links = num_links
-        self.spec = EnvSpec(observation_shape=(4 * num_links + 1,), action_shape=(num_links,))
+        self.obs_mode = obs_mode
+        self.resolution = resolution
+        action_shape = (num_links,)
+        if obs_mode == "state":
+            self.spec = EnvSpec(observation_shape=(4 * num_links + 1,), action_shape=action_shape)
+        else:
+            parts = observation_parts(obs_mode, (resolution, resolution, 1), 2 * num_links)
+            self.spec = EnvSpec(observation_parts=parts, action_shape=action_shape)
 
     def default_params(self) -> Arm2dParams:
         f32 = jnp.float32
@@ -62,8 +77,11 @@ class Arm2d(Env[Arm2dParams, Arm2dSim]):
     def render(self, state, params: Arm2dParams):
         return draw_frame(state.sim, params)
 
-    def _observe(self, sim: Arm2dSim, params: Arm2dParams) -> jax.Array:
+    def _observe(self, sim: Arm2dSim, params: Arm2dParams) -> Observation:
         ends = link_end_positions(sim.angles, params)
+        if self.obs_mode != "state":
+            image = grayscale_image(sim, params, self.resolution)
+            return pixel_observation(self.obs_mode, image, (ends / (params.world_size / 2)).ravel())
         on_goal = (sim.hold_count > 0).astype(jnp.float32)[None]
         return jnp.concatenate(
             [(ends / (params.world_size / 2)).ravel(), ((sim.goal - ends) / params.world_size).ravel(), on_goal]

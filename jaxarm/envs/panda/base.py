@@ -17,6 +17,8 @@ import numpy as np
 from mujoco import mjx
 
 from jaxarm.envs.base import Env, EnvState, HasEpisodeLimit
+from jaxarm.envs.observation import check_obs_mode
+from jaxarm.envs.panda import camera
 from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, pose_fixed_geoms, put_scene, resolve_impl
 from jaxarm.envs.panda.render import Drawing
 from jaxarm.envs.panda.robot import HOME_QPOS, PandaIds, ik_arm_targets, solve_arm_posture, tcp_pose_at
@@ -31,6 +33,10 @@ less than a milliradian): the scripted pick-and-place placed 32% of 1,024 object
 ppo_sorter learnt nothing in 52M env steps. At 0.005 s it places 82% (H100) and ppo_sorter 87.5% after 3.4 minutes.
 At 0.04/6 s: 72% (64 envs, CPU); the wrist's damping x20 or its force limit x3 changed nothing; dropping every arm
 force limit gave 83%, and 95% with 0.005 s, but Franka's torque limits stay."""
+DEPTH_RANGE = 1.0
+"""Metres of depth a camera image's depth channel spans (0 to 255); farther reads 255."""
+CAMERAS = ("scene", "hand_camera")
+"""The MJCF cameras a pixel observation stacks by default: the task's fixed scene camera and the wrist's."""
 
 
 class PandaSimState(Protocol):
@@ -94,6 +100,10 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       contacts_per_env: Warp only: contacts one env may have at once, and constraint rows for that many (default:
         the scene's worst case, every contact pair at its most). Smaller buffers step faster; a step that needs
         more raises.
+      obs_mode: "state", "pixels" or "pixels+proprio" (`jaxarm.envs.observation`); the task builds its
+        observation from `camera_image` in the pixel modes.
+      resolution: side of the square camera images, pixels.
+      cameras: names of the MJCF cameras (mode "fixed") stacked in `camera_image`.
 
     Attributes:
       mj_model: the compiled scene as built (drawing poses a copy of it).
@@ -103,6 +113,8 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       mjx_model: `mj_model` on the device; tasks replace its per-episode fields in `episode_model`.
       home_tcp_rotation: [3, 3] tool-centre orientation at HOME_QPOS (pointing down, yaw 0).
       start_qpos: [7] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
+      obs_mode, resolution: as given.
+      cameras: the `camera.Camera`s of `cameras`, resolved once (none in "state" mode).
     """
 
     uses_mjx = True
@@ -115,7 +127,18 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         impl: str = Impl.JAX,
         max_envs: int = 4096,
         contacts_per_env: int | None = None,
+        obs_mode: str = "state",
+        resolution: int = 64,
+        cameras: tuple[str, ...] = CAMERAS,
     ):
+        check_obs_mode(obs_mode, resolution)
+        self.obs_mode = obs_mode
+        self.resolution = resolution
+        # Resolved only where they are observed: a state-only scene need not declare them.
+        self.cameras = (
+            () if obs_mode == "state" else tuple(camera.Camera.from_model(mj_model, name) for name in cameras)
+        )
+        self._camera_scene = camera.Scene.from_model(mj_model)
         self.impl = resolve_impl(impl)
         if self.impl == Impl.WARP:
             mj_model = copy.copy(mj_model)  # the builders cache their models
@@ -152,6 +175,29 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         if self.impl == Impl.WARP:
             data = pose_fixed_geoms(self.mj_model, model, data)
         return mjx.com_pos(model, data)
+
+    @property
+    def image_shape(self) -> tuple[int, int, int]:
+        """Shape of `camera_image`: [R, R, 2 per camera]."""
+        return (self.resolution, self.resolution, 2 * len(self.cameras))
+
+    def camera_image(self, model: mjx.Model, data: mjx.Data) -> jax.Array:
+        """uint8 [R, R, 2 per camera]: each camera's grayscale, then its depth over `DEPTH_RANGE`, cast in JAX
+        (`camera.render`) from the poses in `data` (after `kinematics`) and the episode's geom sizes."""
+        channels = []
+        for view in self.cameras:
+            depth, gray = camera.render(
+                self._camera_scene,
+                view,
+                self.resolution,
+                model.geom_size,
+                data.geom_xpos,
+                data.geom_xmat,
+                data.xpos,
+                data.xmat,
+            )
+            channels += [gray, jnp.clip(depth / DEPTH_RANGE, 0.0, 1.0)]
+        return jnp.round(jnp.stack(channels, axis=-1) * 255.0).astype(jnp.uint8)
 
     def simulate(self, model: mjx.Model, data: mjx.Data) -> mjx.Data:
         """`data` after `substeps` physics steps (one env step); raises if Warp dropped contacts on the way."""

@@ -16,6 +16,10 @@ The env holds the mjx.Model (static). Per-episode object shapes and sizes, and t
 (friction, density, mass scale), enter by replacing mjx.Model fields inside the step, so vmap over
 states and params is per-env domain randomisation. The sim state keeps only what the physics needs
 between steps (qpos, qvel, ctrl, solver warm start), not a whole mjx.Data.
+
+`obs_mode` "pixels" observes {"image": uint8 [R, R, 4]}, grayscale and depth of a fixed camera above the table
+and of the wrist camera (`PandaBase.camera_image`); "pixels+proprio" adds the tool's part of the state
+observation, {"proprio": [21]}; the objects then show only in the images.
 """
 
 import jax
@@ -24,8 +28,9 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from jaxarm.envs.base import Env, EnvSpec, Transition
-from jaxarm.envs.panda.base import PandaBase
+from jaxarm.envs.base import Env, EnvSpec, Observation, Transition
+from jaxarm.envs.observation import observation_parts, pixel_observation
+from jaxarm.envs.panda.base import CAMERAS, PandaBase
 from jaxarm.envs.panda.mjx_impl import Impl, with_geom_sizes
 from jaxarm.envs.panda.robot import FINGER_OPEN, rotation_about_z, tcp_jacobian, yaw_of_quaternion, yaw_of_rotation
 from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
@@ -59,6 +64,8 @@ from jaxarm.envs.panda_sort.sim import PandaSortSim
 
 MODE_EE = "ee"
 MODE_JOINT = "joint"
+TOOL_OBS_SIZE = 21
+"""The tool's part of the observation, after the objects': see `PandaSort._observe`."""
 OBJECT_OBS_SIZE = 26
 """Per object: position 3, quaternion 4, linear and angular velocity 6, one-hot shape 3, size 1, in play 1,
 then what a policy would otherwise have to compute: object − tool centre 3, carry target − object 3, and
@@ -92,6 +99,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
       max_action_latency: the most control steps of action latency the params may ask for (`action_latency`);
         the state queues that many actions.
       impl, max_envs, contacts_per_env: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
+      obs_mode, resolution, cameras: the observation (the module docstring says what each mode holds), as
+        `PandaBase`'s.
     """
 
     # jaxlib 0.10.2's CPU runtime deadlocked on this env at 256 envs (one object) and 128 (three): two batched
@@ -109,6 +118,9 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         impl: str = Impl.JAX,
         max_envs: int = 4096,
         contacts_per_env: int | None = None,
+        obs_mode: str = "state",
+        resolution: int = 64,
+        cameras: tuple[str, ...] = CAMERAS,
     ):
         if not 1 <= objects_count <= 5:
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
@@ -125,10 +137,15 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         spawn_centre = (np.array(self.layout.spawn_low) + np.array(self.layout.spawn_high)) / 2
         start_tcp = np.r_[spawn_centre, START_HEIGHT]
         ids = resolve_ids(mj_model, objects_count)
-        super().__init__(mj_model, ids, start_tcp, impl, max_envs, contacts_per_env)
+        super().__init__(mj_model, ids, start_tcp, impl, max_envs, contacts_per_env, obs_mode, resolution, cameras)
         self.grasp_qpos = self.solve_posture(np.r_[spawn_centre, GRASP_HEIGHT])
         action_size = 5 if control_mode == MODE_EE else 8
-        self.spec = EnvSpec(observation_shape=(OBJECT_OBS_SIZE * objects_count + 21,), action_shape=(action_size,))
+        if obs_mode == "state":
+            observation_size = OBJECT_OBS_SIZE * objects_count + TOOL_OBS_SIZE
+            self.spec = EnvSpec(observation_shape=(observation_size,), action_shape=(action_size,))
+        else:
+            parts = observation_parts(obs_mode, self.image_shape, TOOL_OBS_SIZE)
+            self.spec = EnvSpec(observation_parts=parts, action_shape=(action_size,))
 
     def default_params(self) -> PandaSortParams:
         return default_params()
@@ -137,13 +154,13 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         """As `Env.observation_source_index`; from a sorter with another object count (same control mode), the
         object rows they share map row to row (with `target_first`, a one-object learner's object becomes the
         target) and the tool's inputs map onto each other; the extra objects' inputs are new (−1)."""
-        if not isinstance(source, PandaSort) or source.control_mode != self.control_mode:
+        camera = not (self.spec.flat_observation and source.spec.flat_observation)
+        if camera or not isinstance(source, PandaSort) or source.control_mode != self.control_mode:
             return super().observation_source_index(source)
         shared = min(source.objects_count, self.objects_count)
         objects = np.full((self.objects_count, OBJECT_OBS_SIZE), -1)
         objects[:shared] = np.arange(shared * OBJECT_OBS_SIZE).reshape(shared, OBJECT_OBS_SIZE)
-        tool_size = self.spec.observation_size - self.objects_count * OBJECT_OBS_SIZE
-        return np.concatenate([objects.ravel(), source.objects_count * OBJECT_OBS_SIZE + np.arange(tool_size)])
+        return np.concatenate([objects.ravel(), source.objects_count * OBJECT_OBS_SIZE + np.arange(TOOL_OBS_SIZE)])
 
     # --- the physics model of one env -------------------------------------------------------------
 
@@ -195,7 +212,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
 
     def _observe(
         self, model: mjx.Model, data: mjx.Data, sim: PandaSortSim, params: PandaSortParams, key: jax.Array
-    ) -> jax.Array:
+    ) -> Observation:
         """[OBJECT_OBS_SIZE N + 21]: per object (zeros when out of play) OBJECT_OBS_SIZE values, then tool
         centre position 3, orientation quaternion 4, linear and angular velocity 6, finger width 1, and the 7
         arm joint angles (the arm is redundant, so the tool pose alone does not tell its posture or nearness
@@ -232,8 +249,10 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             jnp.sum(sim.qpos[robot.finger_qpos])[None],
             sim.qpos[robot.arm_qpos],
         ]
-        objects = with_noise(objects, objects_key, params.obs_noise) * in_play
         tool_obs = with_noise(jnp.concatenate(tool), tool_key, params.obs_noise)
+        if self.obs_mode != "state":
+            return pixel_observation(self.obs_mode, self.camera_image(model, data), tool_obs.astype(jnp.float32))
+        objects = with_noise(objects, objects_key, params.obs_noise) * in_play
         return jnp.concatenate([objects[self.slot_order(sim)].ravel(), tool_obs]).astype(jnp.float32)
 
     def slot_order(self, sim: PandaSortSim) -> jax.Array:

@@ -10,6 +10,11 @@ or its tip is further than `max_distance` from the hole bottom; truncated after 
 
 Observation [12], in units that keep it near [-1, 1]: hole bottom − tip (÷ 0.1 m), tip velocity (÷ 0.1 m/s),
 tool target − tool centre (÷ max_lead), tip − nominal hole bottom (÷ 0.1 m).
+
+`obs_mode` "pixels" observes {"image": uint8 [R, R, 4]}, grayscale and depth of the fixed scene camera and of
+the wrist camera (`PandaBase.camera_image`); "pixels+proprio" adds the arm's own state, {"proprio": [9]}: the
+tip velocity, the tool's lead and the tip's offset from the nominal hole; where the hole is this episode shows
+only in the images.
 """
 
 import jax
@@ -19,8 +24,9 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
-from jaxarm.envs.base import EnvSpec, Transition
-from jaxarm.envs.panda.base import PandaBase
+from jaxarm.envs.base import EnvSpec, Observation, Transition
+from jaxarm.envs.observation import observation_parts, pixel_observation
+from jaxarm.envs.panda.base import CAMERAS, PandaBase
 from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, with_geom_sizes
 from jaxarm.envs.peg_insert.model import (
     HOLE_FLOOR,
@@ -79,14 +85,29 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     """The Panda inserting a peg held in its hand into a square hole shifted at random every episode.
 
     Args:
-      impl, max_envs, contacts_per_env: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
+      impl, max_envs, contacts_per_env, obs_mode, resolution, cameras: as `PandaBase`'s (the module docstring
+        says what each observation mode holds).
     """
 
-    def __init__(self, impl: str = Impl.JAX, max_envs: int = 4096, contacts_per_env: int | None = None):
+    def __init__(
+        self,
+        impl: str = Impl.JAX,
+        max_envs: int = 4096,
+        contacts_per_env: int | None = None,
+        obs_mode: str = "state",
+        resolution: int = 64,
+        cameras: tuple[str, ...] = CAMERAS,
+    ):
         mj_model = build_model()
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
-        super().__init__(mj_model, resolve_ids(mj_model), start_tcp, impl, max_envs, contacts_per_env)
-        self.spec = EnvSpec(observation_shape=(12,), action_shape=(3,))
+        super().__init__(
+            mj_model, resolve_ids(mj_model), start_tcp, impl, max_envs, contacts_per_env, obs_mode, resolution, cameras
+        )
+        if obs_mode == "state":
+            self.spec = EnvSpec(observation_shape=(12,), action_shape=(3,))
+        else:
+            parts = observation_parts(obs_mode, self.image_shape, 9)
+            self.spec = EnvSpec(observation_parts=parts, action_shape=(3,))
 
     def default_params(self) -> PegInsertParams:
         return default_params()
@@ -131,12 +152,15 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
 
     # --- observation --------------------------------------------------------------------------------
 
-    def _observe(self, model: mjx.Model, data: mjx.Data, sim: PegInsertSim, params: PegInsertParams) -> jax.Array:
+    def _observe(self, model: mjx.Model, data: mjx.Data, sim: PegInsertSim, params: PegInsertParams) -> Observation:
         tip = self.peg_tip(data)
         jacp, _ = mjx.jac(model, data, tip, self.ids.robot.hand_body)
         tip_velocity = jacp.T @ sim.qvel
         nominal = jnp.array([*HOLE_NOMINAL, HOLE_FLOOR])
         lead = (sim.tcp_target - data.site_xpos[self.ids.robot.tcp_site]) / params.max_lead
+        if self.obs_mode != "state":
+            proprio = jnp.concatenate([tip_velocity / POSITION_SCALE, lead, (tip - nominal) / POSITION_SCALE])
+            return pixel_observation(self.obs_mode, self.camera_image(model, data), proprio.astype(jnp.float32))
         return jnp.concatenate(
             [
                 (self.hole_bottom(sim) - tip) / POSITION_SCALE,

@@ -1,0 +1,114 @@
+"""The analytic ray caster of the Panda envs' cameras against geometry worked by hand and MuJoCo's own mj_ray.
+
+A small scene of every primitive, posed by MuJoCo on the CPU (no MJX program to compile): the caster reads
+poses and sizes as arrays.
+"""
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+from jaxarm.envs.panda.camera import FAR, Camera, Scene, render
+
+HEIGHT = 1.0
+"""The overhead camera's height above the table."""
+FOVY = 60.0
+RESOLUTION = 32
+BOX_HALF = 0.1
+BOX_TOP = 0.2
+SCENE = f"""
+<mujoco>
+  <worldbody>
+    <geom name="table" type="plane" size="2 2 0.1" rgba="0.5 0.5 0.5 1"/>
+    <body name="box" pos="0 0 {BOX_TOP / 2}">
+      <freejoint/>
+      <geom name="box" type="box" size="{BOX_HALF} {BOX_HALF} {BOX_TOP / 2}" rgba="1 1 1 1"/>
+    </body>
+    <body name="others" pos="0.35 0.3 0.1">
+      <freejoint/>
+      <geom name="sphere" type="sphere" size="0.05" pos="0 0 0" rgba="1 0 0 1"/>
+      <geom name="capsule" type="capsule" size="0.03 0.06" pos="-0.6 0 0" euler="0 1.2 0.3" rgba="0 1 0 1"/>
+      <geom name="cylinder" type="cylinder" size="0.04 0.05" pos="0 -0.6 0" euler="0.4 0 0" rgba="0 0 1 1"/>
+    </body>
+    <camera name="overhead" pos="0 0 {HEIGHT}" fovy="{FOVY}"/>
+    <camera name="oblique" pos="0.8 -0.6 0.6" xyaxes="0.6 0.8 0 -0.4 0.3 0.866" fovy="50"/>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.fixture(scope="module")
+def scene():
+    model = mujoco.MjModel.from_xml_string(SCENE)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
+def image(model, data, camera="overhead", resolution=RESOLUTION):
+    arrays = (data.geom_xpos, data.geom_xmat, data.xpos, data.xmat)
+    cast = jax.jit(partial(render, Scene.from_model(model), Camera.from_model(model, camera), resolution))
+    return cast(model.geom_size, *arrays)
+
+
+def test_depth_of_the_table_is_the_cameras_height(scene):
+    model, data = scene
+    depth, gray = (np.asarray(a) for a in image(*scene))
+    corners = depth[[0, 0, -1, -1], [0, -1, 0, -1]]  # the table, away from the box
+    np.testing.assert_allclose(corners, HEIGHT, atol=1e-3)
+    assert np.all(depth <= HEIGHT + 1e-3) and np.all(gray > 0)
+
+
+def test_a_box_of_known_size_covers_the_predicted_pixels(scene):
+    depth = np.asarray(image(*scene)[0])
+    on_box = np.abs(depth - (HEIGHT - BOX_TOP)) < 1e-3
+    # The box top's half-width seen from the camera, in pixels from the image centre.
+    half_pixels = BOX_HALF / (HEIGHT - BOX_TOP) / np.tan(np.deg2rad(FOVY) / 2) * RESOLUTION / 2
+    rows, columns = np.nonzero(on_box)
+    for indices in (rows, columns):
+        np.testing.assert_allclose(
+            [indices.min(), indices.max() + 1], RESOLUTION / 2 + np.array([-1, 1]) * half_pixels, atol=1
+        )
+
+
+def test_the_image_changes_when_something_in_view_moves_and_not_otherwise(scene):
+    model, _ = scene
+    data = mujoco.MjData(model)
+    data.qpos[7] = 5.0  # the sphere, capsule and cylinder, out of the overhead camera's view
+    mujoco.mj_forward(model, data)
+    before = [np.asarray(a) for a in image(model, data)]
+    data.qpos[7] = 6.0  # moved, still out of view
+    mujoco.mj_forward(model, data)
+    for first, second in zip(before, image(model, data), strict=True):
+        np.testing.assert_array_equal(first, second)
+    data.qpos[0] += 0.05  # the box, in view
+    mujoco.mj_forward(model, data)
+    moved = [np.asarray(a) for a in image(model, data)]
+    assert not np.array_equal(before[0], moved[0]) and not np.array_equal(before[1], moved[1])
+
+
+@pytest.mark.parametrize("camera", ["overhead", "oblique"])
+def test_distances_match_mujocos_ray_caster(scene, camera):
+    model, data = scene
+    resolution = 16
+    depth = np.asarray(image(model, data, camera, resolution)[0])
+    cam = Camera.from_model(model, camera)
+    position, rotation = (np.asarray(a) for a in cam.world_pose(jnp.asarray(data.xpos), jnp.asarray(data.xmat)))
+    half = np.tan(np.deg2rad(cam.fovy) / 2)
+    geom_id = np.zeros(1, np.int32)
+    hits = 0
+    for row in range(resolution):
+        for column in range(resolution):
+            local = np.array(
+                [(2 * (column + 0.5) / resolution - 1) * half, -(2 * (row + 0.5) / resolution - 1) * half, -1.0]
+            )
+            local /= np.linalg.norm(local)
+            distance = mujoco.mj_ray(model, data, position, rotation @ local, None, 1, -1, geom_id)
+            expected = FAR if distance < 0 else distance * -local[2]
+            hits += distance >= 0
+            np.testing.assert_allclose(depth[row, column], expected, atol=1e-4, err_msg=f"pixel {row}, {column}")
+    assert hits > resolution * resolution // 2
