@@ -16,17 +16,7 @@ from experiments import configs, run
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.runner import loop, rundir
-
-SMALL = [
-    "num_envs=64",
-    "rollout_length=16",
-    "num_minibatches=2",
-    "total_env_steps=24576",
-    "updates_per_chunk=4",
-    "checkpoint_every_updates=4",
-    "eval_episodes=20",
-]
-"""24 updates in 6 chunks (as in test_run.py, so the compiled chunk is shared)."""
+from tests.experiments.test_run import SMALL  # the same compiled chunk as there
 
 
 def run_cli(*args):
