@@ -157,6 +157,13 @@ def _train_locked(
     """`train`, with the lock held; a resume's `overrides` are recorded once its checkpoint is restored."""
     trainer = registry.make_trainer(config)
     hparams = config.hparams()
+    run_steps = config.num_updates * config.env_steps_per_update
+    if run_steps > config.total_env_steps:
+        print(
+            f"total_env_steps={config.total_env_steps:,} runs as {run_steps:,} env steps: {config.num_updates:,} "
+            f"updates in whole chunks of {config.chunk_updates:,}",
+            file=sys.stderr,
+        )
     checkpoints = run_dir / "checkpoints"
     has_run = (run_dir / "config.json").exists()
     if has_run and not rundir.any_checkpoint_files(run_dir):
