@@ -13,6 +13,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
+from jaxarm import envs  # noqa: E402
 from jaxarm.envs.peg_insert import PegInsert  # noqa: E402
 from jaxarm.envs.peg_insert.env import POSITION_SCALE, START_TIP_HEIGHT  # noqa: E402
 from jaxarm.envs.peg_insert.model import HOLE_DEPTH, HOLE_FLOOR, HOLE_NOMINAL, PEG_RADIUS  # noqa: E402
@@ -150,3 +151,27 @@ def test_render_frame_is_an_rgb_image(env, params, reset):
     frame = env.render(reset(jax.random.key(6), params), params, height=120, width=160)
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
     assert frame.std() > 5.0, "a blank frame"
+
+
+def test_an_action_moves_the_target_after_the_latency(env, params, reset, step):
+    state = reset(jax.random.key(4), params)
+    late = envs.override_params(params, {"action_latency": 1})
+    action = jnp.array([1.0, -1.0, -1.0])
+    delayed, held = step(state, action, late), step(state, jnp.zeros(3), params)
+    np.testing.assert_array_equal(delayed.sim.tcp_target, held.sim.tcp_target)  # zero actions queued at first
+    np.testing.assert_array_equal(
+        step(delayed, jnp.zeros(3), late).sim.tcp_target, step(held, action, params).sim.tcp_target
+    )
+
+
+def test_observation_noise_changes_what_is_seen_and_not_what_happens(env, params, reset, step):
+    state = reset(jax.random.key(4), params)
+    noisy = envs.override_params(params, {"obs_noise": 0.002, "hole_pose_noise": 0.005})
+    action = jnp.array([0.5, 0.5, -0.5])
+    clean_step, noisy_step = step(state, action, params), step(state, action, noisy)
+    np.testing.assert_array_equal(clean_step.sim.qpos, noisy_step.sim.qpos)
+    # The observation: hole − tip 3, tip velocity 3, the target's lead 3, tip − nominal hole 3 (scaled).
+    seen = np.asarray(noisy_step.obs - clean_step.obs)
+    assert np.all(seen[:6] != 0.0) and np.all(seen[9:] != 0.0)
+    np.testing.assert_array_equal(seen[6:9], 0.0)  # the lead is the controller's own target, exact
+    assert np.abs(seen[9:]).max() * POSITION_SCALE < 10 * 0.002

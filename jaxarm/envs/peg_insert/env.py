@@ -28,6 +28,7 @@ from jaxarm.envs.base import EnvSpec, Observation, Transition
 from jaxarm.envs.observation import observation_parts, pixel_observation
 from jaxarm.envs.panda.base import CAMERAS, PandaBase
 from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, with_geom_sizes
+from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
 from jaxarm.envs.peg_insert.model import (
     HOLE_FLOOR,
     HOLE_NOMINAL,
@@ -59,6 +60,8 @@ class PegInsertSim(struct.PyTreeNode):
       hole: [2] (x, y) of the hole's centre this episode.
       initial_distance: [] tip-to-hole-bottom distance at reset (metres).
       distance: [] tip-to-hole-bottom distance after the last step.
+      queued_actions: [L, 3] the last L actions, newest first (L = the env's `max_action_latency`).
+      noise_key: PRNG key of the observation noise.
     """
 
     qpos: jax.Array
@@ -69,6 +72,8 @@ class PegInsertSim(struct.PyTreeNode):
     hole: jax.Array
     initial_distance: jax.Array
     distance: jax.Array
+    queued_actions: jax.Array
+    noise_key: jax.Array
 
 
 class PegInsertInfo(struct.PyTreeNode):
@@ -85,12 +90,15 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     """The Panda inserting a peg held in its hand into a square hole shifted at random every episode.
 
     Args:
+      max_action_latency: the most control steps of action latency the params may ask for (`action_latency`);
+        the state queues that many actions.
       impl, max_envs, contacts_per_env, obs_mode, resolution, cameras: as `PandaBase`'s (the module docstring
         says what each observation mode holds).
     """
 
     def __init__(
         self,
+        max_action_latency: int = 1,
         impl: str = Impl.JAX,
         max_envs: int = 4096,
         contacts_per_env: int | None = None,
@@ -98,6 +106,9 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         resolution: int = 64,
         cameras: tuple[str, ...] = CAMERAS,
     ):
+        if max_action_latency < 0:
+            raise ValueError(f"max_action_latency must be >= 0, got {max_action_latency}")
+        self.max_action_latency = max_action_latency
         mj_model = build_model()
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
         super().__init__(
@@ -115,8 +126,9 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     # --- physics ------------------------------------------------------------------------------------
 
     def episode_model(self, sim: PegInsertSim, params: PegInsertParams) -> mjx.Model:
-        """The mjx.Model with this episode's hole position and the params' clearance and friction."""
-        ids, model = self.ids, self.mjx_model
+        """The mjx.Model with this episode's hole position and the params' clearance, friction and servo scales."""
+        ids = self.ids
+        model = with_servo_scales(self.mjx_model, ids.robot, params.servo_gain_scale, params.joint_damping_scale)
         centres, halves = hole_walls(params.clearance)
         block_pos = jnp.concatenate([sim.hole, jnp.zeros(1)])
         model = with_geom_sizes(model, ids.wall_geoms, halves, jnp.linalg.norm(halves, axis=-1))
@@ -152,10 +164,17 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
 
     # --- observation --------------------------------------------------------------------------------
 
-    def _observe(self, model: mjx.Model, data: mjx.Data, sim: PegInsertSim, params: PegInsertParams) -> Observation:
-        tip = self.peg_tip(data)
-        jacp, _ = mjx.jac(model, data, tip, self.ids.robot.hand_body)
-        tip_velocity = jacp.T @ sim.qvel
+    def _observe(
+        self, model: mjx.Model, data: mjx.Data, sim: PegInsertSim, params: PegInsertParams, key: jax.Array
+    ) -> Observation:
+        """The observation (the module docstring says what each mode holds); `key` draws the params' noise on the
+        tip's position and velocity and on the hole's position."""
+        tip_key, velocity_key, hole_key = jax.random.split(key, 3)
+        exact_tip = self.peg_tip(data)
+        jacp, _ = mjx.jac(model, data, exact_tip, self.ids.robot.hand_body)
+        tip = with_noise(exact_tip, tip_key, params.obs_noise)
+        tip_velocity = with_noise(jacp.T @ sim.qvel, velocity_key, params.obs_noise)
+        hole_bottom = with_noise(self.hole_bottom(sim), hole_key, params.hole_pose_noise)
         nominal = jnp.array([*HOLE_NOMINAL, HOLE_FLOOR])
         lead = (sim.tcp_target - data.site_xpos[self.ids.robot.tcp_site]) / params.max_lead
         if self.obs_mode != "state":
@@ -163,7 +182,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             return pixel_observation(self.obs_mode, self.camera_image(model, data), proprio.astype(jnp.float32))
         return jnp.concatenate(
             [
-                (self.hole_bottom(sim) - tip) / POSITION_SCALE,
+                (hole_bottom - tip) / POSITION_SCALE,
                 tip_velocity / POSITION_SCALE,
                 lead,
                 (tip - nominal) / POSITION_SCALE,
@@ -189,6 +208,8 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             hole=hole,
             initial_distance=zero,
             distance=zero,
+            queued_actions=jnp.zeros((self.max_action_latency, *self.spec.action_shape), jnp.float32),
+            noise_key=jax.random.fold_in(key, 2),
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
@@ -201,14 +222,16 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             inserted=jnp.zeros((), jnp.bool_),
             table_contact=jnp.zeros((), jnp.bool_),
         )
-        return sim, self._observe(model, data, sim, params), info
+        noise_key, obs_key = jax.random.split(sim.noise_key)
+        return sim.replace(noise_key=noise_key), self._observe(model, data, sim, params, obs_key), info
 
     def _transition(self, sim, action, params):
         robot = self.ids.robot
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
         tcp = data.site_xpos[robot.tcp_site]
-        target = jnp.clip(sim.tcp_target + action * params.ee_step, tcp - params.max_lead, tcp + params.max_lead)
+        applied, queued = delayed_action(sim.queued_actions, action, params.action_latency)
+        target = jnp.clip(sim.tcp_target + applied * params.ee_step, tcp - params.max_lead, tcp + params.max_lead)
         arm_ctrl = self.ik_targets(model, data, target, self.home_tcp_rotation, params)
         data = data.replace(ctrl=jnp.concatenate([arm_ctrl, sim.ctrl[7:]]))
 
@@ -219,8 +242,15 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
 
         data, touched = jax.lax.fori_loop(0, self.substeps, substep, (data, jnp.zeros((), jnp.bool_)))
         data = check_no_overflow(data)
+        noise_key, obs_key = jax.random.split(sim.noise_key)
         next_sim = sim.replace(
-            qpos=data.qpos, qvel=data.qvel, qacc_warmstart=data.qacc_warmstart, ctrl=data.ctrl, tcp_target=target
+            qpos=data.qpos,
+            qvel=data.qvel,
+            qacc_warmstart=data.qacc_warmstart,
+            ctrl=data.ctrl,
+            tcp_target=target,
+            queued_actions=queued,
+            noise_key=noise_key,
         )
         data = self.kinematics(model, next_sim)
         distance = jnp.linalg.norm(self.peg_tip(data) - self.hole_bottom(next_sim))
@@ -233,7 +263,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         )
         return Transition(
             sim=next_sim,
-            obs=self._observe(model, data, next_sim, params),
+            obs=self._observe(model, data, next_sim, params, obs_key),
             reward=progress + bonus,
             terminated=touched | (distance > params.max_distance),
             success=inserted,

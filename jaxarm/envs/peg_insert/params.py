@@ -35,6 +35,14 @@ class PegInsertParams:
       insert_distance: the peg counts as inserted within this distance of the hole bottom (metres).
       max_distance: terminated when the peg tip is further than this from the hole bottom (metres).
       friction: sliding friction between the peg and the block.
+      obs_noise: standard deviation of Gaussian noise on the observed peg tip position (metres) and velocity
+        (m/s), drawn every step, as sensors would give them.
+      hole_pose_noise: standard deviation of Gaussian noise on the observed hole position (metres), drawn every
+        step, as a detector would give it.
+      action_latency: control steps (0.04 s) between a policy's action and the tool target moving, at most the
+        env's `max_action_latency` (an episode starts with zero actions queued).
+      servo_gain_scale: factor on the arm servos' stiffness (kp).
+      joint_damping_scale: factor on the arm's damping: the servos' kv and the joints' passive damping.
     """
 
     max_episode_steps: jax.Array = ranged(COUNT)
@@ -50,6 +58,11 @@ class PegInsertParams:
     insert_distance: jax.Array = ranged(POSITIVE)
     max_distance: jax.Array = ranged(POSITIVE)
     friction: jax.Array = ranged(NON_NEGATIVE)
+    obs_noise: jax.Array = ranged(NON_NEGATIVE)
+    hole_pose_noise: jax.Array = ranged(NON_NEGATIVE)
+    action_latency: jax.Array = ranged(NON_NEGATIVE)
+    servo_gain_scale: jax.Array = ranged(POSITIVE)
+    joint_damping_scale: jax.Array = ranged(NON_NEGATIVE)
 
     ORDERED: ClassVar = (("insert_distance", "max_distance"),)
     """(low, high) pairs of fields that must satisfy low <= high."""
@@ -75,4 +88,9 @@ def default_params() -> PegInsertParams:
         insert_distance=f32(0.01),
         max_distance=f32(0.8),
         friction=f32(0.5),
+        obs_noise=f32(0.0),
+        hole_pose_noise=f32(0.0),
+        action_latency=jnp.array(0, jnp.int32),
+        servo_gain_scale=f32(1.0),
+        joint_damping_scale=f32(1.0),
     )
