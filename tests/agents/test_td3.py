@@ -15,8 +15,16 @@ from jaxarm.agents.common.augment import random_shift
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import make_train
 from jaxarm.agents.td3 import TD3Config, make_trainer
-from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, polyak_update, smoothed_target_action
+from jaxarm.agents.td3.losses import (
+    actor_loss,
+    critic_loss,
+    critic_target,
+    n_step_returns,
+    polyak_update,
+    smoothed_target_action,
+)
 from jaxarm.agents.td3.networks import Critic, apply_critics
+from jaxarm.agents.td3.train import Experience, n_step_experience
 from tests.agents.probe_envs import ConstantRewardEnv, ImageTargetEnv, TargetActionEnv
 
 SMALL = dict(
@@ -63,9 +71,47 @@ def test_critic_target_takes_min_and_cuts_bootstrap_only_on_termination():
     next_q = jnp.array([[1.0, 2.0, 4.0], [3.0, 0.5, 4.0]])  # [C=2, B=3]
     reward = jnp.array([0.5, 1.0, 1.0])
     terminated = jnp.array([False, True, False])  # the third is e.g. a truncation: it bootstraps
-    target = critic_target(next_q, reward, terminated, gamma=jnp.float32(0.9), reward_scale=jnp.float32(2.0))
+    target = critic_target(next_q, reward, terminated, discount=jnp.float32(0.9), reward_scale=jnp.float32(2.0))
     # 2·0.5 + 0.9·min(1, 3); 2·1 (terminated); 2·1 + 0.9·4
     np.testing.assert_allclose(target, [1.9, 2.0, 5.6], rtol=1e-6)
+
+
+def test_n_step_returns_stop_at_an_episode_end_and_at_the_rollout_end():
+    reward = jnp.array([[1.0], [2.0], [3.0], [4.0]])
+    done = jnp.array([[False], [True], [False], [False]])
+    returns, last, discount = n_step_returns(reward, done, jnp.float32(0.5), 3)
+    # t=0: 1 + 0.5·2 (step 1 ends the episode); t=1: 2; t=2: 3 + 0.5·4 (the rollout ends); t=3: 4.
+    np.testing.assert_allclose(returns[:, 0], [2.0, 2.0, 5.0, 4.0])
+    np.testing.assert_array_equal(last[:, 0], [1, 1, 3, 3])
+    np.testing.assert_allclose(discount[:, 0], [0.25, 0.5, 0.25, 0.5])
+    one_step = n_step_returns(reward, done, jnp.float32(0.5), 1)
+    np.testing.assert_array_equal(one_step[0], reward)
+    np.testing.assert_array_equal(one_step[1][:, 0], [0, 1, 2, 3])
+    np.testing.assert_array_equal(one_step[2], jnp.full((4, 1), 0.5))
+
+
+def test_n_step_experience_bootstraps_from_the_last_summed_step():
+    steps, envs = 3, 2
+    experience = Experience(
+        obs=jnp.arange(steps * envs, dtype=jnp.float32).reshape(steps, envs, 1),
+        action=jnp.zeros((steps, envs, 1)),
+        reward=jnp.ones((steps, envs)),
+        next_obs=10.0 + jnp.arange(steps * envs, dtype=jnp.float32).reshape(steps, envs, 1),
+        terminated=jnp.array([[False, True], [False, False], [True, False]]),
+        discount=jnp.full((steps, envs), 0.9),
+    )
+    out = n_step_experience(experience, experience.terminated, jnp.float32(0.9), 2)
+    np.testing.assert_array_equal(out.obs, experience.obs)
+    # Env 0: steps 0-1, 1-2 (terminates at 2), 2. Env 1: step 0 (terminates), 1-2, 2.
+    np.testing.assert_array_equal(out.next_obs[:, :, 0], [[12.0, 11.0], [14.0, 15.0], [14.0, 15.0]])
+    np.testing.assert_array_equal(out.terminated, [[False, True], [True, False], [True, False]])
+    np.testing.assert_allclose(out.reward, [[1.9, 1.0], [1.9, 1.9], [1.0, 1.0]])
+    np.testing.assert_allclose(out.discount, [[0.81, 0.9], [0.81, 0.81], [0.9, 0.9]], rtol=1e-6)
+
+
+def test_config_rejects_n_step_beyond_the_rollout():
+    with pytest.raises(ValueError, match="n_step"):
+        TD3Config(n_step=3, rollout_length=2).validate()
 
 
 def test_critic_actor_losses_and_smoothing_and_polyak():
@@ -129,25 +175,27 @@ def test_config_rejects_a_delay_that_does_not_divide_the_gradient_steps():
 DDPG = dict(num_critics=1, policy_delay=1, target_smoothing=False)
 
 
+THREE_STEP = dict(n_step=3, rollout_length=4, grad_steps_per_update=8)
+"""3-step returns; four times the gradient steps per update, as an update collects four times the steps."""
+
+
 @pytest.mark.parametrize(
     "terminate, expected_q, learner",
-    [(False, 2.0, {}), (True, 1.0, DDPG)],
-    ids=["td3-truncation-bootstraps", "ddpg-termination-cuts"],
+    [(False, 2.0, {}), (True, 1.0, DDPG), (False, 2.0, THREE_STEP), (True, 1.0, {**DDPG, **THREE_STEP})],
+    ids=[
+        "td3-truncation-bootstraps",
+        "ddpg-termination-cuts",
+        "td3-3-step-returns-across-truncations",
+        "ddpg-3-step-returns-cut-at-termination",
+    ],
 )
 def test_critic_learns_constant_reward_value(terminate, expected_q, learner):
-    """γ = 0.5, reward 1: Q = 1 / (1 − γ) = 2 when time limits truncate (bootstrap), 1 when terminating."""
+    """γ = 0.5, reward 1: Q = 1 / (1 − γ) = 2 when time limits truncate (bootstrap), 1 when terminating; the
+    same with 3-step returns (episodes of 5 steps: returns cut at each episode's end and the rollout's)."""
     env = ConstantRewardEnv()
     env_params = env.default_params().replace(terminate=jnp.array(terminate))
-    config = TD3Config(
-        gamma=0.5,
-        num_envs=4,
-        learning_starts=64,
-        total_env_steps=4_000,
-        grad_steps_per_update=2,
-        tau=0.05,
-        **SMALL,
-        **learner,
-    )
+    base = dict(gamma=0.5, num_envs=4, learning_starts=64, total_env_steps=4_000, grad_steps_per_update=2, tau=0.05)
+    config = TD3Config(**{**base, **SMALL, **learner})
     trainer, state, metrics = train(config, env, env_params)
     obs = jnp.ones((3, 1))
     actions = jnp.array([[-1.0], [0.0], [1.0]])

@@ -42,6 +42,8 @@ class TD3Config(RunConfig):
       learning_starts: env steps of uniform random actions before gradient steps begin.
       rollout_length: steps of all `num_envs` envs collected per update.
       grad_steps_per_update: gradient (critic) steps per update; a multiple of `policy_delay`.
+      n_step: rewards summed per stored transition before the target bootstraps (n-step returns, within each
+        update's rollout of `rollout_length` steps, never across an episode's end); 1 for one-step TD3.
     """
 
     num_envs: int = inherit(RunConfig, "num_envs", 16)
@@ -71,6 +73,7 @@ class TD3Config(RunConfig):
     learning_starts: int = static(5_000, NON_NEGATIVE)
     rollout_length: int = static(1, COUNT)
     grad_steps_per_update: int = static(4, COUNT)
+    n_step: int = static(1, COUNT)
 
     @property
     def env_steps_per_update(self) -> int:
@@ -83,6 +86,11 @@ class TD3Config(RunConfig):
             raise ValueError(
                 f"grad_steps_per_update ({self.grad_steps_per_update}) must be a multiple of "
                 f"policy_delay ({self.policy_delay})"
+            )
+        if self.n_step > self.rollout_length:
+            raise ValueError(
+                f"n_step ({self.n_step}) must not exceed rollout_length ({self.rollout_length}): returns are summed "
+                "within one update's rollout"
             )
         if self.env_steps_per_update > self.buffer_size:
             raise ValueError(

@@ -20,19 +20,50 @@ def smoothed_target_action(target_action: jax.Array, noise: jax.Array, noise_cli
     return jnp.clip(target_action + jnp.clip(noise, -noise_clip, noise_clip), -1.0, 1.0)
 
 
+def n_step_returns(
+    reward: jax.Array, done: jax.Array, gamma: jax.Array, n: int
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """n-step returns within a rollout of T steps: from each step t, up to `n` rewards summed with discount,
+    stopping after the step that ends an episode and at the end of the rollout.
+
+    Args:
+      reward: [T, B] rewards of consecutive steps of B envs.
+      done: [T, B] bool, the step ended its episode (terminated or truncated).
+      gamma: [] discount factor.
+      n: most steps summed.
+    Returns: (returns [T, B] Σ_k γ^k r_{t+k}; last [T, B] int32, the index of the last step summed, whose next
+      observation and termination the target bootstraps from; discount [T, B] γ^m for the m steps summed).
+    """
+    steps = reward.shape[0]
+    index = jnp.arange(steps)[:, None]
+    returns = jnp.zeros_like(reward)
+    discount = jnp.ones_like(reward)
+    last = jnp.broadcast_to(index, reward.shape).astype(jnp.int32)
+    alive = jnp.ones(reward.shape, jnp.bool_)
+    for k in range(n):
+        later = jnp.minimum(index + k, steps - 1)
+        valid = alive & (index + k < steps)
+        returns = returns + jnp.where(valid, discount * jnp.take_along_axis(reward, later, 0), 0.0)
+        discount = jnp.where(valid, discount * gamma, discount)
+        last = jnp.where(valid, later, last)
+        alive = valid & ~jnp.take_along_axis(done, later, 0)
+    return returns, last, discount
+
+
 def critic_target(
-    next_q: jax.Array, reward: jax.Array, terminated: jax.Array, gamma: jax.Array, reward_scale: jax.Array
+    next_q: jax.Array, reward: jax.Array, terminated: jax.Array, discount: jax.Array, reward_scale: jax.Array
 ) -> jax.Array:
-    """y = reward_scale·r + γ·(1 − terminated)·min_c Q'_c(s', a').
+    """y = reward_scale·r + discount·(1 − terminated)·min_c Q'_c(s', a').
 
     Args:
       next_q: [C, B] target critics at the next observation and (smoothed) target action.
-      reward: [B].
+      reward: [B] the reward (an n-step return: the discounted sum of the steps it covers).
       terminated: [B] bool, the task ended at this transition (no bootstrap); truncation is not termination.
-      gamma, reward_scale: [].
+      discount: [] or [B] γ, or γ^m for a return of m steps.
+      reward_scale: [].
     Returns: [B], with no gradient.
     """
-    bootstrap = gamma * (1.0 - terminated.astype(jnp.float32)) * jnp.min(next_q, axis=0)
+    bootstrap = discount * (1.0 - terminated.astype(jnp.float32)) * jnp.min(next_q, axis=0)
     return jax.lax.stop_gradient(reward_scale * reward + bootstrap)
 
 

@@ -5,10 +5,12 @@ One `update`: step all `num_envs` envs `rollout_length` times (uniform random ac
 buffer, then run `grad_steps_per_update` gradient steps in blocks of `policy_delay` critic steps followed
 by one actor step and one Polyak step of both target networks. Camera observations are stored as uint8 frames
 and read through conv encoders (networks.py), with DrQ's random shift on training batches when
-`random_shift_pad` > 0. Hyper-parameters arrive as `HParams`
-data, so `jax.vmap(make_train(trainer))(keys, hparams)` trains seeds × hyper-parameters at once.
+`random_shift_pad` > 0. With `n_step` > 1 each stored transition carries the discounted rewards of up to n
+steps of its rollout (losses.n_step_returns). Hyper-parameters arrive as `HParams` data, so
+`jax.vmap(make_train(trainer))(keys, hparams)` trains seeds × hyper-parameters at once.
 """
 
+import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
@@ -25,7 +27,14 @@ from jaxarm.agents.common.encoders import PixelEncoder
 from jaxarm.agents.common.networks import apply_module, mlp_layers
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.td3.config import TD3Config
-from jaxarm.agents.td3.losses import actor_loss, critic_loss, critic_target, polyak_update, smoothed_target_action
+from jaxarm.agents.td3.losses import (
+    actor_loss,
+    critic_loss,
+    critic_target,
+    n_step_returns,
+    polyak_update,
+    smoothed_target_action,
+)
 from jaxarm.agents.td3.networks import Actor, Critic, apply_critics, init_critics
 from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
 from jaxarm.export.numpy_policy import NumpyPolicy
@@ -38,9 +47,10 @@ class Experience:
     Attributes:
       obs: observation the action was taken in ([O], or a camera observation's parts; frames as uint8).
       action: [A] action in the actor's [-1, 1] units.
-      reward: [] reward of the step.
-      next_obs: observation the step reached, before any auto-reset (`EnvState.final_obs`).
-      terminated: [] bool, the task ended (no bootstrap); a time-limit truncation is not termination.
+      reward: [] reward of the step, or with `n_step` > 1 the discounted sum of the rewards from it on.
+      next_obs: observation the (last summed) step reached, before any auto-reset (`EnvState.final_obs`).
+      terminated: [] bool, the task ended there (no bootstrap); a time-limit truncation is not termination.
+      discount: [] the bootstrap's discount: γ, or γ^m for a reward summed over m steps.
     """
 
     obs: Observation
@@ -48,6 +58,24 @@ class Experience:
     reward: jax.Array
     next_obs: Observation
     terminated: jax.Array
+    discount: jax.Array
+
+
+def n_step_experience(experience: Experience, done: jax.Array, gamma: jax.Array, n: int) -> Experience:
+    """A rollout's one-step transitions [T, B] -> n-step ones (`n_step_returns`): each keeps its observation and
+    action and takes the discounted rewards, the next observation and the termination of up to n steps."""
+    returns, last, discount = n_step_returns(experience.reward, done, gamma, n)
+
+    def at_last(leaf):
+        return jnp.take_along_axis(leaf, last.reshape(*last.shape, *[1] * (leaf.ndim - 2)), 0)
+
+    return dataclasses.replace(
+        experience,
+        reward=returns,
+        next_obs=jax.tree.map(at_last, experience.next_obs),
+        terminated=at_last(experience.terminated),
+        discount=discount,
+    )
 
 
 class TD3State(struct.PyTreeNode):
@@ -152,8 +180,9 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         action = jnp.zeros((action_size,), jnp.float32)
         actor_params = actor.init(actor_key, obs)
         critic_params = init_critics(critic, critic_key, config.num_critics, obs, action)
+        zero = jnp.zeros((), jnp.float32)
         example = Experience(
-            obs=obs, action=action, reward=jnp.zeros((), jnp.float32), next_obs=obs, terminated=jnp.zeros((), jnp.bool_)
+            obs=obs, action=action, reward=zero, next_obs=obs, terminated=jnp.zeros((), jnp.bool_), discount=zero
         )
         return TD3State(
             actor_params=actor_params,
@@ -187,6 +216,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
                 reward=next_state.reward,
                 next_obs=next_state.final_obs,
                 terminated=next_state.terminated,
+                discount=jnp.broadcast_to(hparams.gamma, next_state.reward.shape),
             )
             return (next_state, env_steps + config.num_envs), (experience, next_state)
 
@@ -194,6 +224,8 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         (env_state, env_steps), (experience, states) = jax.lax.scan(
             env_step, (state.env_state, state.env_steps), step_keys
         )
+        if config.n_step > 1:
+            experience = n_step_experience(experience, states.done, hparams.gamma, config.n_step)
         flat = jax.tree.map(lambda leaf: leaf.reshape(-1, *leaf.shape[2:]), experience)
         return env_state, env_steps, flat, states
 
@@ -206,7 +238,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             noise = hparams.target_noise * jax.random.normal(noise_key, next_action.shape)
             next_action = smoothed_target_action(next_action, noise, hparams.target_noise_clip)
         next_q = apply_critics(critic, target_critic_params, batch.next_obs, next_action)
-        target = critic_target(next_q, batch.reward, batch.terminated, hparams.gamma, hparams.reward_scale)
+        target = critic_target(next_q, batch.reward, batch.terminated, batch.discount, hparams.reward_scale)
 
         def loss_fn(params):
             q = apply_critics(critic, params, batch.obs, batch.action)
