@@ -95,7 +95,9 @@ class Randomized(Env):
 
     def __getattr__(self, name: str) -> Any:
         # Whatever else the wrapped env offers (counts, layouts, ids) is the same here.
-        return getattr(self.__dict__["env"], name)
+        if "env" not in self.__dict__:  # not yet set (copying, unpickling): no attribute, as Python expects
+            raise AttributeError(name)
+        return getattr(self.env, name)
 
     @property
     def unwrapped(self) -> Env:

@@ -1,6 +1,8 @@
 """Domain randomisation: ranges parse and sample as declared, every env of a batch draws its own params at each
 reset and keeps them for its episode, and configs carry, check and report them."""
 
+import copy
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -81,3 +83,10 @@ def test_configs_take_ranges_from_overrides_and_check_them():
         apply_overrides(PPOConfig(env="arm2d"), ["randomize.goal_size=0.2..0.05"]).validate()
     with pytest.raises(ValueError, match="goal_sise"):
         apply_overrides(PPOConfig(env="arm2d"), ["randomize.goal_sise=0.05..0.2"]).validate()
+
+
+def test_a_randomised_env_forwards_attributes_and_copies():
+    env = Randomized(envs.make("panda_sort"), {"finger_friction": ParamRange(0.8, 3.0)})
+    assert env.objects_count == 1 and env.uses_mjx and env.layout is env.env.layout
+    assert copy.copy(env).ranges == env.ranges
+    assert not hasattr(Randomized.__new__(Randomized), "layout")
