@@ -1,13 +1,41 @@
 """What separates a simulated Panda from a real one, as functions of env params: servo gains and damping,
-action latency and sensor noise. Tasks apply them where they build their model, act and observe; nothing here
-knows about a task.
+action latency and sensor noise. Tasks apply them where they build their model, act and observe, and their
+params extend `RobotParams`; nothing here knows about a task.
 """
 
 import jax
 import jax.numpy as jnp
+from flax import struct
 from mujoco import mjx
 
 from jaxarm.envs.panda.robot import PandaIds
+from jaxarm.ranges import NON_NEGATIVE, POSITIVE, ranged
+
+
+@struct.dataclass
+class RobotParams:
+    """The robot's randomisable params, shared by every Panda task's params (scalars).
+
+    Attributes:
+      action_latency: int32, control steps (0.04 s) between a policy's action and the robot acting on it, at
+        most the env's `max_action_latency`; meanwhile the commands of earlier steps hold (an episode starts
+        with zero actions queued).
+      servo_gain_scale: factor on the arm servos' stiffness (kp).
+      joint_damping_scale: factor on the arm's damping: the servos' kv and the joints' passive damping.
+    """
+
+    action_latency: jax.Array = ranged(NON_NEGATIVE)
+    servo_gain_scale: jax.Array = ranged(POSITIVE)
+    joint_damping_scale: jax.Array = ranged(NON_NEGATIVE)
+
+
+def robot_defaults() -> dict[str, jax.Array]:
+    """`RobotParams`' defaults, the nominal robot: no latency, the model's own gains and damping."""
+    return {
+        "action_latency": jnp.array(0, jnp.int32),
+        "servo_gain_scale": jnp.array(1.0, jnp.float32),
+        "joint_damping_scale": jnp.array(1.0, jnp.float32),
+    }
 
 
 def with_servo_scales(model: mjx.Model, robot: PandaIds, gain_scale: jax.Array, damping_scale: jax.Array) -> mjx.Model:

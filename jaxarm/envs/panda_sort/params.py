@@ -10,14 +10,16 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxarm.envs.panda.sim_to_real import RobotParams, robot_defaults
 from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
 
 
 @struct.dataclass
-class PandaSortParams:
+class PandaSortParams(RobotParams):
     """Task, action and randomisation parameters (scalars unless noted).
 
     Each field declares its allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all are finite.
+    The robot's own (action latency, servo gain and damping scales) are `RobotParams`', documented there.
 
     The shaping terms pay changes of potentials (see reward.py), so their weights set how strongly each stage
     pulls without creating any reward for lingering; by default one object's stages are worth 1 each.
@@ -69,11 +71,6 @@ class PandaSortParams:
       object_pose_noise: standard deviation of Gaussian noise on each object's observed position (metres), as
         an object detector would; what the observation derives from it (offsets to the tool and the bin)
         follows the noisy position.
-      action_latency: control steps (0.04 s) between a policy's action and the servos receiving it, at most
-        the env's `max_action_latency`; the servos hold the commands of earlier steps meanwhile (an episode
-        starts with zero actions queued).
-      servo_gain_scale: factor on the arm servos' stiffness (kp).
-      joint_damping_scale: factor on the arm's damping: the servos' kv and the joints' passive damping.
     """
 
     max_episode_steps: jax.Array = ranged(COUNT)
@@ -107,9 +104,6 @@ class PandaSortParams:
     home_noise: jax.Array = ranged(NON_NEGATIVE)
     obs_noise: jax.Array = ranged(NON_NEGATIVE)
     object_pose_noise: jax.Array = ranged(NON_NEGATIVE)
-    action_latency: jax.Array = ranged(NON_NEGATIVE)
-    servo_gain_scale: jax.Array = ranged(POSITIVE)
-    joint_damping_scale: jax.Array = ranged(NON_NEGATIVE)
 
     ORDERED: ClassVar = (("size_scale_low", "size_scale_high"),)
     """(low, high) pairs of fields that must satisfy low <= high."""
@@ -153,7 +147,5 @@ def default_params() -> PandaSortParams:
         home_noise=f32(0.02),
         obs_noise=f32(0.0),
         object_pose_noise=f32(0.0),
-        action_latency=jnp.array(0, jnp.int32),
-        servo_gain_scale=f32(1.0),
-        joint_damping_scale=f32(1.0),
+        **robot_defaults(),
     )

@@ -11,14 +11,16 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxarm.envs.panda.sim_to_real import RobotParams, robot_defaults
 from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
 
 
 @struct.dataclass
-class PegInsertParams:
+class PegInsertParams(RobotParams):
     """Task, action and randomisation parameters (scalars, float32 unless noted).
 
     Each field declares its allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all are finite.
+    The robot's own (action latency, servo gain and damping scales) are `RobotParams`', documented there.
 
     Attributes:
       max_episode_steps: time limit (truncation), int32, in env steps of 0.04 s.
@@ -39,10 +41,6 @@ class PegInsertParams:
         (m/s), drawn every step, as sensors would give them.
       hole_pose_noise: standard deviation of Gaussian noise on the observed hole position (metres), drawn every
         step, as a detector would give it.
-      action_latency: control steps (0.04 s) between a policy's action and the tool target moving, at most the
-        env's `max_action_latency` (an episode starts with zero actions queued).
-      servo_gain_scale: factor on the arm servos' stiffness (kp).
-      joint_damping_scale: factor on the arm's damping: the servos' kv and the joints' passive damping.
     """
 
     max_episode_steps: jax.Array = ranged(COUNT)
@@ -60,9 +58,6 @@ class PegInsertParams:
     friction: jax.Array = ranged(NON_NEGATIVE)
     obs_noise: jax.Array = ranged(NON_NEGATIVE)
     hole_pose_noise: jax.Array = ranged(NON_NEGATIVE)
-    action_latency: jax.Array = ranged(NON_NEGATIVE)
-    servo_gain_scale: jax.Array = ranged(POSITIVE)
-    joint_damping_scale: jax.Array = ranged(NON_NEGATIVE)
 
     ORDERED: ClassVar = (("insert_distance", "max_distance"),)
     """(low, high) pairs of fields that must satisfy low <= high."""
@@ -90,7 +85,5 @@ def default_params() -> PegInsertParams:
         friction=f32(0.5),
         obs_noise=f32(0.0),
         hole_pose_noise=f32(0.0),
-        action_latency=jnp.array(0, jnp.int32),
-        servo_gain_scale=f32(1.0),
-        joint_damping_scale=f32(1.0),
+        **robot_defaults(),
     )
