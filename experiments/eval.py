@@ -91,7 +91,6 @@ def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> Non
     """Evaluates `state` under `args.perturb`, prints the table and writes it with its rows and plot."""
     perturbations = dict(robustness.parse_perturbation(text) for text in args.perturb)
     env, env_params = config.make_eval_env()
-    robustness.check_perturbations(env_params, perturbations)
     key = jax.random.PRNGKey(args.seed)
     start = time.perf_counter()
     rows = robustness.evaluate_perturbations(env, env_params, trainer.act, state, key, args.episodes, perturbations)
