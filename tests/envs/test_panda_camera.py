@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from jaxarm.envs.panda.camera import FAR, Camera, Scene, render
+from jaxarm.envs.peg_insert import PegInsert
 
 HEIGHT = 1.0
 """The overhead camera's height above the table."""
@@ -112,3 +113,10 @@ def test_distances_match_mujocos_ray_caster(scene, camera):
             hits += distance >= 0
             np.testing.assert_allclose(depth[row, column], expected, atol=1e-4, err_msg=f"pixel {row}, {column}")
     assert hits > resolution * resolution // 2
+
+
+def test_a_state_env_resolves_no_camera_and_says_so_when_asked_for_an_image():
+    env = PegInsert()
+    assert env.cameras == ()
+    with pytest.raises(ValueError, match="pixel obs_mode"):
+        env.camera_image(env.mjx_model, None)

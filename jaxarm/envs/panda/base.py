@@ -134,11 +134,13 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         check_obs_mode(obs_mode, resolution)
         self.obs_mode = obs_mode
         self.resolution = resolution
-        # Resolved only where they are observed: a state-only scene need not declare them.
-        self.cameras = (
-            () if obs_mode == "state" else tuple(camera.Camera.from_model(mj_model, name) for name in cameras)
-        )
-        self._camera_scene = camera.Scene.from_model(mj_model)
+        # Resolved only where they are observed: a state-only scene need not declare cameras, nor keep to the
+        # primitive geoms the caster draws.
+        self.cameras: tuple[camera.Camera, ...] = ()
+        self._camera_scene: camera.Scene | None = None
+        if obs_mode != "state":
+            self.cameras = tuple(camera.Camera.from_model(mj_model, name) for name in cameras)
+            self._camera_scene = camera.Scene.from_model(mj_model)
         self.impl = resolve_impl(impl)
         if self.impl == Impl.WARP:
             mj_model = copy.copy(mj_model)  # the builders cache their models
@@ -184,6 +186,8 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
     def camera_image(self, model: mjx.Model, data: mjx.Data) -> jax.Array:
         """uint8 [R, R, 2 per camera]: each camera's grayscale, then its depth over `DEPTH_RANGE`, cast in JAX
         (`camera.render`) from the poses in `data` (after `kinematics`) and the episode's geom sizes."""
+        if self._camera_scene is None:
+            raise ValueError('obs_mode "state" has no camera: build the env with a pixel obs_mode')
         channels = []
         for view in self.cameras:
             depth, gray = camera.render(
