@@ -8,6 +8,7 @@ import pytest
 
 from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
 from jaxarm.envs.panda_sort import PandaSort
+from jaxarm.envs.peg_insert import PegInsert
 
 
 @pytest.mark.parametrize(("latency", "applied"), [(0, 0.0), (1, 1.0), (2, 2.0), (5, 2.0)])
@@ -43,3 +44,9 @@ def test_noise_has_the_asked_spread_and_none_at_zero():
     key = jax.random.key(0)
     np.testing.assert_array_equal(with_noise(values, key, jnp.float32(0.0)), values)
     assert float(jnp.std(with_noise(values, key, jnp.float32(0.01)) - values)) == pytest.approx(0.01, rel=0.05)
+
+
+@pytest.mark.parametrize("task", [PandaSort, PegInsert])
+def test_a_negative_latency_bound_is_refused(task):
+    with pytest.raises(ValueError, match="max_action_latency"):
+        task(max_action_latency=-1)

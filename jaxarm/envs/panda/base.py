@@ -104,6 +104,8 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         observation from `camera_image` in the pixel modes.
       resolution: side of the square camera images, pixels.
       cameras: names of the MJCF cameras (mode "fixed") stacked in `camera_image`.
+      max_action_latency: the most control steps of action latency the params may ask for (`action_latency` of
+        `RobotParams`); the state queues that many actions (`initial_action_queue`).
 
     Attributes:
       mj_model: the compiled scene as built (drawing poses a copy of it).
@@ -113,7 +115,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       mjx_model: `mj_model` on the device; tasks replace its per-episode fields in `episode_model`.
       home_tcp_rotation: [3, 3] tool-centre orientation at HOME_QPOS (pointing down, yaw 0).
       start_qpos: [7] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
-      obs_mode, resolution: as given.
+      obs_mode, resolution, max_action_latency: as given.
       cameras: the `camera.Camera`s of `cameras`, resolved once (none in "state" mode).
     """
 
@@ -130,8 +132,12 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         obs_mode: str = "state",
         resolution: int = 64,
         cameras: tuple[str, ...] = CAMERAS,
+        max_action_latency: int = 1,
     ):
         check_obs_mode(obs_mode, resolution)
+        if max_action_latency < 0:
+            raise ValueError(f"max_action_latency must be >= 0, got {max_action_latency}")
+        self.max_action_latency = max_action_latency
         self.obs_mode = obs_mode
         self.resolution = resolution
         # Resolved only where they are observed: a state-only scene need not declare cameras, nor keep to the
@@ -177,6 +183,10 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         if self.impl == Impl.WARP:
             data = pose_fixed_geoms(self.mj_model, model, data)
         return mjx.com_pos(model, data)
+
+    def initial_action_queue(self) -> jax.Array:
+        """float32 [max_action_latency, *action_shape]: an episode's queue of earlier actions, all zero."""
+        return jnp.zeros((self.max_action_latency, *self.spec.action_shape), jnp.float32)
 
     @property
     def image_shape(self) -> tuple[int, int, int]:

@@ -96,8 +96,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         objects starting from it (slots in cyclic order), and the shaping terms follow it alone, so a policy
         always finds the object to work on in the first slot and several objects become the one-object task
         repeated. With one object nothing changes.
-      max_action_latency: the most control steps of action latency the params may ask for (`action_latency`);
-        the state queues that many actions.
+      max_action_latency: the most steps of action latency the params may ask for, as `PandaBase`'s.
       impl, max_envs, contacts_per_env: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
       obs_mode, resolution, cameras: the observation (the module docstring says what each mode holds), as
         `PandaBase`'s.
@@ -126,18 +125,26 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
         if control_mode not in (MODE_EE, MODE_JOINT):
             raise ValueError(f"control_mode must be {MODE_EE!r} or {MODE_JOINT!r}, got {control_mode!r}")
-        if max_action_latency < 0:
-            raise ValueError(f"max_action_latency must be >= 0, got {max_action_latency}")
         self.objects_count = objects_count
         self.control_mode = control_mode
-        self.max_action_latency = max_action_latency
         self.target_first = target_first
         self.layout = make_layout(blocker=blocker, tosser=tosser)
         mj_model = build_model(objects_count, self.layout)
         spawn_centre = (np.array(self.layout.spawn_low) + np.array(self.layout.spawn_high)) / 2
         start_tcp = np.r_[spawn_centre, START_HEIGHT]
         ids = resolve_ids(mj_model, objects_count)
-        super().__init__(mj_model, ids, start_tcp, impl, max_envs, contacts_per_env, obs_mode, resolution, cameras)
+        super().__init__(
+            mj_model,
+            ids,
+            start_tcp,
+            impl,
+            max_envs,
+            contacts_per_env,
+            obs_mode,
+            resolution,
+            cameras,
+            max_action_latency=max_action_latency,
+        )
         self.grasp_qpos = self.solve_posture(np.r_[spawn_centre, GRASP_HEIGHT])
         action_size = 5 if control_mode == MODE_EE else 8
         if obs_mode == "state":
@@ -303,7 +310,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             outcome=outcome,
             target=start.focus.astype(jnp.int32),
             potential=jnp.zeros(4, jnp.float32),
-            queued_actions=jnp.zeros((self.max_action_latency, *self.spec.action_shape), jnp.float32),
+            queued_actions=self.initial_action_queue(),
             noise_key=jax.random.fold_in(key, 2),
         )
         model = self.episode_model(sim, params)

@@ -90,10 +90,8 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     """The Panda inserting a peg held in its hand into a square hole shifted at random every episode.
 
     Args:
-      max_action_latency: the most control steps of action latency the params may ask for (`action_latency`);
-        the state queues that many actions.
-      impl, max_envs, contacts_per_env, obs_mode, resolution, cameras: as `PandaBase`'s (the module docstring
-        says what each observation mode holds).
+      max_action_latency, impl, max_envs, contacts_per_env, obs_mode, resolution, cameras: as `PandaBase`'s
+        (the module docstring says what each observation mode holds).
     """
 
     def __init__(
@@ -106,13 +104,19 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         resolution: int = 64,
         cameras: tuple[str, ...] = CAMERAS,
     ):
-        if max_action_latency < 0:
-            raise ValueError(f"max_action_latency must be >= 0, got {max_action_latency}")
-        self.max_action_latency = max_action_latency
         mj_model = build_model()
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
         super().__init__(
-            mj_model, resolve_ids(mj_model), start_tcp, impl, max_envs, contacts_per_env, obs_mode, resolution, cameras
+            mj_model,
+            resolve_ids(mj_model),
+            start_tcp,
+            impl,
+            max_envs,
+            contacts_per_env,
+            obs_mode,
+            resolution,
+            cameras,
+            max_action_latency=max_action_latency,
         )
         if obs_mode == "state":
             self.spec = EnvSpec(observation_shape=(12,), action_shape=(3,))
@@ -208,7 +212,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             hole=hole,
             initial_distance=zero,
             distance=zero,
-            queued_actions=jnp.zeros((self.max_action_latency, *self.spec.action_shape), jnp.float32),
+            queued_actions=self.initial_action_queue(),
             noise_key=jax.random.fold_in(key, 2),
         )
         model = self.episode_model(sim, params)
