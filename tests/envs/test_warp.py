@@ -209,6 +209,13 @@ def test_scripted_pick_and_place_places_most_objects_on_warp():
     assert scripted_placements(PandaSort(objects_count=1, impl="warp", max_envs=32), 32) >= 0.6
 
 
+def test_warp_kernels_print_no_overflow_warnings():
+    pytest.importorskip("warp")
+    # The overflow bits stay set (the test below raises on them); only the GPU's printing is off.
+    assert PandaSort(impl="warp").mjx_model.opt._impl.warn_overflow == 0
+    assert PegInsert(impl="warp").mjx_model.opt._impl.warn_overflow == 0
+
+
 def test_a_contact_buffer_too_small_for_the_batch_raises():
     pytest.importorskip("warp")
     # Room for one env's worst case, shared by 64 envs whose objects rest on the table (4+ contacts each).

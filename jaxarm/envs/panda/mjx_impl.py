@@ -155,7 +155,7 @@ def put_scene(
         return mjx.put_model(mj_model, impl="jax"), mjx.make_data(mj_model, impl="jax")
     if contacts_per_env is not None and contacts_per_env < 1:
         raise ValueError(f"contacts_per_env must be at least 1, got {contacts_per_env}")
-    model = mjx.put_model(mj_model, impl="warp")
+    model = silence_overflow_warnings(mjx.put_model(mj_model, impl="warp"))
     data = mjx.make_data(
         mj_model,
         impl="warp",
@@ -163,6 +163,18 @@ def put_scene(
         njmax=constraint_capacity(mj_model, contacts_per_env),
     )
     return model, data
+
+
+def silence_overflow_warnings(model: mjx.Model) -> mjx.Model:
+    """Warp `model` whose kernels print no overflow warnings (they still set the overflow bits).
+
+    By default every Warp world prints a line from the GPU whenever its solver stops at its iteration limit,
+    which the Panda scenes' 4 Newton iterations reach by design: thousands of lines per substep in training.
+    Without them a ppo_sorter_warp update (8,192 envs x 16 steps, H100) took 289 ms instead of 393. The bits
+    that matter, dropped contacts or constraint rows, still raise in `check_no_overflow`.
+    """
+    options = model.opt._impl.replace(warn_overflow=0)  # type: ignore[union-attr]  # Warp's own Option fields
+    return model.replace(opt=model.opt.replace(_impl=options))
 
 
 def with_geom_sizes(model: mjx.Model, geom_ids: np.ndarray, size: jax.Array, rbound: jax.Array) -> mjx.Model:
