@@ -48,6 +48,7 @@ def main(argv=None) -> int:
         help="evaluate under each value of each env param (e.g. finger_friction=0.8,1.5 mass_scale=0.5,3)",
     )
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    began = time.perf_counter()
     run_dir = pathlib.Path(args.run_dir)
     try:
         if args.episodes <= 0:
@@ -66,7 +67,8 @@ def main(argv=None) -> int:
             print(
                 f"{run_dir}: success_rate {result['success_rate']:.3f} return_mean {result['return_mean']:.2f} "
                 f"over {result['episodes']} episodes (update {result['checkpoint_update']}; "
-                f"{time.perf_counter() - start:.1f} s with compilation)",
+                f"{time.perf_counter() - start:.1f} s with compilation, after {start - began:.1f} s of devices, "
+                "env and checkpoint)",
                 flush=True,
             )
             path = rundir.eval_path(run_dir, args.episodes, args.seed)
