@@ -23,7 +23,7 @@ from jaxarm.agents.td3.losses import (
     polyak_update,
     smoothed_target_action,
 )
-from jaxarm.agents.td3.networks import Critic, apply_critics
+from jaxarm.agents.td3.networks import Critic, apply_critics, make_networks
 from jaxarm.agents.td3.train import Experience, n_step_experience
 from tests.agents.probe_envs import ConstantRewardEnv, ImageTargetEnv, TargetActionEnv
 
@@ -256,23 +256,46 @@ def test_ddpg_solves_fixed_goal_arm2d():
     assert float(result.successes.mean()) >= 0.9
 
 
-def test_actor_and_critics_learn_from_images_with_random_shifts():
-    # The target (−0.5 or +0.5) shows only as a dark or bright image, which a shift leaves as it is.
-    env = ImageTargetEnv()
-    config = TD3Config(
+def image_probe_config(shared_encoder: bool) -> TD3Config:
+    return TD3Config(
         num_envs=8,
         learning_starts=256,
         total_env_steps=2_000,
         grad_steps_per_update=4,
         encoder="patches",
         encoder_features=16,
+        shared_encoder=shared_encoder,
         random_shift_pad=2,
         **SMALL,
     )
-    trainer, state, _ = train(config, env, env.default_params())
+
+
+@pytest.mark.parametrize("shared_encoder", [False, True])
+def test_actor_and_critics_learn_from_images_with_random_shifts(shared_encoder):
+    # The target (−0.5 or +0.5) shows only as a dark or bright image, which a shift leaves as it is.
+    env = ImageTargetEnv()
+    trainer, state, _ = train(image_probe_config(shared_encoder), env, env.default_params())
     assert state.replay.items.obs["image"].dtype == jnp.uint8
     images = {"image": jnp.stack([env.image(jnp.array(False)), env.image(jnp.array(True))])}
     np.testing.assert_allclose(trainer.act(state, images)[:, 0], [-0.5, 0.5], atol=0.1)
+    assert ("encoder" in state.actor_params["params"]) != shared_encoder
+    assert ("encoder" in state.critic_params) == shared_encoder
+
+
+def test_the_shared_encoder_learns_from_the_critics_alone():
+    env = ImageTargetEnv()
+    networks = make_networks(image_probe_config(shared_encoder=True), 1, camera=True)
+    obs = {"image": jnp.stack([env.image(jnp.array(False)), env.image(jnp.array(True))])}
+    actor_params, critic_params = networks.init(
+        jax.random.PRNGKey(0), jax.random.PRNGKey(1), 2, env.spec.zero_observation(), jnp.zeros(1)
+    )
+
+    def encoder_gradient(objective):
+        gradient = jax.grad(objective)(critic_params)["encoder"]
+        return max(float(jnp.abs(leaf).max()) for leaf in jax.tree.leaves(gradient))
+
+    assert encoder_gradient(lambda params: networks.action(actor_params, networks.encode(params, obs)).sum()) == 0
+    assert encoder_gradient(lambda params: networks.q(params, networks.encode(params, obs), jnp.ones((2, 1))).sum()) > 0
 
 
 def test_random_shift_moves_each_image_by_at_most_the_pad():

@@ -32,6 +32,8 @@ class TD3Config(RunConfig):
       encoder: conv stack each network reads camera observations through, one of
         `jaxarm.agents.common.encoders.ENCODERS`; unused for flat observations.
       encoder_features: width of the encoder's dense output layer.
+      shared_encoder: one encoder for every network, trained by the critics' loss alone, whose features the
+        actor reads without a gradient (DrQ's layout); else one per network.
       random_shift_pad: DrQ's augmentation: the critics' and the actor's training images shifted by up to
         ±this many pixels (0: off; DrQ used 4 at 84×84).
       num_critics: critics trained on the same target; the target takes their minimum (2: TD3, 1: DDPG).
@@ -64,6 +66,7 @@ class TD3Config(RunConfig):
     activation: str = static("relu", ACTIVATION)
     encoder: str = static("nature", ENCODER)
     encoder_features: int = static(256, COUNT)
+    shared_encoder: bool = False
     random_shift_pad: int = static(0, NON_NEGATIVE)
     num_critics: int = static(2, COUNT)
     policy_delay: int = static(2, COUNT)

@@ -1,11 +1,15 @@
 """TD3's deterministic tanh actor and its ensemble of Q critics (one set of params per critic, stacked).
 
-For camera observations each network reads the image through its own conv encoder (`encoders.PixelEncoder`),
-every critic of the ensemble too (DrQ's critics share one; stacked params keep the ensemble a single vmap).
+For camera observations the networks read the image through conv encoders (`encoders.PixelEncoder`), laid out
+by `TD3Networks`: one per network, every critic of the ensemble too (stacked params keep the ensemble a single
+vmap), or, with a shared encoder, one as in DrQ: trained by the critics' loss alone, its features read by every
+critic head and, without a gradient, by the actor.
 """
 
-from collections.abc import Sequence
+import dataclasses
+from collections.abc import Mapping, Sequence
 from functools import partial
+from typing import Any
 
 import flax.linen as nn
 import jax
@@ -13,6 +17,7 @@ import jax.numpy as jnp
 
 from jaxarm.agents.common.encoders import PixelEncoder
 from jaxarm.agents.common.networks import MLP, apply_module
+from jaxarm.agents.td3.config import TD3Config
 from jaxarm.envs import Observation
 
 
@@ -59,3 +64,77 @@ def init_critics(critic: Critic, key: jax.Array, num_critics: int, obs: Observat
 def apply_critics(critic: Critic, params, obs: Observation, action: jax.Array) -> jax.Array:
     """Q of every critic: stacked params, obs [B, ...], action [B, A] -> [num_critics, B]."""
     return jax.vmap(partial(apply_module, critic), in_axes=(0, None, None))(params, obs, action)
+
+
+Params = Mapping[str, Any]
+
+
+@dataclasses.dataclass(frozen=True)
+class TD3Networks:
+    """The actor and the critic ensemble as functions of their params, whatever the encoders' layout.
+
+    Observations reach the heads through `encode` (raw where each network encodes its own, or where they are
+    flat): `action(actor_params, encode(critic_params, obs))` and `q(critic_params, encode(critic_params, obs),
+    action)`, so a shared encoder runs once per batch of observations.
+
+    Attributes:
+      actor: the actor (with its own encoder, or a head of the shared encoder's features).
+      critic: one critic of the ensemble (likewise).
+      shared_encoder: the encoder whose params the critic params hold under "encoder", beside the stacked
+        heads under "heads"; None where each network has its own or there is none.
+    """
+
+    actor: Actor
+    critic: Critic
+    shared_encoder: PixelEncoder | None
+
+    def init(self, actor_key: jax.Array, critic_key: jax.Array, num_critics: int, obs: Observation, action):
+        """(actor params, critic params) for one unbatched observation and action [A]."""
+        if self.shared_encoder is None:
+            return self.actor.init(actor_key, obs), init_critics(self.critic, critic_key, num_critics, obs, action)
+        encoder_key, critic_key = jax.random.split(critic_key)
+        encoder_params = self.shared_encoder.init(encoder_key, obs)
+        features = apply_module(self.shared_encoder, encoder_params, obs)
+        heads = init_critics(self.critic, critic_key, num_critics, features, action)
+        return self.actor.init(actor_key, features), {"encoder": encoder_params, "heads": heads}
+
+    def encode(self, critic_params: Params, obs: Observation) -> Observation | jax.Array:
+        """Observations [B, ...] as the heads read them: the shared encoder's features [B, F + P], else as given."""
+        if self.shared_encoder is None:
+            return obs
+        return apply_module(self.shared_encoder, critic_params["encoder"], obs)
+
+    def action(self, actor_params: Params, encoded: Observation | jax.Array) -> jax.Array:
+        """The actor's action [B, A] in [-1, 1]; the shared encoder gets no gradient from it."""
+        if self.shared_encoder is None:
+            return apply_module(self.actor, actor_params, encoded)
+        return apply_module(self.actor, actor_params, jax.lax.stop_gradient(encoded))
+
+    def q(self, critic_params: Params, encoded: Observation | jax.Array, action: jax.Array) -> jax.Array:
+        """Q of every critic [C, B] at the encoded observations and actions [B, A]."""
+        heads = critic_params if self.shared_encoder is None else critic_params["heads"]
+        return apply_critics(self.critic, heads, encoded, action)
+
+
+def make_networks(config: TD3Config, action_size: int, camera: bool = False) -> TD3Networks:
+    """TD3's networks for `config`'s sizes and activation, acting on [action_size] actions; with `camera`, for
+    dict observations (`config.encoder`, one per network or `config.shared_encoder`)."""
+    if not camera:
+        return TD3Networks(
+            Actor(config.hidden_sizes, action_size, config.activation),
+            Critic(config.hidden_sizes, config.activation),
+            None,
+        )
+    if config.shared_encoder:
+        return TD3Networks(
+            Actor(config.hidden_sizes, action_size, config.activation),
+            Critic(config.hidden_sizes, config.activation),
+            PixelEncoder(config.encoder, config.encoder_features),
+        )
+    return TD3Networks(
+        Actor(
+            config.hidden_sizes, action_size, config.activation, PixelEncoder(config.encoder, config.encoder_features)
+        ),
+        Critic(config.hidden_sizes, config.activation, PixelEncoder(config.encoder, config.encoder_features)),
+        None,
+    )

@@ -23,8 +23,7 @@ from flax import struct
 from jaxarm.agents.common import replay
 from jaxarm.agents.common.augment import shift_observation
 from jaxarm.agents.common.config import HParams
-from jaxarm.agents.common.encoders import PixelEncoder
-from jaxarm.agents.common.networks import apply_module, mlp_layers
+from jaxarm.agents.common.networks import mlp_layers
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.td3.config import TD3Config
 from jaxarm.agents.td3.losses import (
@@ -35,7 +34,7 @@ from jaxarm.agents.td3.losses import (
     polyak_update,
     smoothed_target_action,
 )
-from jaxarm.agents.td3.networks import Actor, Critic, apply_critics, init_critics
+from jaxarm.agents.td3.networks import make_networks
 from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
 from jaxarm.export.numpy_policy import NumpyPolicy
 
@@ -122,11 +121,6 @@ class TD3Metrics:
     q_mean: jax.Array
 
 
-def make_encoder(config: TD3Config, camera: bool) -> PixelEncoder | None:
-    """A fresh conv encoder for one network when the env observes a camera; None for flat observations."""
-    return PixelEncoder(config.encoder, config.encoder_features) if camera else None
-
-
 def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     """Builds the TD3 / DDPG trainer for `config`. `env`, `env_params` replace the config's env (probe envs)."""
     config.validate()
@@ -136,8 +130,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     spec = env.spec
     action_size = spec.action_size
     camera = not spec.flat_observation
-    actor = Actor(config.hidden_sizes, action_size, config.activation, encoder=make_encoder(config, camera))
-    critic = Critic(config.hidden_sizes, config.activation, encoder=make_encoder(config, camera))
+    networks = make_networks(config, action_size, camera)
     shift = camera and config.random_shift_pad > 0
 
     def augment(key: jax.Array, stream: int, obs: Observation) -> Observation:
@@ -155,7 +148,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         return spec.action_low + (action + 1.0) * (0.5 * (spec.action_high - spec.action_low))
 
     def act(state: TD3State, obs: jax.Array) -> jax.Array:
-        return to_env_action(apply_module(actor, state.actor_params, obs))
+        return to_env_action(networks.action(state.actor_params, networks.encode(state.critic_params, obs)))
 
     def numpy_policy(state: TD3State) -> NumpyPolicy:
         """`act` as arrays: the actor's MLP, and the map of its tanh outputs onto the env's action bounds."""
@@ -178,8 +171,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         actor_key, critic_key, env_key, state_key = jax.random.split(key, 4)
         obs = spec.zero_observation()
         action = jnp.zeros((action_size,), jnp.float32)
-        actor_params = actor.init(actor_key, obs)
-        critic_params = init_critics(critic, critic_key, config.num_critics, obs, action)
+        actor_params, critic_params = networks.init(actor_key, critic_key, config.num_critics, obs, action)
         zero = jnp.zeros((), jnp.float32)
         example = Experience(
             obs=obs, action=action, reward=zero, next_obs=obs, terminated=jnp.zeros((), jnp.bool_), discount=zero
@@ -205,7 +197,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             env_state, env_steps = carry
             noise_key, random_key = jax.random.split(step_key)
             shape = (config.num_envs, action_size)
-            policy = apply_module(actor, state.actor_params, env_state.obs)
+            policy = networks.action(state.actor_params, networks.encode(state.critic_params, env_state.obs))
             noisy = jnp.clip(policy + hparams.exploration_noise * jax.random.normal(noise_key, shape), -1.0, 1.0)
             random = jax.random.uniform(random_key, shape, minval=-1.0, maxval=1.0)
             action = jnp.where(env_steps < config.learning_starts, random, noisy)
@@ -233,15 +225,16 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         critic_params, opt_state = carry
         batch, noise_key = inputs
         batch = batch.replace(obs=augment(noise_key, 1, batch.obs), next_obs=augment(noise_key, 2, batch.next_obs))
-        next_action = apply_module(actor, target_actor_params, batch.next_obs)
+        next_encoded = networks.encode(target_critic_params, batch.next_obs)
+        next_action = networks.action(target_actor_params, next_encoded)
         if config.target_smoothing:
             noise = hparams.target_noise * jax.random.normal(noise_key, next_action.shape)
             next_action = smoothed_target_action(next_action, noise, hparams.target_noise_clip)
-        next_q = apply_critics(critic, target_critic_params, batch.next_obs, next_action)
+        next_q = networks.q(target_critic_params, next_encoded, next_action)
         target = critic_target(next_q, batch.reward, batch.terminated, batch.discount, hparams.reward_scale)
 
         def loss_fn(params):
-            q = apply_critics(critic, params, batch.obs, batch.action)
+            q = networks.q(params, networks.encode(params, batch.obs), batch.action)
             return critic_loss(q, target), q
 
         (loss, q), grads = jax.value_and_grad(loss_fn, has_aux=True)(critic_params)
@@ -249,8 +242,10 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         return (optax.apply_updates(critic_params, updates), opt_state), (loss, jnp.mean(q))
 
     def actor_step(params, opt_state, critic_params, obs, hparams: HParams):
+        encoded = networks.encode(critic_params, obs)
+
         def loss_fn(actor_params):
-            q = apply_critics(critic, critic_params, obs, apply_module(actor, actor_params, obs))
+            q = networks.q(critic_params, encoded, networks.action(actor_params, encoded))
             return actor_loss(q[0])
 
         loss, grads = jax.value_and_grad(loss_fn)(params)
