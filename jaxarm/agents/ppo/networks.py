@@ -14,10 +14,10 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 from brax.training import distribution
-from brax.training.acme import running_statistics
 from flax import struct
 
-from jaxarm.agents.common.encoders import EncodedMLP, PixelEncoder, statistics_part, with_statistics_part
+from jaxarm.agents.common import normalizer as observation_normalizer
+from jaxarm.agents.common.encoders import EncodedMLP, PixelEncoder
 from jaxarm.agents.common.networks import MLP, apply_module
 from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.envs import EnvSpec, Observation
@@ -62,11 +62,11 @@ class PPONetworks:
             value_input = shared_features(self.shared_encoder, policy, dummy)
         return NetworkParams(policy=policy, value=self.value_net.init(value_key, value_input))
 
-    def normalize(self, normalizer: running_statistics.RunningStatisticsState, obs: Observation) -> Observation:
+    def normalize(self, normalizer: observation_normalizer.Normalizer, obs: Observation) -> Observation:
         """Observations [B, ...] as the networks see them (a camera observation's proprio part normalised)."""
         if not self.normalize_observations:
             return obs
-        return with_statistics_part(obs, running_statistics.normalize(statistics_part(obs), normalizer))
+        return observation_normalizer.normalize(normalizer, obs)
 
     def policy_params(self, params: NetworkParams, normalizer, obs: Observation) -> jax.Array:
         """The action distribution's parameters [B, 2A] at observations [B, ...]."""

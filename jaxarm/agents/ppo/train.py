@@ -12,11 +12,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
-from brax.training.acme import running_statistics, specs
 from flax import struct
 
+from jaxarm.agents.common import normalizer as observation_normalizer
 from jaxarm.agents.common.config import HParams
-from jaxarm.agents.common.encoders import statistics_part
 from jaxarm.agents.common.networks import mlp_layers
 from jaxarm.agents.common.permutation import random_permutation
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
@@ -42,7 +41,7 @@ class PPOState(struct.PyTreeNode):
 
     params: NetworkParams
     opt_state: optax.OptState
-    normalizer: running_statistics.RunningStatisticsState
+    normalizer: observation_normalizer.Normalizer
     env_state: EnvState
     key: jax.Array
     env_steps: jax.Array
@@ -97,7 +96,6 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
     batch_env = VmapEnv(AutoReset(env), config.num_envs)
     networks = make_networks(config, env.spec.action_size, camera=not env.spec.flat_observation)
     action_dist = networks.action_dist
-    statistics_shape = statistics_part(env.spec.zero_observation()).shape
 
     def init(key, hparams: HParams) -> PPOState:
         policy_key, value_key, env_key, run_key = jax.random.split(key, 4)
@@ -105,7 +103,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         return PPOState(
             params=params,
             opt_state=make_optimizer(hparams, hparams.learning_rate).init(params),
-            normalizer=running_statistics.init_state(specs.Array(statistics_shape, jnp.float32)),
+            normalizer=observation_normalizer.init(env.spec),
             env_state=batch_env.reset(env_key, env_params),
             key=run_key,
             env_steps=jnp.zeros((), jnp.int32),
@@ -152,7 +150,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         """(normaliser updated with the rollout's observations, [T·B] training samples with GAE targets)."""
         normalizer = state.normalizer
         if config.normalize_observations:
-            normalizer = running_statistics.update(normalizer, statistics_part(rollout.obs))
+            normalizer = observation_normalizer.update(normalizer, rollout.obs)
         values = networks.value(state.params, normalizer, rollout.obs)
         next_values = networks.value(state.params, normalizer, rollout.final_obs)
         advantages, targets = losses.gae(
@@ -230,19 +228,17 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         """`act` as arrays: the policy MLP (its first A outputs are the Gaussian's mean) and the normaliser."""
         if not env.spec.flat_observation:
             raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
-        obs_size = env.spec.observation_size
         kernels, biases = mlp_layers(state.params.policy)
-        if config.normalize_observations:
-            mean, std = np.asarray(state.normalizer.mean), np.asarray(state.normalizer.std)
-        else:
-            mean, std = np.zeros(obs_size), np.ones(obs_size)
+        mean, std = observation_normalizer.numpy_mean_std(
+            state.normalizer, config.normalize_observations, env.spec.observation_size
+        )
         action_size = env.spec.action_size
         return NumpyPolicy(
             kernels=kernels,
             biases=biases,
             activation=config.activation,
-            obs_mean=mean.astype(np.float32),
-            obs_std=std.astype(np.float32),
+            obs_mean=mean,
+            obs_std=std,
             action_offset=np.zeros(action_size, np.float32),
             action_scale=np.ones(action_size, np.float32),
         )
