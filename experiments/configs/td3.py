@@ -119,9 +119,11 @@ def td3_peg_pixels() -> TD3Config:
 def td3_sorter() -> TD3Config:
     # The env settings and training-only curricula of ppo_sorter (experiments/configs/ppo.py says why);
     # rewards scaled as there. Off-policy learning reuses each transition: 256 envs and 16 gradient steps
-    # of 512 per update replay every transition ~32 times.
+    # of 512 per update replay every transition ~32 times. Observations standardised as PPO's are (positions in
+    # metres beside velocities and finger widths); not yet trained so.
     return TD3Config(
         env="panda_sort",
+        normalize_observations=True,
         env_params=SORTER_ENV_PARAMS,
         eval_env_params=SORTER_EVAL_ENV_PARAMS,
         num_envs=256,

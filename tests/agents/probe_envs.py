@@ -2,7 +2,9 @@
 
 Each isolates one thing a learner can get wrong:
 - `TargetActionEnv`: one step, reward −Σ(a − obs)²; the optimal action is the observation itself and the
-  optimal value is 0. Tests that the policy learns an observation-dependent continuous action.
+  optimal value is 0. Tests that the policy learns an observation-dependent continuous action. With
+  `obs_offset` and `obs_scale` the env shows offset + scale · target instead (badly scaled inputs, for
+  observation normalisers).
 - `ImageTargetEnv`: `TargetActionEnv` seen through a camera: one step, the target is −0.5 or +0.5 and shows only
   as a dark or bright uint8 image; the optimal action is the target. Tests that a learner reads images.
 - `ConstantRewardEnv`: constant observation, reward `reward` every step, episodes of `max_episode_steps`
@@ -21,7 +23,7 @@ from jaxarm.envs.observation import IMAGE
 
 @struct.dataclass
 class ProbeSim:
-    """Probe state: the observation the episode shows (fixed within an episode)."""
+    """Probe state: what the episode shows (fixed within an episode): the target, for `TargetActionEnv`."""
 
     obs: jax.Array
 
@@ -35,10 +37,13 @@ class TargetActionParams:
 
 
 class TargetActionEnv(Env[TargetActionParams, ProbeSim]):
-    """One-step episodes: obs is a random target in ±target_range, reward −Σ(a − target)², then terminated."""
+    """One-step episodes: a random target in ±target_range, shown as obs = obs_offset + obs_scale · target;
+    reward −Σ(a − target)², then terminated."""
 
-    def __init__(self, action_size: int = 1):
+    def __init__(self, action_size: int = 1, obs_offset: float = 0.0, obs_scale: float = 1.0):
         self.spec = EnvSpec(observation_shape=(action_size,), action_shape=(action_size,))
+        self.obs_offset = obs_offset
+        self.obs_scale = obs_scale
 
     def default_params(self) -> TargetActionParams:
         return TargetActionParams(target_range=jnp.array(0.5, jnp.float32), max_episode_steps=jnp.array(1, jnp.int32))
@@ -47,12 +52,12 @@ class TargetActionEnv(Env[TargetActionParams, ProbeSim]):
         target = jax.random.uniform(
             key, self.spec.action_shape, minval=-params.target_range, maxval=params.target_range
         )
-        return ProbeSim(obs=target), target, ()
+        return ProbeSim(obs=target), self.obs_offset + self.obs_scale * target, ()
 
     def _transition(self, sim, action, params):
         return Transition(
             sim=sim,
-            obs=sim.obs,
+            obs=self.obs_offset + self.obs_scale * sim.obs,
             reward=-jnp.sum(jnp.square(action - sim.obs)),
             terminated=jnp.ones((), jnp.bool_),
             success=jnp.ones((), jnp.bool_),

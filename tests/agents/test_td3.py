@@ -214,6 +214,25 @@ def test_actor_learns_observation_dependent_target_action():
     np.testing.assert_allclose(trainer.act(state, targets), targets, atol=0.1)
 
 
+def test_normalised_observations_learn_a_target_shown_far_off_scale():
+    # The target in ±0.5 is shown as 1000 + 100 · target; standardised, the networks see inputs of unit scale.
+    env = TargetActionEnv(action_size=2, obs_offset=1000.0, obs_scale=100.0)
+    config = TD3Config(
+        num_envs=8,
+        learning_starts=256,
+        total_env_steps=16_000,
+        grad_steps_per_update=4,
+        normalize_observations=True,
+        **SMALL,
+    )
+    trainer, state, _ = train(config, env, env.default_params())
+    # Uniform in ±0.5 shown scaled: mean 1000 and std 100 / sqrt(12) per dim.
+    np.testing.assert_allclose(state.normalizer.mean, [1000.0, 1000.0], atol=2.0)
+    np.testing.assert_allclose(state.normalizer.std, [100 / np.sqrt(12)] * 2, rtol=0.05)
+    targets = jax.random.uniform(jax.random.PRNGKey(5), (64, 2), minval=-0.5, maxval=0.5)
+    np.testing.assert_allclose(trainer.act(state, 1000.0 + 100.0 * targets), targets, atol=0.1)
+
+
 # Whole runs
 
 

@@ -1,6 +1,6 @@
 """`python -m experiments.export`: every exported form of a PPO and a TD3 policy acts as `trainer.act` does.
 
-The learner states are built directly (random networks, PPO with a random observation normaliser) and
+The learner states are built directly (random networks and a random observation normaliser) and
 checkpointed into a run directory, as a run would leave them: exporting needs no training.
 """
 
@@ -34,6 +34,9 @@ CONFIGS = {
         activation="swish",
     ),
     "td3": TD3Config(num_envs=4, total_env_steps=16, hidden_sizes=(32, 32), buffer_size=64, batch_size=8),
+    "td3_normalized": TD3Config(
+        num_envs=4, total_env_steps=16, hidden_sizes=(32, 32), buffer_size=64, batch_size=8, normalize_observations=True
+    ),
 }
 
 
@@ -47,16 +50,20 @@ def perturbed(tree, key, scale: float):
 
 
 def learner_state(name: str, trainer, config):
+    """A fresh state with perturbed policy weights and a random observation normaliser (which a learner that
+    does not normalise ignores)."""
     state = trainer.init(jax.random.PRNGKey(0), config.hparams())
-    if name == "td3":
-        return state.replace(actor_params=perturbed(state.actor_params, jax.random.PRNGKey(1), 0.3))
     obs_size = state.normalizer.mean.shape[0]
-    normalizer = state.normalizer.replace(
-        mean=jax.random.normal(jax.random.PRNGKey(2), (obs_size,)),
-        std=jax.random.uniform(jax.random.PRNGKey(3), (obs_size,), minval=0.2, maxval=3.0),
+    state = state.replace(
+        normalizer=state.normalizer.replace(
+            mean=jax.random.normal(jax.random.PRNGKey(2), (obs_size,)),
+            std=jax.random.uniform(jax.random.PRNGKey(3), (obs_size,), minval=0.2, maxval=3.0),
+        )
     )
+    if name.startswith("td3"):
+        return state.replace(actor_params=perturbed(state.actor_params, jax.random.PRNGKey(1), 0.3))
     params = dataclasses.replace(state.params, policy=perturbed(state.params.policy, jax.random.PRNGKey(1), 0.3))
-    return state.replace(params=params, normalizer=normalizer)
+    return state.replace(params=params)
 
 
 @pytest.fixture(scope="module", params=list(CONFIGS))

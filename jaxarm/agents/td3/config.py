@@ -27,6 +27,8 @@ class TD3Config(RunConfig):
       target_noise: std of the target-policy smoothing noise (used only if `target_smoothing`).
       target_noise_clip: the smoothing noise is clipped to ±this.
       reward_scale: rewards are multiplied by this in the critic target.
+      normalize_observations: the networks read observations standardised by a running mean and std (brax's;
+        of a camera observation, its proprio part), updated with every collected step; replay keeps them raw.
       hidden_sizes: hidden layer widths of the actor and of each critic.
       activation: hidden-layer activation, one of `jaxarm.agents.common.networks.ACTIVATIONS`.
       encoder: conv stack each network reads camera observations through, one of
@@ -62,6 +64,7 @@ class TD3Config(RunConfig):
     target_noise_clip: float = dynamic(0.5, NON_NEGATIVE)
     reward_scale: float = dynamic(1.0, POSITIVE)
 
+    normalize_observations: bool = False
     hidden_sizes: tuple[int, ...] = static((256, 256), COUNT)
     activation: str = static("relu", ACTIVATION)
     encoder: str = static("nature", ENCODER)

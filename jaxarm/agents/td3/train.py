@@ -6,8 +6,10 @@ buffer, then run `grad_steps_per_update` gradient steps in blocks of `policy_del
 by one actor step and one Polyak step of both target networks. Camera observations are stored as uint8 frames
 and read through conv encoders (networks.py), with DrQ's random shift on training batches when
 `random_shift_pad` > 0. With `n_step` > 1 each stored transition carries the discounted rewards of up to n
-steps of its rollout (losses.n_step_returns). Hyper-parameters arrive as `HParams` data, so
-`jax.vmap(make_train(trainer))(keys, hparams)` trains seeds × hyper-parameters at once.
+steps of its rollout (losses.n_step_returns). With `normalize_observations` the networks read observations
+standardised by running statistics of every collected step (the replay keeps them raw). Hyper-parameters
+arrive as `HParams` data, so `jax.vmap(make_train(trainer))(keys, hparams)` trains seeds × hyper-parameters
+at once.
 """
 
 import dataclasses
@@ -20,6 +22,7 @@ import numpy as np
 import optax
 from flax import struct
 
+from jaxarm.agents.common import normalizer as observation_normalizer
 from jaxarm.agents.common import replay
 from jaxarm.agents.common.augment import shift_observation
 from jaxarm.agents.common.config import HParams
@@ -87,6 +90,8 @@ class TD3State(struct.PyTreeNode):
       target_critic_params: Polyak-averaged critics, [num_critics, ...].
       actor_opt_state: Adam state of the actor.
       critic_opt_state: Adam state of the critics.
+      normalizer: running mean and std of the collected observations (updated only with
+        `normalize_observations`).
       replay: the replay buffer of `Experience`.
       env_state: the [num_envs] auto-resetting envs.
       key: PRNG key (raw uint32).
@@ -100,6 +105,7 @@ class TD3State(struct.PyTreeNode):
     target_critic_params: Mapping[str, Any]
     actor_opt_state: optax.OptState
     critic_opt_state: optax.OptState
+    normalizer: observation_normalizer.Normalizer
     replay: replay.ReplayState
     env_state: EnvState
     key: jax.Array
@@ -147,21 +153,29 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     def to_env_action(action):
         return spec.action_low + (action + 1.0) * (0.5 * (spec.action_high - spec.action_low))
 
+    def standardized(normalizer: observation_normalizer.Normalizer, obs: Observation) -> Observation:
+        """Observations [B, ...] as the networks read them: standardised where the config normalises them."""
+        return observation_normalizer.normalize(normalizer, obs) if config.normalize_observations else obs
+
     def act(state: TD3State, obs: jax.Array) -> jax.Array:
-        return to_env_action(networks.action(state.actor_params, networks.encode(state.critic_params, obs)))
+        encoded = networks.encode(state.critic_params, standardized(state.normalizer, obs))
+        return to_env_action(networks.action(state.actor_params, encoded))
 
     def numpy_policy(state: TD3State) -> NumpyPolicy:
         """`act` as arrays: the actor's MLP, and the map of its tanh outputs onto the env's action bounds."""
         if camera:
             raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
         kernels, biases = mlp_layers(state.actor_params)
+        obs_mean, obs_std = observation_normalizer.numpy_mean_std(
+            state.normalizer, config.normalize_observations, spec.observation_size
+        )
         half_range = 0.5 * (spec.action_high - spec.action_low)
         return NumpyPolicy(
             kernels=kernels,
             biases=biases,
             activation=config.activation,
-            obs_mean=np.zeros(spec.observation_size, np.float32),
-            obs_std=np.ones(spec.observation_size, np.float32),
+            obs_mean=obs_mean,
+            obs_std=obs_std,
             action_offset=np.full(action_size, spec.action_low + half_range, np.float32),
             action_scale=np.full(action_size, half_range, np.float32),
         )
@@ -183,6 +197,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             target_critic_params=critic_params,
             actor_opt_state=optimizer_state_init(actor_params),
             critic_opt_state=optimizer_state_init(critic_params),
+            normalizer=observation_normalizer.init(spec),
             replay=replay.init(example, config.buffer_size),
             env_state=batch_env.reset(env_key, env_params),
             key=state_key,
@@ -197,7 +212,8 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             env_state, env_steps = carry
             noise_key, random_key = jax.random.split(step_key)
             shape = (config.num_envs, action_size)
-            policy = networks.action(state.actor_params, networks.encode(state.critic_params, env_state.obs))
+            obs = standardized(state.normalizer, env_state.obs)
+            policy = networks.action(state.actor_params, networks.encode(state.critic_params, obs))
             noisy = jnp.clip(policy + hparams.exploration_noise * jax.random.normal(noise_key, shape), -1.0, 1.0)
             random = jax.random.uniform(random_key, shape, minval=-1.0, maxval=1.0)
             action = jnp.where(env_steps < config.learning_starts, random, noisy)
@@ -221,10 +237,13 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         flat = jax.tree.map(lambda leaf: leaf.reshape(-1, *leaf.shape[2:]), experience)
         return env_state, env_steps, flat, states
 
-    def critic_step(carry, inputs, hparams: HParams, target_actor_params, target_critic_params):
+    def critic_step(carry, inputs, hparams: HParams, normalizer, target_actor_params, target_critic_params):
         critic_params, opt_state = carry
         batch, noise_key = inputs
-        batch = batch.replace(obs=augment(noise_key, 1, batch.obs), next_obs=augment(noise_key, 2, batch.next_obs))
+        batch = batch.replace(
+            obs=standardized(normalizer, augment(noise_key, 1, batch.obs)),
+            next_obs=standardized(normalizer, augment(noise_key, 2, batch.next_obs)),
+        )
         next_encoded = networks.encode(target_critic_params, batch.next_obs)
         next_action = networks.action(target_actor_params, next_encoded)
         if config.target_smoothing:
@@ -261,7 +280,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         )
         (critic_params, critic_opt_state), (critic_losses, q_means) = jax.lax.scan(
             lambda carry, inputs: critic_step(
-                carry, inputs, hparams, state.target_actor_params, state.target_critic_params
+                carry, inputs, hparams, state.normalizer, state.target_actor_params, state.target_critic_params
             ),
             (state.critic_params, state.critic_opt_state),
             (batches, jax.random.split(noise_key, config.policy_delay)),
@@ -270,7 +289,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             state.actor_params,
             state.actor_opt_state,
             critic_params,
-            augment(key, 1, jax.tree.map(lambda leaf: leaf[-1], batches.obs)),
+            standardized(state.normalizer, augment(key, 1, jax.tree.map(lambda leaf: leaf[-1], batches.obs))),
             hparams,
         )
         state = state.replace(
@@ -298,7 +317,11 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     def update(state: TD3State, hparams: HParams) -> tuple[TD3State, TD3Metrics]:
         key, collect_key, learn_key = jax.random.split(state.key, 3)
         env_state, env_steps, experience, states = collect(state, hparams, collect_key)
+        normalizer = state.normalizer
+        if config.normalize_observations:
+            normalizer = observation_normalizer.update(normalizer, experience.obs)
         state = state.replace(
+            normalizer=normalizer,
             env_state=env_state,
             env_steps=env_steps,
             key=key,
