@@ -119,22 +119,12 @@ class TD3Networks:
 def make_networks(config: TD3Config, action_size: int, camera: bool = False) -> TD3Networks:
     """TD3's networks for `config`'s sizes and activation, acting on [action_size] actions; with `camera`, for
     dict observations (`config.encoder`, one per network or `config.shared_encoder`)."""
-    if not camera:
-        return TD3Networks(
-            Actor(config.hidden_sizes, action_size, config.activation),
-            Critic(config.hidden_sizes, config.activation),
-            None,
-        )
-    if config.shared_encoder:
-        return TD3Networks(
-            Actor(config.hidden_sizes, action_size, config.activation),
-            Critic(config.hidden_sizes, config.activation),
-            PixelEncoder(config.encoder, config.encoder_features),
-        )
+    encoder = PixelEncoder(config.encoder, config.encoder_features) if camera else None
+    shared = encoder if config.shared_encoder else None
+    # A flax module is a definition: one serves every network that has its own encoder, each with its own params.
+    own = None if shared else encoder
     return TD3Networks(
-        Actor(
-            config.hidden_sizes, action_size, config.activation, PixelEncoder(config.encoder, config.encoder_features)
-        ),
-        Critic(config.hidden_sizes, config.activation, PixelEncoder(config.encoder, config.encoder_features)),
-        None,
+        Actor(config.hidden_sizes, action_size, config.activation, own),
+        Critic(config.hidden_sizes, config.activation, own),
+        shared,
     )
