@@ -1,5 +1,8 @@
 """The learners' running observation normaliser: brax's running mean and std of each observation's
-`statistics_part` (a flat observation whole, a camera observation's proprio part; images never)."""
+`statistics_part` (a flat observation whole, a camera observation's proprio part; images never).
+
+Every function takes the learner's `enabled` switch (its `normalize_observations`): switched off, statistics
+stay at their start and observations pass unchanged."""
 
 from typing import TypeAlias
 
@@ -21,13 +24,18 @@ def init(spec: EnvSpec) -> Normalizer:
     return jax.tree.map(jnp.asarray, running_statistics.init_state(specs.Array(shape, jnp.float32)))
 
 
-def update(normalizer: Normalizer, obs: Observation) -> Normalizer:
-    """`normalizer` with observations [..., ...] (any leading batch axes) added."""
+def update(normalizer: Normalizer, enabled: bool, obs: Observation) -> Normalizer:
+    """`normalizer` with observations [..., ...] (any leading batch axes) added where `enabled`."""
+    if not enabled:
+        return normalizer
     return running_statistics.update(normalizer, statistics_part(obs))
 
 
-def normalize(normalizer: Normalizer, obs: Observation) -> Observation:
-    """Observations [B, ...] with their statistics part standardised by `normalizer`."""
+def normalize(normalizer: Normalizer, enabled: bool, obs: Observation) -> Observation:
+    """Observations [B, ...] as the networks read them: their statistics part standardised by `normalizer` where
+    `enabled`, else as they are."""
+    if not enabled:
+        return obs
     return with_statistics_part(obs, running_statistics.normalize(statistics_part(obs), normalizer))
 
 

@@ -64,9 +64,7 @@ class PPONetworks:
 
     def normalize(self, normalizer: observation_normalizer.Normalizer, obs: Observation) -> Observation:
         """Observations [B, ...] as the networks see them (a camera observation's proprio part normalised)."""
-        if not self.normalize_observations:
-            return obs
-        return observation_normalizer.normalize(normalizer, obs)
+        return observation_normalizer.normalize(normalizer, self.normalize_observations, obs)
 
     def policy_params(self, params: NetworkParams, normalizer, obs: Observation) -> jax.Array:
         """The action distribution's parameters [B, 2A] at observations [B, ...]."""

@@ -148,9 +148,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
 
     def advantage_samples(state: PPOState, rollout: Rollout, hparams: HParams):
         """(normaliser updated with the rollout's observations, [T·B] training samples with GAE targets)."""
-        normalizer = state.normalizer
-        if config.normalize_observations:
-            normalizer = observation_normalizer.update(normalizer, rollout.obs)
+        normalizer = observation_normalizer.update(state.normalizer, config.normalize_observations, rollout.obs)
         values = networks.value(state.params, normalizer, rollout.obs)
         next_values = networks.value(state.params, normalizer, rollout.final_obs)
         advantages, targets = losses.gae(

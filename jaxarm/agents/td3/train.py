@@ -155,7 +155,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
 
     def standardized(normalizer: observation_normalizer.Normalizer, obs: Observation) -> Observation:
         """Observations [B, ...] as the networks read them: standardised where the config normalises them."""
-        return observation_normalizer.normalize(normalizer, obs) if config.normalize_observations else obs
+        return observation_normalizer.normalize(normalizer, config.normalize_observations, obs)
 
     def act(state: TD3State, obs: jax.Array) -> jax.Array:
         encoded = networks.encode(state.critic_params, standardized(state.normalizer, obs))
@@ -317,9 +317,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     def update(state: TD3State, hparams: HParams) -> tuple[TD3State, TD3Metrics]:
         key, collect_key, learn_key = jax.random.split(state.key, 3)
         env_state, env_steps, experience, states = collect(state, hparams, collect_key)
-        normalizer = state.normalizer
-        if config.normalize_observations:
-            normalizer = observation_normalizer.update(normalizer, experience.obs)
+        normalizer = observation_normalizer.update(state.normalizer, config.normalize_observations, experience.obs)
         state = state.replace(
             normalizer=normalizer,
             env_state=env_state,
