@@ -31,6 +31,7 @@ from mujoco import mjx
 from jaxarm.envs.base import Env, EnvSpec, Observation, Transition
 from jaxarm.envs.observation import observation_parts, pixel_observation
 from jaxarm.envs.panda.base import CAMERAS, PandaBase
+from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import Impl, with_geom_sizes
 from jaxarm.envs.panda.robot import FINGER_OPEN, rotation_about_z, tcp_jacobian, yaw_of_quaternion, yaw_of_rotation
 from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
@@ -100,6 +101,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
       impl, max_envs, contacts_per_env: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
       obs_mode, resolution, cameras: the observation (the module docstring says what each mode holds), as
         `PandaBase`'s.
+      dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
+        published values, `jaxarm.envs.panda.franka_dynamics`).
     """
 
     # jaxlib 0.10.2's CPU runtime deadlocked on this env at 256 envs (one object) and 128 (three): two batched
@@ -120,6 +123,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         obs_mode: str = "state",
         resolution: int = 64,
         cameras: tuple[str, ...] = CAMERAS,
+        dynamics: str = NOMINAL,
     ):
         if not 1 <= objects_count <= 5:
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
@@ -129,7 +133,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self.control_mode = control_mode
         self.target_first = target_first
         self.layout = make_layout(blocker=blocker, tosser=tosser)
-        mj_model = build_model(objects_count, self.layout)
+        mj_model = build_model(objects_count, self.layout, dynamics)
         spawn_centre = (np.array(self.layout.spawn_low) + np.array(self.layout.spawn_high)) / 2
         start_tcp = np.r_[spawn_centre, START_HEIGHT]
         ids = resolve_ids(mj_model, objects_count)

@@ -26,6 +26,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from jaxarm.envs.panda.franka_dynamics import NOMINAL, set_dynamics
 from jaxarm.envs.panda.robot import PandaIds, resolve_panda_ids
 from jaxarm.envs.panda_sort.layout import Layout
 
@@ -98,9 +99,11 @@ def _add_object(worldbody, slot: int) -> None:
     body.add_geom(name=f"object{slot}_cylinder", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[s, s, 0], **common)
 
 
-def build_spec(objects_count: int, layout: Layout) -> mujoco.MjSpec:
-    """The scene as an MjSpec: robot and table from assets/scene.xml, the rest from `layout`."""
+def build_spec(objects_count: int, layout: Layout, dynamics: str = NOMINAL) -> mujoco.MjSpec:
+    """The scene as an MjSpec: robot and table from assets/scene.xml with the robot's `dynamics`
+    (`franka_dynamics.DYNAMICS`), the rest from `layout`."""
     spec = mujoco.MjSpec.from_file(str(ASSETS / "scene.xml"))
+    set_dynamics(spec, dynamics)
     world = spec.worldbody
     static = [f"table{k}" for k in range(len(layout.tables))]
     for name, box in zip(static, layout.tables, strict=True):
@@ -133,9 +136,10 @@ def build_spec(objects_count: int, layout: Layout) -> mujoco.MjSpec:
 
 
 @functools.cache
-def build_model(objects_count: int, layout: Layout) -> mujoco.MjModel:
-    """Compiled model for `objects_count` object slots in `layout` (cached: both arguments are hashable)."""
-    return build_spec(objects_count, layout).compile()
+def build_model(objects_count: int, layout: Layout, dynamics: str = NOMINAL) -> mujoco.MjModel:
+    """Compiled model for `objects_count` object slots in `layout` with the robot's `dynamics` (cached: every
+    argument is hashable)."""
+    return build_spec(objects_count, layout, dynamics).compile()
 
 
 def resolve_ids(model: mujoco.MjModel, objects_count: int) -> ModelIds:

@@ -27,6 +27,7 @@ from mujoco import mjx
 from jaxarm.envs.base import EnvSpec, Observation, Transition
 from jaxarm.envs.observation import observation_parts, pixel_observation
 from jaxarm.envs.panda.base import CAMERAS, PandaBase
+from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, with_geom_sizes
 from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
 from jaxarm.envs.peg_insert.model import (
@@ -92,6 +93,8 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     Args:
       max_action_latency, impl, max_envs, contacts_per_env, obs_mode, resolution, cameras: as `PandaBase`'s
         (the module docstring says what each observation mode holds).
+      dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
+        published values, `jaxarm.envs.panda.franka_dynamics`).
     """
 
     def __init__(
@@ -103,8 +106,9 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         obs_mode: str = "state",
         resolution: int = 64,
         cameras: tuple[str, ...] = CAMERAS,
+        dynamics: str = NOMINAL,
     ):
-        mj_model = build_model()
+        mj_model = build_model(dynamics=dynamics)
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
         super().__init__(
             mj_model,

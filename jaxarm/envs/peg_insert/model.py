@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from jaxarm.envs.panda.franka_dynamics import NOMINAL, set_dynamics
 from jaxarm.envs.panda.robot import PandaIds, resolve_panda_ids
 
 ASSETS = Path(__file__).parent / "assets"
@@ -109,9 +110,11 @@ def _add_block(spec: mujoco.MjSpec, clearance: float) -> None:
         block.add_geom(name=name, pos=centre, size=half, **common)
 
 
-def build_spec(clearance: float) -> mujoco.MjSpec:
-    """The scene as an MjSpec: robot, table and camera from assets/scene.xml, then the peg and the block."""
+def build_spec(clearance: float, dynamics: str = NOMINAL) -> mujoco.MjSpec:
+    """The scene as an MjSpec: robot, table and camera from assets/scene.xml with the robot's `dynamics`
+    (`franka_dynamics.DYNAMICS`), then the peg and the block."""
     spec = mujoco.MjSpec.from_file(str(ASSETS / "scene.xml"))
+    set_dynamics(spec, dynamics)
     _add_peg(spec)
     _add_block(spec, clearance)
     spec.add_pair(geomname1="table", geomname2="peg", condim=3, friction=PEG_FRICTION)
@@ -121,9 +124,10 @@ def build_spec(clearance: float) -> mujoco.MjSpec:
 
 
 @functools.cache
-def build_model(clearance: float = 0.001) -> mujoco.MjModel:
-    """Compiled model with the walls at `clearance` (the env replaces them per env from its params)."""
-    return build_spec(clearance).compile()
+def build_model(clearance: float = 0.001, dynamics: str = NOMINAL) -> mujoco.MjModel:
+    """Compiled model with the walls at `clearance` (the env replaces them per env from its params) and the
+    robot's `dynamics` (cached: both arguments are hashable)."""
+    return build_spec(clearance, dynamics).compile()
 
 
 def resolve_ids(model: mujoco.MjModel) -> PegIds:
