@@ -118,6 +118,11 @@ def yaw_of_rotation(rotation: jax.Array) -> jax.Array:
     return jnp.arctan2(rotation[..., 1, 0], rotation[..., 0, 0])
 
 
+def wrapped_angle(angle: jax.Array) -> jax.Array:
+    """[...] angles (radians) -> the same directions in (-pi, pi]."""
+    return jnp.arctan2(jnp.sin(angle), jnp.cos(angle))
+
+
 def yaw_of_quaternion(quat: jax.Array) -> jax.Array:
     """[..., 4] unit quaternions (w, x, y, z) -> [...] heading of the rotated x axis (radians)."""
     w, x, y, z = jnp.moveaxis(quat, -1, 0)

@@ -19,7 +19,7 @@ between steps (qpos, qvel, ctrl, solver warm start), not a whole mjx.Data.
 
 `obs_mode` "pixels" observes {"image": uint8 [R, R, 4]}, grayscale and depth of a fixed camera above the table
 and of the wrist camera (`PandaBase.camera_image`); "pixels+proprio" adds the tool's part of the state
-observation, {"proprio": [21]}; the objects then show only in the images.
+observation, {"proprio": [21]} ([28] with `running_target`); the objects then show only in the images.
 """
 
 import jax
@@ -33,7 +33,14 @@ from jaxarm.envs.observation import observation_parts, pixel_observation
 from jaxarm.envs.panda.base import CAMERAS, PandaBase
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import Impl, with_geom_sizes
-from jaxarm.envs.panda.robot import FINGER_OPEN, rotation_about_z, tcp_jacobian, yaw_of_quaternion, yaw_of_rotation
+from jaxarm.envs.panda.robot import (
+    FINGER_OPEN,
+    rotation_about_z,
+    tcp_jacobian,
+    wrapped_angle,
+    yaw_of_quaternion,
+    yaw_of_rotation,
+)
 from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
 from jaxarm.envs.panda_sort.curriculum import draw_start, place_in_hand
 from jaxarm.envs.panda_sort.layout import make_layout
@@ -67,6 +74,8 @@ MODE_EE = "ee"
 MODE_JOINT = "joint"
 TOOL_OBS_SIZE = 21
 """The tool's part of the observation, after the objects': see `PandaSort._observe`."""
+SERVO_LEAD_OBS_SIZE = 7
+"""What a `running_target` env adds after the tool's part: each arm joint's servo target minus its angle."""
 OBJECT_OBS_SIZE = 26
 """Per object: position 3, quaternion 4, linear and angular velocity 6, one-hot shape 3, size 1, in play 1,
 then what a policy would otherwise have to compute: object − tool centre 3, carry target − object 3, and
@@ -103,6 +112,11 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         `PandaBase`'s.
       dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
         published values, `jaxarm.envs.panda.franka_dynamics`).
+      running_target: an action moves the target the servos chase (the tool-centre pose in `ee` mode, the joint
+        targets in `joint` mode) by `ee_step`, `ee_yaw_step` or `joint_step` per unit, held within `max_lead`,
+        `max_yaw_lead` or `max_joint_lead` of what is measured, so a step's action is the motion it gets once
+        under way; the observation adds the servos' lead (`SERVO_LEAD_OBS_SIZE`). Without it (the default) each
+        step's target starts from the measured pose and the servos cover about a third of the step.
     """
 
     # jaxlib 0.10.2's CPU runtime deadlocked on this env at 256 envs (one object) and 128 (three): two batched
@@ -124,6 +138,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         resolution: int = 64,
         cameras: tuple[str, ...] = CAMERAS,
         dynamics: str = NOMINAL,
+        running_target: bool = False,
     ):
         if not 1 <= objects_count <= 5:
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
@@ -132,6 +147,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self.objects_count = objects_count
         self.control_mode = control_mode
         self.target_first = target_first
+        self.running_target = running_target
+        self.tool_obs_size = TOOL_OBS_SIZE + (SERVO_LEAD_OBS_SIZE if running_target else 0)
         self.layout = make_layout(blocker=blocker, tosser=tosser)
         mj_model = build_model(objects_count, self.layout, dynamics)
         spawn_centre = (np.array(self.layout.spawn_low) + np.array(self.layout.spawn_high)) / 2
@@ -152,10 +169,10 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self.grasp_qpos = self.solve_posture(np.r_[spawn_centre, GRASP_HEIGHT])
         action_size = 5 if control_mode == MODE_EE else 8
         if obs_mode == "state":
-            observation_size = OBJECT_OBS_SIZE * objects_count + TOOL_OBS_SIZE
+            observation_size = OBJECT_OBS_SIZE * objects_count + self.tool_obs_size
             self.spec = EnvSpec(observation_shape=(observation_size,), action_shape=(action_size,))
         else:
-            parts = observation_parts(obs_mode, self.image_shape, TOOL_OBS_SIZE)
+            parts = observation_parts(obs_mode, self.image_shape, self.tool_obs_size)
             self.spec = EnvSpec(observation_parts=parts, action_shape=(action_size,))
 
     def default_params(self) -> PandaSortParams:
@@ -164,14 +181,19 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
     def observation_source_index(self, source: Env) -> np.ndarray:
         """As `Env.observation_source_index`; from a sorter with another object count (same control mode), the
         object rows they share map row to row (with `target_first`, a one-object learner's object becomes the
-        target) and the tool's inputs map onto each other; the extra objects' inputs are new (−1)."""
+        target) and the tool's inputs map onto each other; the extra objects' inputs, and the servos' lead where
+        only this env observes it, are new (−1)."""
         camera = not (self.spec.flat_observation and source.spec.flat_observation)
         if camera or not isinstance(source, PandaSort) or source.control_mode != self.control_mode:
             return super().observation_source_index(source)
         shared = min(source.objects_count, self.objects_count)
         objects = np.full((self.objects_count, OBJECT_OBS_SIZE), -1)
         objects[:shared] = np.arange(shared * OBJECT_OBS_SIZE).reshape(shared, OBJECT_OBS_SIZE)
-        return np.concatenate([objects.ravel(), source.objects_count * OBJECT_OBS_SIZE + np.arange(TOOL_OBS_SIZE)])
+        source_tool = source.objects_count * OBJECT_OBS_SIZE + np.arange(source.tool_obs_size)
+        tool = np.full(self.tool_obs_size, -1)
+        shared_tool = min(source.tool_obs_size, self.tool_obs_size)
+        tool[:shared_tool] = source_tool[:shared_tool]
+        return np.concatenate([objects.ravel(), tool])
 
     # --- the physics model of one env -------------------------------------------------------------
 
@@ -204,16 +226,48 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
     # --- control ------------------------------------------------------------------------------------
 
     def _arm_targets(self, model, data, action, params) -> jax.Array:
-        """[7] arm joint targets from the action: IK towards the displaced and turned tool, or joint deltas."""
+        """[7] arm joint targets from the action: IK towards the displaced and turned tool, or joint deltas;
+        from the measured pose, or with `running_target` from the servos' targets (`data.ctrl`), held within
+        the params' leads of the measured pose."""
         robot = self.ids.robot
+        arm_q = data.qpos[robot.arm_qpos]
         if self.control_mode == MODE_JOINT:
-            arm_q = data.qpos[robot.arm_qpos]
-            return jnp.clip(arm_q + action[:7] * params.joint_step, robot.arm_limits[:, 0], robot.arm_limits[:, 1])
-        target = data.site_xpos[robot.tcp_site] + action[:3] * params.ee_step
+            if self.running_target:
+                joints = data.ctrl[:7] + action[:7] * params.joint_step
+                joints = jnp.clip(joints, arm_q - params.max_joint_lead, arm_q + params.max_joint_lead)
+            else:
+                joints = arm_q + action[:7] * params.joint_step
+            return jnp.clip(joints, robot.arm_limits[:, 0], robot.arm_limits[:, 1])
+        tcp = data.site_xpos[robot.tcp_site]
+        yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
+        if self.running_target:
+            # Differential IK from the servos' targets: what they chase moves by the action alone, so the IK's
+            # one damped step is taken on a small error and its shortfall does not slow the tool.
+            data = self._at_servo_targets(model, data)
+            chased_tcp = data.site_xpos[robot.tcp_site]
+            chased_yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
+            target = jnp.clip(chased_tcp + action[:3] * params.ee_step, tcp - params.max_lead, tcp + params.max_lead)
+            turn = wrapped_angle(chased_yaw + action[3] * params.ee_yaw_step - yaw)
+            target_yaw = yaw + jnp.clip(turn, -params.max_yaw_lead, params.max_yaw_lead)
+        else:
+            target = tcp + action[:3] * params.ee_step
+            target_yaw = yaw + action[3] * params.ee_yaw_step
         target = target.at[2].set(jnp.maximum(target[2], TCP_MIN_Z))
         # The home tool frame has yaw 0, so turning it about z by the target yaw gives a pointing-down target.
-        yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3)) + action[3] * params.ee_yaw_step
-        return self.ik_targets(model, data, target, rotation_about_z(yaw) @ self.home_tcp_rotation, params)
+        rotation = rotation_about_z(target_yaw) @ self.home_tcp_rotation
+        joints = self.ik_targets(model, data, target, rotation, params)
+        if self.running_target:
+            # A second damped step without the posture pull: the first leaves 2-7% of a 1 cm move undone (its
+            # damping, and the pull's leak into the tool's motion), which would slow the tool as much.
+            data = self._at_servo_targets(model, data.replace(ctrl=data.ctrl.at[:7].set(joints)))
+            joints = self.ik_targets(model, data, target, rotation, params.replace(ik_posture_gain=0.0))
+        return joints
+
+    def _at_servo_targets(self, model: mjx.Model, data: mjx.Data) -> mjx.Data:
+        """`data` with the arm posed at its servo targets `data.ctrl[:7]` (kinematics and com-frame quantities,
+        for Jacobians): where the servos are taking the tool."""
+        arm = self.ids.robot.arm_qpos
+        return mjx.com_pos(model, mjx.kinematics(model, data.replace(qpos=data.qpos.at[arm].set(data.ctrl[:7]))))
 
     def _ctrl(self, model, data, action, params) -> jax.Array:
         finger = (action[-1] + 1.0) * (FINGER_OPEN / 2)
@@ -224,11 +278,12 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
     def _observe(
         self, model: mjx.Model, data: mjx.Data, sim: PandaSortSim, params: PandaSortParams, key: jax.Array
     ) -> Observation:
-        """[OBJECT_OBS_SIZE N + 21]: per object (zeros when out of play) OBJECT_OBS_SIZE values, then tool
+        """[OBJECT_OBS_SIZE N + tool_obs_size]: per object (zeros when out of play) OBJECT_OBS_SIZE values, then tool
         centre position 3, orientation quaternion 4, linear and angular velocity 6, finger width 1, and the 7
         arm joint angles (the arm is redundant, so the tool pose alone does not tell its posture or nearness
-        to joint limits). Robot quantities come from `data`, object quantities from `sim`; `key` draws the
-        params' object-pose and observation noise.
+        to joint limits); with `running_target`, then each arm joint's servo target minus its angle (7). Robot
+        quantities come from `data`, object quantities from `sim`; `key` draws the params' object-pose and
+        observation noise.
         """
         robot = self.ids.robot
         pose_key, objects_key, tool_key = jax.random.split(key, 3)
@@ -260,6 +315,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             jnp.sum(sim.qpos[robot.finger_qpos])[None],
             sim.qpos[robot.arm_qpos],
         ]
+        if self.running_target:
+            tool.append(sim.ctrl[:7] - sim.qpos[robot.arm_qpos])
         tool_obs = with_noise(jnp.concatenate(tool), tool_key, params.obs_noise)
         if self.obs_mode != "state":
             return pixel_observation(self.obs_mode, self.camera_image(model, data), tool_obs.astype(jnp.float32))

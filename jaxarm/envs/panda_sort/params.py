@@ -26,11 +26,20 @@ class PandaSortParams(RobotParams):
 
     Attributes:
       max_episode_steps: time limit (truncation), in env steps of 0.04 s.
-      ee_step: end-effector displacement per unit action per axis (metres) in `ee` mode. 2 cm: carried at
-        2 cm per step, with full reversals, every shape and size stayed in the grip; at 2.5 cm the largest
-        cube and cylinders slipped out (the servos' accelerations outrun the fingers' friction).
-      ee_yaw_step: rotation of the hand about the vertical per unit action (radians) in `ee` mode.
-      joint_step: joint target change per unit action (radians) in `joint` mode.
+      ee_step: tool-centre target displacement per unit action per axis (metres) in `ee` mode, from the
+        measured tool centre: the servos cover about a third of it in a step (6.4-6.8 mm for 2 cm). With a
+        `running_target` env it moves the target the servos chase, so the tool moves this far per step once
+        under way. 2 cm: carried at 2 cm of target per step, with full reversals, every shape and size stayed
+        in the grip; at 2.5 cm the largest cube and cylinders slipped out (the servos' accelerations outrun
+        the fingers' friction).
+      ee_yaw_step: turn of the hand's target about the vertical per unit action (radians) in `ee` mode, as
+        `ee_step`.
+      joint_step: joint target change per unit action (radians) in `joint` mode, as `ee_step`.
+      max_lead: with `running_target`, how far the tool-centre target may lead the measured tool centre per axis
+        (metres): three steps of `ee_step` are under way at a steady speed, so it stands above that; a blocked
+        tool presses no harder than this lead makes its servos.
+      max_yaw_lead: the same for the hand's yaw (radians).
+      max_joint_lead: the same for each joint's target in `joint` mode (radians).
       ik_damping: damping λ of the damped-least-squares IK (metres-radians).
       ik_posture_gain: null-space pull of the arm towards its home posture per step (fraction of the error).
       step_reward: reward every step (a time cost).
@@ -77,6 +86,9 @@ class PandaSortParams(RobotParams):
     ee_step: jax.Array = ranged(POSITIVE)
     ee_yaw_step: jax.Array = ranged(NON_NEGATIVE)
     joint_step: jax.Array = ranged(POSITIVE)
+    max_lead: jax.Array = ranged(POSITIVE)
+    max_yaw_lead: jax.Array = ranged(POSITIVE)
+    max_joint_lead: jax.Array = ranged(POSITIVE)
     ik_damping: jax.Array = ranged(POSITIVE)
     ik_posture_gain: jax.Array = ranged(UNIT_INTERVAL)
     step_reward: jax.Array = ranged()
@@ -120,6 +132,9 @@ def default_params() -> PandaSortParams:
         ee_step=f32(0.02),
         ee_yaw_step=f32(0.2),
         joint_step=f32(0.1),
+        max_lead=f32(0.08),
+        max_yaw_lead=f32(0.8),
+        max_joint_lead=f32(0.4),
         ik_damping=f32(0.05),
         ik_posture_gain=f32(0.05),
         step_reward=f32(-1.0),
