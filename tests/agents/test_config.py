@@ -189,3 +189,11 @@ def test_an_edited_config_json_is_refused_on_reading(tmp_path):
     path.write_text(json.dumps({**data, "env_params": [["goal_size", -40]]}))
     with pytest.raises(ValueError, match="env_params.goal_size must be > 0"):
         rundir.read_config(tmp_path)
+
+
+def test_env_kwargs_take_true_and_false_as_the_config_fields_do():
+    # "false" kept as a string would build an env with a truthy flag.
+    sorter = PPOConfig(env="panda_sort")
+    config = apply_overrides(sorter, ["env_kwargs.tosser=false", "env_kwargs.running_target=True"])
+    assert dict(config.env_kwargs) == {"tosser": False, "running_target": True}
+    assert parse_literal("FALSE") is False and parse_literal("0.5") == 0.5 and parse_literal("ee") == "ee"

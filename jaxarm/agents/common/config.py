@@ -219,7 +219,10 @@ def parse_value(text: str, annotation) -> Any:
 
 
 def parse_literal(text: str) -> Any:
-    """Parses an env param or kwarg value: a Python literal (number, list, bool) or else the string."""
+    """Parses an env param or kwarg value: a Python literal (number, list, bool; true and false too, as the
+    config's own bool fields take them) or else the string."""
+    if text.lower() in ("true", "false"):
+        return text.lower() == "true"
     try:
         return ast.literal_eval(text)
     except (ValueError, SyntaxError):
