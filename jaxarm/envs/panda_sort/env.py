@@ -230,8 +230,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         from the measured pose, or with `running_target` from the servos' targets (`data.ctrl`), held within
         the params' leads of the measured pose."""
         robot = self.ids.robot
-        arm_q = data.qpos[robot.arm_qpos]
         if self.control_mode == MODE_JOINT:
+            arm_q = data.qpos[robot.arm_qpos]
             if self.running_target:
                 joints = data.ctrl[:7] + action[:7] * params.joint_step
                 joints = jnp.clip(joints, arm_q - params.max_joint_lead, arm_q + params.max_joint_lead)
@@ -241,8 +241,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         tcp = data.site_xpos[robot.tcp_site]
         yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
         if self.running_target:
-            # Differential IK from the servos' targets: what they chase moves by the action alone, so the IK's
-            # one damped step is taken on a small error and its shortfall does not slow the tool.
+            # Differential IK from the servos' targets: what they chase moves by the action alone, where a target
+            # rebuilt at the measured pose would start each step the servos' lag behind.
             data = self._at_servo_targets(model, data)
             chased_tcp = data.site_xpos[robot.tcp_site]
             chased_yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
