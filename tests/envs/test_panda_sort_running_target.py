@@ -78,6 +78,15 @@ def test_joint_actions_move_the_joint_by_joint_step_and_the_lead_stays_bounded()
     assert np.all(np.abs(wrist_lead) < float(params.max_joint_lead)), wrist_lead
 
 
+def test_warm_starts_map_the_tool_and_leave_the_lead_new():
+    plain, running = PandaSort(objects_count=1), PandaSort(objects_count=1, running_target=True)
+    shared = OBJECT_OBS_SIZE + TOOL_OBS_SIZE
+    into_running = running.observation_source_index(plain)
+    assert np.array_equal(into_running, np.r_[np.arange(shared), np.full(SERVO_LEAD_OBS_SIZE, -1)])
+    assert np.array_equal(plain.observation_source_index(running), np.arange(shared))
+    assert np.array_equal(running.observation_source_index(running), np.arange(shared + SERVO_LEAD_OBS_SIZE))
+
+
 def test_wrapped_angle():
     assert np.allclose(
         wrapped_angle(jnp.array([0.0, 3 * np.pi / 2, -3 * np.pi / 2, 7.0])),
