@@ -123,6 +123,13 @@ def wrapped_angle(angle: jax.Array) -> jax.Array:
     return jnp.arctan2(jnp.sin(angle), jnp.cos(angle))
 
 
+def advanced_target(chased: jax.Array, step: jax.Array, measured: jax.Array, lead: jax.Array) -> jax.Array:
+    """A running target's next value, [...] like `chased`: the target the servos chase moved by `step`, held
+    within `lead` of the `measured` pose per element, so a blocked arm presses no harder than the lead makes its
+    servos and a free one moves by the step once under way."""
+    return jnp.clip(chased + step, measured - lead, measured + lead)
+
+
 def yaw_of_quaternion(quat: jax.Array) -> jax.Array:
     """[..., 4] unit quaternions (w, x, y, z) -> [...] heading of the rotated x axis (radians)."""
     w, x, y, z = jnp.moveaxis(quat, -1, 0)

@@ -35,6 +35,7 @@ from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import Impl, with_geom_sizes
 from jaxarm.envs.panda.robot import (
     FINGER_OPEN,
+    advanced_target,
     rotation_about_z,
     tcp_jacobian,
     wrapped_angle,
@@ -233,8 +234,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         if self.control_mode == MODE_JOINT:
             arm_q = data.qpos[robot.arm_qpos]
             if self.running_target:
-                joints = data.ctrl[:7] + action[:7] * params.joint_step
-                joints = jnp.clip(joints, arm_q - params.max_joint_lead, arm_q + params.max_joint_lead)
+                joints = advanced_target(data.ctrl[:7], action[:7] * params.joint_step, arm_q, params.max_joint_lead)
             else:
                 joints = arm_q + action[:7] * params.joint_step
             return jnp.clip(joints, robot.arm_limits[:, 0], robot.arm_limits[:, 1])
@@ -246,7 +246,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             data = self._at_servo_targets(model, data)
             chased_tcp = data.site_xpos[robot.tcp_site]
             chased_yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
-            target = jnp.clip(chased_tcp + action[:3] * params.ee_step, tcp - params.max_lead, tcp + params.max_lead)
+            target = advanced_target(chased_tcp, action[:3] * params.ee_step, tcp, params.max_lead)
             turn = wrapped_angle(chased_yaw + action[3] * params.ee_yaw_step - yaw)
             target_yaw = yaw + jnp.clip(turn, -params.max_yaw_lead, params.max_yaw_lead)
         else:

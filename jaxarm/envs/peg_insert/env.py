@@ -29,6 +29,7 @@ from jaxarm.envs.observation import observation_parts, pixel_observation
 from jaxarm.envs.panda.base import CAMERAS, PandaBase
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, with_geom_sizes
+from jaxarm.envs.panda.robot import advanced_target
 from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
 from jaxarm.envs.peg_insert.model import (
     HOLE_FLOOR,
@@ -239,7 +240,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         data = self.kinematics(model, sim)
         tcp = data.site_xpos[robot.tcp_site]
         applied, queued = delayed_action(sim.queued_actions, action, params.action_latency)
-        target = jnp.clip(sim.tcp_target + applied * params.ee_step, tcp - params.max_lead, tcp + params.max_lead)
+        target = advanced_target(sim.tcp_target, applied * params.ee_step, tcp, params.max_lead)
         arm_ctrl = self.ik_targets(model, data, target, self.home_tcp_rotation, params)
         data = data.replace(ctrl=jnp.concatenate([arm_ctrl, sim.ctrl[7:]]))
 
