@@ -26,13 +26,14 @@ from jaxarm.envs.panda.robot import HOME_QPOS, PandaIds, ik_arm_targets, solve_a
 CONTROL_DT = 0.04
 """Seconds of simulated time per env step, in every Panda task."""
 WARP_TIMESTEP = 0.005
-"""Physics timestep on Warp; MJX-JAX keeps the scenes' own 0.01 s. MuJoCo C and Warp leave a servo whose force is
-clamped at its forcerange out of implicitfast's implicit damping, MJX-JAX keeps it in. At 0.01 s the Panda's
-clamped servos then chatter on Warp exactly as in MuJoCo C (joint speeds of 0.5-1.4 rad/s that move the joint by
-less than a milliradian): the scripted pick-and-place placed 32% of 1,024 objects (H100; 91% on MJX-JAX) and
-ppo_sorter learnt nothing in 52M env steps. At 0.005 s it places 82% (H100) and ppo_sorter 87.5% after 3.4 minutes.
-At 0.04/6 s: 72% (64 envs, CPU); the wrist's damping x20 or its force limit x3 changed nothing; dropping every arm
-force limit gave 83%, and 95% with 0.005 s, but Franka's torque limits stay."""
+"""Longest physics timestep on Warp (a scene's finer one is kept); MJX-JAX keeps the scenes' own (0.01 s, the tosser's
+0.004 s). MuJoCo C and Warp leave a servo whose force is clamped at its forcerange out of implicitfast's implicit
+damping, MJX-JAX keeps it in. At 0.01 s the Panda's clamped servos then chatter on Warp exactly as in MuJoCo C
+(joint speeds of 0.5-1.4 rad/s that move the joint by less than a milliradian): the scripted pick-and-place placed
+32% of 1,024 objects (H100; 91% on MJX-JAX) and ppo_sorter learnt nothing in 52M env steps. At 0.005 s it places 82%
+(H100) and ppo_sorter 87.5% after 3.4 minutes. At 0.04/6 s: 72% (64 envs, CPU); the wrist's damping x20 or its force
+limit x3 changed nothing; dropping every arm force limit gave 83%, and 95% with 0.005 s, but Franka's torque limits
+stay."""
 DEPTH_RANGE = 1.0
 """Metres of depth a camera image's depth channel spans (0 to 255); farther reads 255."""
 CAMERAS = ("scene", "hand_camera")
@@ -150,7 +151,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         self.impl = resolve_impl(impl)
         if self.impl == Impl.WARP:
             mj_model = copy.copy(mj_model)  # the builders cache their models
-            mj_model.opt.timestep = WARP_TIMESTEP
+            mj_model.opt.timestep = min(WARP_TIMESTEP, mj_model.opt.timestep)
         self.mj_model = mj_model
         self._drawing: Drawing | None = None
         self.ids = ids

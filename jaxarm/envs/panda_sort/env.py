@@ -102,7 +102,9 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         5 actions; the tool keeps pointing down) or "joint" (7 joint-target deltas and a finger command; 8
         actions). The finger command maps [-1, 1] to closed..open.
       blocker: adds a thin bar between the spawn region and the bins.
-      tosser: puts the bins on a second table out of the arm's reach: objects must be thrown (layout.py).
+      tosser: puts the bins on a second table out of the arm's reach: objects must be thrown (layout.py); the
+        fingers' contacts are stiffer and the physics steps 2.5 times finer (model.FIRM_GRIP_TIMESTEP), so that a
+        held object rides a throw.
       target_first: one object at a time is the target (`PandaSortSim.target`): the observation lists the
         objects starting from it (slots in cyclic order), and the shaping terms follow it alone, so a policy
         always finds the object to work on in the first slot and several objects become the one-object task
@@ -151,7 +153,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self.running_target = running_target
         self.tool_obs_size = TOOL_OBS_SIZE + (SERVO_LEAD_OBS_SIZE if running_target else 0)
         self.layout = make_layout(blocker=blocker, tosser=tosser)
-        mj_model = build_model(objects_count, self.layout, dynamics)
+        mj_model = build_model(objects_count, self.layout, dynamics, firm_grip=tosser)
         spawn_centre = (np.array(self.layout.spawn_low) + np.array(self.layout.spawn_high)) / 2
         start_tcp = np.r_[spawn_centre, START_HEIGHT]
         ids = resolve_ids(mj_model, objects_count)

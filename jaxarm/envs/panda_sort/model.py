@@ -39,6 +39,15 @@ FINGER_FRICTION = (2.5, 2.5, 0.005, 0.0001, 0.0001)
 FINGER_SOLIMP = (0.97, 0.995, 0.001, 0.5, 2.0)
 """Gripper contacts are hard (impedance 0.99..0.999, default 0.9..0.95): squeezed by the fingers, a light
 sphere is penetrated by about a millimetre, not by a third of its radius."""
+FIRM_GRIP_TIMESTEP = 0.004
+FIRM_GRIP_SOLREF = (0.008, 1.0)
+"""The tosser's physics timestep and finger-contact solref (time constant, damping ratio), for a grip that rides
+a throw (scripted_throw.py). At the scenes' 0.01 s MuJoCo keeps a contact's time constant at 0.02 s or more (twice
+the timestep): the pads sink 1.4-6 mm into a held object, which creeps and pivots out of the fingers during the
+wind-up; neither condim-4 torsional friction, a 70 N finger force, 20 solver iterations nor an elliptic cone kept
+it (MJX-JAX, CPU, 8 held starts, 2026-11-25). The largest distance of each object from the tool centre through the
+swing: 1.9-2.3 cm at 0.004 s and 0.008 s (10 physics steps per env step instead of 4), 0.8-1.2 cm at 0.002 s and
+0.004 s (20), 2.7-7.2 cm at 0.005 s and 0.01 s."""
 OBJECT_FRICTION = (0.8, 0.8, 0.005, 0.0001, 0.0001)
 BIN_WALL_CONDIM = 1
 """Bin walls are frictionless: one constraint row per contact instead of four. Half of all contacts are
@@ -99,11 +108,14 @@ def _add_object(worldbody, slot: int) -> None:
     body.add_geom(name=f"object{slot}_cylinder", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[s, s, 0], **common)
 
 
-def build_spec(objects_count: int, layout: Layout, dynamics: str = NOMINAL) -> mujoco.MjSpec:
+def build_spec(objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm_grip: bool = False) -> mujoco.MjSpec:
     """The scene as an MjSpec: robot and table from assets/scene.xml with the robot's `dynamics`
-    (`franka_dynamics.DYNAMICS`), the rest from `layout`."""
+    (`franka_dynamics.DYNAMICS`), the rest from `layout`; `firm_grip` sets FIRM_GRIP_TIMESTEP and
+    FIRM_GRIP_SOLREF."""
     spec = mujoco.MjSpec.from_file(str(ASSETS / "scene.xml"))
     set_dynamics(spec, dynamics)
+    if firm_grip:
+        spec.option.timestep = FIRM_GRIP_TIMESTEP
     world = spec.worldbody
     static = [f"table{k}" for k in range(len(layout.tables))]
     for name, box in zip(static, layout.tables, strict=True):
@@ -117,14 +129,16 @@ def build_spec(objects_count: int, layout: Layout, dynamics: str = NOMINAL) -> m
     for slot in range(objects_count):
         _add_object(world, slot)
 
-    def pair(name1: str, name2: str, friction, condim: int = 3, **kwargs) -> None:
-        spec.add_pair(geomname1=name1, geomname2=name2, condim=condim, friction=friction, **kwargs)
+    def pair(name1: str, name2: str, friction, condim: int = 3, **kwargs) -> mujoco.MjsPair:
+        return spec.add_pair(geomname1=name1, geomname2=name2, condim=condim, friction=friction, **kwargs)
 
     slot_geoms = [[f"object{slot}_{kind}" for kind in OBJECT_GEOMS] for slot in range(objects_count)]
     for geoms in slot_geoms:
         for geom in geoms:
             for gripper in ("left_pad", "right_pad", "hand"):
-                pair(gripper, geom, FINGER_FRICTION, solimp=FINGER_SOLIMP)
+                finger = pair(gripper, geom, FINGER_FRICTION, solimp=FINGER_SOLIMP)
+                if firm_grip:
+                    finger.solref = FIRM_GRIP_SOLREF
     for slot, geoms in enumerate(slot_geoms):
         for geom in geoms:
             for other in static:
@@ -136,10 +150,10 @@ def build_spec(objects_count: int, layout: Layout, dynamics: str = NOMINAL) -> m
 
 
 @functools.cache
-def build_model(objects_count: int, layout: Layout, dynamics: str = NOMINAL) -> mujoco.MjModel:
-    """Compiled model for `objects_count` object slots in `layout` with the robot's `dynamics` (cached: every
-    argument is hashable)."""
-    return build_spec(objects_count, layout, dynamics).compile()
+def build_model(objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm_grip: bool = False) -> mujoco.MjModel:
+    """Compiled model for `objects_count` object slots in `layout` with the robot's `dynamics`, with the firm grip
+    of a thrower if `firm_grip` (FIRM_GRIP_TIMESTEP; cached: every argument is hashable)."""
+    return build_spec(objects_count, layout, dynamics, firm_grip).compile()
 
 
 def resolve_ids(model: mujoco.MjModel, objects_count: int) -> ModelIds:

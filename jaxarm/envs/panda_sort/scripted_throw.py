@@ -1,15 +1,15 @@
-"""A hand-written overhead throw for the tosser in `joint` mode with `running_target`: a physics check of how far
-the Panda can throw within Franka's joint speed limits.
+"""A hand-written overhead throw for the tosser in `joint` mode with `running_target`: a physics check of how far the
+Panda can throw within Franka's joint speed limits.
 
-It is meant for an episode that starts with the object held (`held_start_prob` = 1), though in this sim the
-grip does not yet survive the wind-up (tests/envs/test_panda_sort_tosser.py). The script moves the joint
-targets the servos chase along a timed path: a smooth move from the start posture to a wind-up facing the
-aimed bin (upper arm leaning back, hand raised behind), then a swing in which the shoulder turns forward
-while the elbow and the wrist whip the hand over, each joint's target speeding up to a constant fraction of
-its limit (`ARM_SPEED_LIMITS`); at `release_step` the fingers open and the targets stop. The swing stays in
-the vertical plane through the base and the bin, so the release time alone sets the range: the caller
-chooses it, from the ballistics of a swing that never lets go. Pure JAX: `throw_action` jits and scans; it
-reads only the observation and the step count.
+It starts from an episode with the object held (`held_start_prob` = 1); the tosser's firm grip
+(`model.FIRM_GRIP_TIMESTEP`) keeps it in the fingers through the swing (tests/envs/test_panda_sort_tosser.py). The
+script moves the joint targets the servos chase along a timed path: a smooth move from the start posture to a
+wind-up facing the aimed bin (upper arm leaning back, hand raised behind), then a swing in which the shoulder turns
+forward while the elbow and the wrist whip the hand over, each joint's target speeding up to a constant fraction of
+its limit (`ARM_SPEED_LIMITS`); at `release_step` the fingers open and the targets stop. The swing stays in the
+vertical plane through the base and the bin, so the release time alone sets the range: the caller chooses it (a
+landing moves ~0.2 m per step of release, so a fractional `swing_start` times it finer). Pure JAX: `throw_action`
+jits and scans; it reads only the observation and the step count.
 """
 
 import jax
@@ -28,8 +28,9 @@ WIND_UP_POSTURE = np.array([0.0, -1.5, 0.0, -0.35, 0.0, 3.4, -0.785], np.float32
 the other way, pitching the hand about the pads' normal let the object slide out at once."""
 SWING_DIRECTION = np.array([0.0, 1.0, 0.0, -1.0, 0.0, -1.0, 0.0], np.float32)
 """Which way each joint turns in the swing: shoulder forward, elbow and wrist folding the hand over."""
-SWING_SPEED = 0.8
-"""Top speed of each swinging joint's target, as a fraction of its limit."""
+SWING_SPEED = 0.9
+"""Top speed of each swinging joint's target, as a fraction of its limit: at 0.8 held objects fell short of the
+bins, at 1.0 they flew past them (the joints overshooting to 96% of their limits)."""
 SWING_RAMP_S = 0.3
 """Seconds over which the swing's target speeds rise from rest to the top: a step to full speed saturated
 the shoulder's servo, which then overshot to 2.85 rad/s against the 1.74 asked."""
