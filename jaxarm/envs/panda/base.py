@@ -112,7 +112,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       mj_model: the compiled scene as built (drawing poses a copy of it).
       ids: the task's ids; `ids.robot` the robot's.
       impl: the MJX implementation in use (`Impl.JAX` or `Impl.WARP`).
-      substeps: physics steps per env step (`CONTROL_DT` over the model's timestep, `WARP_TIMESTEP` on Warp).
+      substeps: physics steps per env step (`CONTROL_DT` over the model's timestep, at most `WARP_TIMESTEP` on Warp).
       mjx_model: `mj_model` on the device; tasks replace its per-episode fields in `episode_model`.
       home_tcp_rotation: [3, 3] tool-centre orientation at HOME_QPOS (pointing down, yaw 0).
       start_qpos: [7] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
