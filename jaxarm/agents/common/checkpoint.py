@@ -58,7 +58,11 @@ def restore(directory: pathlib.Path, like, step: int | None = None):
     step = latest_step(directory) if step is None else step
     if step is None:
         raise CheckpointError(f"no checkpoint found in {directory}")
-    abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, like)
+    # Every leaf is read onto this process's default device: left to itself, orbax places a leaf as it was
+    # saved, and refuses a checkpoint written on another machine's devices (a GPU run evaluated on a laptop).
+    # Callers that shard a state place it again afterwards.
+    here = jax.sharding.SingleDeviceSharding(jax.devices()[0])
+    abstract = jax.tree.map(lambda leaf: jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=here), like)
     try:
         with _quiet_reads(), _manager(directory) as manager:
             restored = manager.restore(step, args=ocp.args.StandardRestore(abstract))

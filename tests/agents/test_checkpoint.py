@@ -1,0 +1,30 @@
+"""Checkpoints read back on another machine's devices."""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm.agents.common import checkpoint
+
+
+def _as_if_saved_on_a_gpu(step_dir) -> None:
+    """Rewrites every leaf's recorded placement to a device this machine lacks, as a GPU run's checkpoint has."""
+    for sharding_file in step_dir.rglob("_sharding"):
+        placements = json.loads(sharding_file.read_text())
+        gpu = json.dumps({"sharding_type": "SingleDeviceSharding", "device_str": "cuda:0"})
+        sharding_file.write_text(json.dumps(dict.fromkeys(placements, gpu)))
+
+
+def test_a_checkpoint_saved_on_other_devices_restores_onto_this_one(tmp_path):
+    state = {"params": jnp.arange(6.0).reshape(2, 3), "updates": jnp.int32(7)}
+    checkpoint.save(tmp_path, 7, state)
+    _as_if_saved_on_a_gpu(tmp_path / "7")
+
+    # The runner restores into abstract shapes (`jax.eval_shape` of the learner's init), which name no device.
+    restored = checkpoint.restore(tmp_path, jax.eval_shape(lambda: state))
+
+    np.testing.assert_array_equal(restored["params"], state["params"])
+    assert int(restored["updates"]) == 7
+    assert restored["params"].devices() == {jax.devices()[0]}
