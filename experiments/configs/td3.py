@@ -102,15 +102,22 @@ def td3_peg() -> TD3Config:
 
 @preset("TD3 inserting the peg from two 64x64 cameras (gray and depth) and the arm's state (one GPU)")
 def td3_peg_pixels() -> TD3Config:
-    # td3_peg's schedule with the hole seen only in the images: Nature-DQN encoders and DrQ's random shift
-    # (4 pixels, as DrQ's at 84x84). The replay keeps uint8 frames, 16 KiB per observation (2 cameras x gray
-    # and depth), twice per transition: 200k transitions are 6.6 GB of GPU memory.
+    # td3_peg with the hole seen only in the images: one Nature-DQN encoder trained by the critics' loss and read
+    # by the actor (DrQ's layout), DrQ's random shift (4 pixels, as DrQ's at 84x84), 256 envs and batches of
+    # 512. So, on one H100 (2026-11-25), seeds 0-2 inserted 100.0%, 95.3% and 100.0% of 1,000 fresh episodes
+    # after 1.02M env steps in 128-132 s. With an encoder per network, 64 envs and batches of 256, none of
+    # 704k env steps' training episodes inserted (6 minutes). The replay keeps uint8 frames, 16 KiB per
+    # observation (2 cameras x gray and depth), twice per transition: 200k transitions are 6.6 GB of GPU memory.
     return dataclasses.replace(
         td3_peg(),
         env="peg_insert_pixels",
         encoder="nature",
         encoder_features=256,
+        shared_encoder=True,
         random_shift_pad=4,
+        num_envs=256,
+        batch_size=512,
+        learning_starts=20_000,
         buffer_size=200_000,
         total_env_steps=1_000_000,
         updates_per_chunk=1_000,
