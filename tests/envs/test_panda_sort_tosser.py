@@ -108,7 +108,7 @@ def test_the_arm_throws_a_held_object_into_its_bin_within_franka_speed_limits():
     @jax.jit
     def thrown(state):
         def step(state, t):
-            state = env.step(state, throw_action(env, state.obs, t, throw, params), params)
+            state = env.step(state, throw_action(state.obs, t, throw, params), params)
             terms = state.info.reward_terms
             scored = jnp.stack([terms.correct_bin, terms.wrong_bin, terms.floor])
             return state, (scored, state.sim.qvel[env.ids.robot.arm_qpos])

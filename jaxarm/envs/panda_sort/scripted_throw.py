@@ -19,7 +19,7 @@ from flax import struct
 
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda.robot import ARM_SPEED_LIMITS
-from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE, SERVO_LEAD_OBS_SIZE, TOOL_OBS_SIZE, PandaSort
+from jaxarm.envs.panda_sort.env import SERVO_LEAD_OBS_SIZE
 from jaxarm.envs.panda_sort.params import PandaSortParams
 
 OPEN, CLOSED = 1.0, -1.0
@@ -94,15 +94,16 @@ def planned_targets(throw: Throw, step: jax.Array) -> jax.Array:
     return posture + throw.swing_velocity * travel
 
 
-def servo_targets(env: PandaSort, obs: jax.Array) -> jax.Array:
-    """[O] observation of a `running_target` env -> [7] the joint targets the servos chase (angles plus lead)."""
-    lead_start = OBJECT_OBS_SIZE * env.objects_count + TOOL_OBS_SIZE
-    return obs[lead_start - 7 : lead_start] + obs[lead_start : lead_start + SERVO_LEAD_OBS_SIZE]
+def servo_targets(obs: jax.Array) -> jax.Array:
+    """[O] observation of a `running_target` env -> [7] the joint targets the servos chase: it ends with the arm's
+    joint angles and then each servo's lead (`PandaSort._observe`)."""
+    lead = SERVO_LEAD_OBS_SIZE
+    return obs[-2 * lead : -lead] + obs[-lead:]
 
 
-def throw_action(env: PandaSort, obs: jax.Array, step: jax.Array, throw: Throw, params: PandaSortParams) -> jax.Array:
+def throw_action(obs: jax.Array, step: jax.Array, throw: Throw, params: PandaSortParams) -> jax.Array:
     """[8] action of env step `step` (int32 []): the servos' targets onto the plan's next ones, fingers closed
     until the release."""
-    move = planned_targets(throw, step + 1.0) - servo_targets(env, obs)
+    move = planned_targets(throw, step + 1.0) - servo_targets(obs)
     fingers = jnp.where(step < throw.release_step, CLOSED, OPEN)
     return jnp.append(jnp.clip(move / params.joint_step, -1.0, 1.0), fingers)
