@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxarm.envs.panda.camera import FAR, Camera, Scene, render
+from jaxarm.envs.panda.camera import AMBIENT, FAR, Camera, Scene, ray_directions, render
 from jaxarm.envs.peg_insert import PegInsert
 
 HEIGHT = 1.0
@@ -62,6 +62,18 @@ def test_depth_of_the_table_is_the_cameras_height(scene):
     corners = depth[[0, 0, -1, -1], [0, -1, 0, -1]]  # the table, away from the box
     np.testing.assert_allclose(corners, HEIGHT, atol=1e-3)
     assert np.all(depth <= HEIGHT + 1e-3) and np.all(gray > 0)
+
+
+def test_gray_is_the_surfaces_luma_lit_by_the_cosine_of_its_ray(scene):
+    depth, gray = (np.asarray(a) for a in image(*scene))
+    # Every visible surface straight below the overhead camera faces up: cos is the ray's vertical component.
+    cosine = -np.asarray(ray_directions(FOVY, RESOLUTION))[..., 2]
+    lit = AMBIENT + (1 - AMBIENT) * cosine
+    on_box = np.abs(depth - (HEIGHT - BOX_TOP)) < 1e-3
+    on_table = np.abs(depth - HEIGHT) < 1e-3
+    assert on_box.sum() > 16 and on_table.sum() > 16
+    np.testing.assert_allclose(gray[on_box], 1.0 * lit[on_box], atol=1e-5)  # white
+    np.testing.assert_allclose(gray[on_table], 0.5 * lit[on_table], atol=1e-5)  # gray 0.5
 
 
 def test_a_box_of_known_size_covers_the_predicted_pixels(scene):
