@@ -18,6 +18,11 @@ a zero observation, and is flagged in `state.episode.diverged`, so one unstable 
 poison a learner's batch. A reset observation is cleaned the same way: zeroed, and its episode flagged in
 `state.episode.diverged`.
 
+Camera images: an env that `draws_images` leaves obs[IMAGE] zero in `_reset` and `_transition` and draws it
+in `images`, from the sim alone, which `reset` and `step` call (after the cleaning above: an image, uint8,
+cannot diverge). `AutoReset` can then draw a new episode's first
+images only for the envs of a batch that start one, instead of drawing a start for every env at every step.
+
 Stepping a plain (not auto-reset) env past the end of its episode changes nothing the episode reported:
 `last_episode` keeps the statistics of the step that ended it.
 """
@@ -31,6 +36,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
+
+from jaxarm.envs.observation import with_image
 
 DIVERGENCE_LIMIT = 1e6
 """Observations beyond this magnitude count as a diverged simulation (see the module docstring)."""
@@ -248,8 +255,25 @@ class Env(abc.ABC, Generic[Params, Sim]):
         """One (non-batched) state as an RGB frame, uint8 [H, W, 3], drawn without a window."""
         raise NotImplementedError(f"{type(self).__name__} has no renderer")
 
+    @property
+    def draws_images(self) -> bool:
+        """The camera part of the observation, obs[IMAGE], is drawn by `images` (see the module docstring)."""
+        return False
+
+    def images(self, sim: Sim, params: Params) -> jax.Array:
+        """uint8 [H, W, C]: what the env's cameras see in `sim`; only for an env that `draws_images`."""
+        raise NotImplementedError(f"{type(self).__name__} draws no images")
+
     def reset(self, key: jax.Array, params: Params) -> EnvState[Sim]:
         """Starts an episode. `key` is a PRNG key; the returned state holds a descendant for auto-resets."""
+        state = self.reset_without_images(key, params)
+        if not self.draws_images:
+            return state
+        obs = with_image(state.obs, self.images(state.sim, params))
+        return state.replace(obs=obs, final_obs=obs)
+
+    def reset_without_images(self, key: jax.Array, params: Params) -> EnvState[Sim]:
+        """`reset`, with obs[IMAGE] left zero where the env `draws_images`."""
         reset_key, carry_key = jax.random.split(key)
         sim, raw_obs, info = self._reset(reset_key, params)
         healthy = observation_healthy(raw_obs)
@@ -276,6 +300,8 @@ class Env(abc.ABC, Generic[Params, Sim]):
         out = self._transition(state.sim, action, params)
         healthy = observation_healthy(out.obs) & jnp.isfinite(out.reward)
         obs = zeroed_unless(healthy, out.obs)
+        if self.draws_images:
+            obs = with_image(obs, self.images(out.sim, params))
         reward = jnp.where(healthy, out.reward, 0.0).astype(jnp.float32)
         terminated = out.terminated | ~healthy
         step_count = state.step_count + 1

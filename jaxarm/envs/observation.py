@@ -44,6 +44,11 @@ def pixel_observation(obs_mode: str, image: jax.Array, proprio: jax.Array) -> Ma
     return {IMAGE: image}
 
 
+def with_image(obs: Mapping[str, jax.Array], image: jax.Array) -> dict[str, jax.Array]:
+    """A dict observation with its image part replaced by `image`."""
+    return {**obs, IMAGE: image}
+
+
 def with_camera_views(frame: np.ndarray, obs: Any) -> np.ndarray:
     """Outside jit: a rendered frame uint8 [H, W, 3] with what the observation's camera saw to its right, each
     image channel (gray, depth, ...) as a gray tile scaled up to the frame's height; `frame` as it is for a flat

@@ -4,12 +4,18 @@ Episode statistics are kept by `Env.step` itself (`state.episode`, `state.last_e
 wrapped or not, reports the same numbers.
 """
 
+import functools
 import warnings
 
 import jax
 import jax.numpy as jnp
 
 from jaxarm.envs.base import Env, EnvSpec, EnvState
+from jaxarm.envs.observation import IMAGE, with_image
+
+STARTS_DRAWN_SHARE = 8
+"""A batch of B auto-resetting envs draws its new episodes' first images in groups of B / this many envs,
+gathered: as many groups as a step needs, none on a step where no episode starts."""
 
 
 class Wrapper:
@@ -35,6 +41,16 @@ class Wrapper:
     def step(self, state: EnvState, action: jax.Array, params) -> EnvState:
         return self.env.step(state, action, params)
 
+    @property
+    def draws_images(self) -> bool:
+        return self.env.draws_images
+
+    def images(self, sim, params) -> jax.Array:
+        return self.env.images(sim, params)
+
+    def reset_without_images(self, key: jax.Array, params) -> EnvState:
+        return self.env.reset_without_images(key, params)
+
 
 class AutoReset(Wrapper):
     """Starts a new episode inside `step` whenever the last one ended.
@@ -45,11 +61,43 @@ class AutoReset(Wrapper):
     """
 
     def step(self, state: EnvState, action: jax.Array, params) -> EnvState:
+        state = self._step_leaving_start_images(state, action, params)
+        if not self.env.draws_images:
+            return state
+        # For one env the branch is real: a start's images are drawn only when it starts. (Under a plain vmap
+        # it becomes a select that draws them for every env; `batch_step` avoids that.)
+        return jax.lax.cond(state.done, functools.partial(self._draw_start_images, params=params), lambda s: s, state)
+
+    def batch_step(self, state: EnvState, action: jax.Array, params, params_axis: int | None) -> EnvState:
+        """`step` over a batch (leading [B] axes; `params` batched along `params_axis`, or shared if None),
+        drawing new episodes' first images only for the envs that start one."""
+        step = jax.vmap(self._step_leaving_start_images, in_axes=(0, 0, params_axis))
+        state = step(state, action, params)
+        if not self.env.draws_images:
+            return state
+        num_envs = state.done.shape[0]
+        group = max(1, num_envs // STARTS_DRAWN_SHARE)
+        groups = -(-num_envs // group)
+        # The envs that start, first, padded with num_envs (the gathers clip it, the scatter drops it).
+        starting = jnp.nonzero(state.done, size=groups * group, fill_value=num_envs)[0].reshape(groups, group)
+        draw = jax.vmap(self.env.images, in_axes=(0, params_axis))
+
+        def draw_group(index: jax.Array, image: jax.Array) -> jax.Array:
+            gather = functools.partial(jnp.take, indices=starting[index], axis=0, mode="clip")
+            group_params = params if params_axis is None else jax.tree.map(gather, params)
+            return image.at[starting[index]].set(draw(jax.tree.map(gather, state.sim), group_params), mode="drop")
+
+        # A loop over as many groups as there are starts: one traced copy of the camera, and no work for none.
+        image = jax.lax.fori_loop(0, -(-jnp.sum(state.done) // group), draw_group, state.obs[IMAGE])
+        return state.replace(obs=with_image(state.obs, image))
+
+    def _step_leaving_start_images(self, state: EnvState, action: jax.Array, params) -> EnvState:
+        """`step`, except that where an episode started, obs[IMAGE] is left zero (`draws_images`)."""
         stepped = self.env.step(state, action, params)
         # The reset is computed for every env (vmap turns a branch into a select), so it must be cheap: it
         # draws from the carried key, which only advances when an episode ends. Random numbers dominated
         # the cost of a step (threefry hashes), so no extra split happens here.
-        fresh = self.env.reset(stepped.key, params)
+        fresh = self.env.reset_without_images(stepped.key, params)
         done = stepped.done
 
         def pick(new, old):
@@ -62,6 +110,10 @@ class AutoReset(Wrapper):
             episode=jax.tree.map(pick, fresh.episode, stepped.episode),
             key=pick(fresh.key, stepped.key),
         )
+
+    def _draw_start_images(self, state: EnvState, params) -> EnvState:
+        """`state` (one env, just reset) with its observation's images drawn."""
+        return state.replace(obs=with_image(state.obs, self.env.images(state.sim, params)))
 
 
 class VmapEnv(Wrapper):
@@ -91,4 +143,6 @@ class VmapEnv(Wrapper):
         return jax.vmap(self.env.reset, in_axes=(0, self.params_axis))(keys, params)
 
     def step(self, state: EnvState, action: jax.Array, params) -> EnvState:
+        if isinstance(self.env, AutoReset):
+            return self.env.batch_step(state, action, params, self.params_axis)
         return jax.vmap(self.env.step, in_axes=(0, 0, self.params_axis))(state, action, params)

@@ -9,6 +9,7 @@ from jaxarm import envs
 from jaxarm.envs.arm2d import GOAL_FIXED, GOAL_UNIFORM_REACHABLE, GOAL_UNIFORM_WORLD, Arm2d, Arm2dSim
 from jaxarm.envs.arm2d.arm import goal_reachable
 from jaxarm.envs.arm2d.numpy_reference import ClassicArm
+from jaxarm.envs.observation import with_image
 
 
 def start_state(env, params, angles, goal):
@@ -19,7 +20,10 @@ def start_state(env, params, angles, goal):
         goal=jnp.asarray(goal, jnp.float32),
         hold_count=jnp.zeros((), jnp.int32),
     )
-    return state.replace(sim=sim, obs=env._observe(sim, params))
+    obs = env._observe(sim, params)
+    if env.draws_images:
+        obs = with_image(obs, env.images(sim, params))
+    return state.replace(sim=sim, obs=obs)
 
 
 @pytest.mark.parametrize("num_links", [2, 3, 5])

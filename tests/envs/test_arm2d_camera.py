@@ -110,3 +110,28 @@ def test_video_frames_show_the_camera_beside_the_scene():
     np.testing.assert_array_equal(camera_tile, state.obs["image"][..., 0])
     flat = envs.make("arm2d")
     np.testing.assert_array_equal(with_camera_views(frame, flat.reset(jax.random.key(0), params).obs), frame)
+
+
+@pytest.mark.parametrize("episode_steps, staggered", [(5, True), (3, False)])
+def test_a_batch_draws_new_episodes_images_as_one_env_at_a_time_does(episode_steps, staggered):
+    """Staggered, three or four of 16 episodes end per step: their first images are drawn in two groups of two
+    gathered envs. Together, every episode ends at once: eight groups. Either way the batch matches AutoReset
+    env by env, and every observed image is what the camera sees in the env's sim."""
+    env = Arm2d(obs_mode="pixels+proprio", resolution=16)
+    params = env.default_params().replace(max_episode_steps=jnp.array(episode_steps, jnp.int32))
+    num_envs = 16
+    batch = envs.VmapEnv(envs.AutoReset(env), num_envs)
+    one_at_a_time = jax.jit(jax.vmap(envs.AutoReset(env).step, in_axes=(0, 0, None)))
+    state = batch.reset(jax.random.key(0), params)
+    if staggered:
+        state = state.replace(step_count=jnp.arange(num_envs, dtype=jnp.int32) % episode_steps)
+    step = jax.jit(batch.step)
+    starts = 0
+    for action_key in jax.random.split(jax.random.key(1), 2 * episode_steps):
+        action = jax.random.uniform(action_key, (num_envs, 2), minval=-1.0, maxval=1.0)
+        expected, state = one_at_a_time(state, action, params), step(state, action, params)
+        with_key_data = [s.replace(key=jax.random.key_data(s.key)) for s in (state, expected)]
+        jax.tree.map(np.testing.assert_array_equal, *with_key_data)
+        np.testing.assert_array_equal(state.obs["image"], jax.vmap(env.images, in_axes=(0, None))(state.sim, params))
+        starts += int(np.sum(state.done))
+    assert starts == 2 * num_envs

@@ -179,11 +179,15 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
 
     def kinematics(self, model: mjx.Model, sim: PandaSimState) -> mjx.Data:
         """mjx.Data at the sim's state with positions, orientations and com-frame quantities (for Jacobians)."""
+        return mjx.com_pos(model, self.poses(model, sim))
+
+    def poses(self, model: mjx.Model, sim: PandaSimState) -> mjx.Data:
+        """mjx.Data at the sim's state with the bodies' and geoms' positions and orientations only."""
         data = self._data0.replace(qpos=sim.qpos, qvel=sim.qvel, ctrl=sim.ctrl, qacc_warmstart=sim.qacc_warmstart)
         data = mjx.kinematics(model, data)
         if self.impl == Impl.WARP:
             data = pose_fixed_geoms(self.mj_model, model, data)
-        return mjx.com_pos(model, data)
+        return data
 
     def initial_action_queue(self) -> jax.Array:
         """float32 [max_action_latency, *action_shape]: an episode's queue of earlier actions, all zero."""
@@ -194,9 +198,23 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         """Shape of `camera_image`: [R, R, 2 per camera]."""
         return (self.resolution, self.resolution, 2 * len(self.cameras))
 
+    @property
+    def draws_images(self) -> bool:
+        return bool(self.cameras)
+
+    def images(self, sim: SimT, params: ParamsT) -> jax.Array:
+        """`camera_image` of `sim` posed in its episode's model. The pixel observations of `_reset` and `_transition`
+        hold `blank_image` instead, and the base env draws this once per step (see `jaxarm.envs.base`)."""
+        model = self.episode_model(sim, params)
+        return self.camera_image(model, self.poses(model, sim))
+
+    def blank_image(self) -> jax.Array:
+        """uint8 zeros of `image_shape`: the image of an observation before `images` draws it."""
+        return jnp.zeros(self.image_shape, jnp.uint8)
+
     def camera_image(self, model: mjx.Model, data: mjx.Data) -> jax.Array:
         """uint8 [R, R, 2 per camera]: each camera's grayscale, then its depth over `DEPTH_RANGE`, cast in JAX
-        (`camera.render`) from the poses in `data` (after `kinematics`) and the episode's geom sizes."""
+        (`camera.render`) from the poses in `data` (after `poses`) and the episode's geom sizes."""
         if self._camera_scene is None:
             raise ValueError('obs_mode "state" has no camera: build the env with a pixel obs_mode')
         channels = []

@@ -321,7 +321,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             tool.append(sim.ctrl[:7] - sim.qpos[robot.arm_qpos])
         tool_obs = with_noise(jnp.concatenate(tool), tool_key, params.obs_noise)
         if self.obs_mode != "state":
-            return pixel_observation(self.obs_mode, self.camera_image(model, data), tool_obs.astype(jnp.float32))
+            return pixel_observation(self.obs_mode, self.blank_image(), tool_obs.astype(jnp.float32))
         objects = with_noise(objects, objects_key, params.obs_noise) * in_play
         return jnp.concatenate([objects[self.slot_order(sim)].ravel(), tool_obs]).astype(jnp.float32)
 
