@@ -22,28 +22,25 @@ LINK_RADIUS = 0.025
 """Half the drawn thickness of a link, as a fraction of the world size (10 units in the default 400 world)."""
 
 
-def pixel_centres(resolution: int, world_size: jax.Array) -> jax.Array:
-    """[R, R, 2] world (x, y) of every pixel's centre; row 0 is the top of the world (largest y)."""
+def pixel_centres(resolution: int, world_size: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """World x [1, R] of every column's pixel centres and y [R, 1] of every row's; row 0 is the top of the world
+    (largest y). Together they broadcast to the image's [R, R]."""
     ticks = (jnp.arange(resolution, dtype=jnp.float32) + 0.5) * (world_size / resolution)
-    x = jnp.broadcast_to(ticks[None, :], (resolution, resolution))
-    y = jnp.broadcast_to(world_size - ticks[:, None], (resolution, resolution))
-    return jnp.stack([x, y], axis=-1)
+    return ticks[None, :], (world_size - ticks)[:, None]
 
 
-def segment_distance(points: jax.Array, start: jax.Array, end: jax.Array) -> jax.Array:
-    """Distance from points [..., 2] to the segment from `start` [2] to `end` [2]: [...]."""
-    direction = end - start
-    along = jnp.sum((points - start) * direction, axis=-1) / jnp.maximum(jnp.sum(direction**2), 1e-12)
-    nearest = start + jnp.clip(along, 0.0, 1.0)[..., None] * direction
-    return jnp.linalg.norm(points - nearest, axis=-1)
+def segment_distance(x: jax.Array, y: jax.Array, start: jax.Array, end: jax.Array) -> jax.Array:
+    """Distance from points (x, y) (broadcastable arrays) to the segment from `start` [2] to `end` [2]."""
+    dx, dy = end[0] - start[0], end[1] - start[1]
+    along = jnp.clip(((x - start[0]) * dx + (y - start[1]) * dy) / jnp.maximum(dx * dx + dy * dy, 1e-12), 0.0, 1.0)
+    return jnp.sqrt((x - start[0] - along * dx) ** 2 + (y - start[1] - along * dy) ** 2)
 
 
-def square_signed_distance(points: jax.Array, centre: jax.Array, side: jax.Array) -> jax.Array:
-    """Signed distance from points [..., 2] to an axis-aligned square (negative inside): [...]."""
-    excess = jnp.abs(points - centre) - side / 2
-    outside = jnp.linalg.norm(jnp.maximum(excess, 0.0), axis=-1)
-    inside = jnp.minimum(jnp.max(excess, axis=-1), 0.0)
-    return outside + inside
+def square_signed_distance(x: jax.Array, y: jax.Array, centre: jax.Array, side: jax.Array) -> jax.Array:
+    """Signed distance from points (x, y) (broadcastable arrays) to an axis-aligned square (negative inside)."""
+    excess_x, excess_y = jnp.abs(x - centre[0]) - side / 2, jnp.abs(y - centre[1]) - side / 2
+    outside = jnp.sqrt(jnp.maximum(excess_x, 0.0) ** 2 + jnp.maximum(excess_y, 0.0) ** 2)
+    return outside + jnp.minimum(jnp.maximum(excess_x, excess_y), 0.0)
 
 
 def coverage(signed_distance: jax.Array, pixel_size: jax.Array) -> jax.Array:
@@ -52,12 +49,15 @@ def coverage(signed_distance: jax.Array, pixel_size: jax.Array) -> jax.Array:
 
 
 def grayscale_image(sim: Arm2dSim, params: Arm2dParams, resolution: int) -> jax.Array:
-    """One state seen from above: uint8 [resolution, resolution, 1]."""
-    points = pixel_centres(resolution, params.world_size)
+    """One state seen from above: uint8 [resolution, resolution, 1]. Written per component, each link in turn,
+    so that XLA fuses the whole image into one element-wise loop (as the Panda caster, BENCHMARKS.md)."""
+    x, y = pixel_centres(resolution, params.world_size)
     pixel_size = params.world_size / resolution
     joints = jnp.concatenate([params.base_pos[None], link_end_positions(sim.angles, params)])
-    link_distances = jax.vmap(segment_distance, in_axes=(None, 0, 0))(points, joints[:-1], joints[1:])
-    arm = coverage(jnp.min(link_distances, axis=0) - LINK_RADIUS * params.world_size, pixel_size)
-    goal = coverage(square_signed_distance(points, sim.goal, params.goal_size), pixel_size)
+    link_distance = segment_distance(x, y, joints[0], joints[1])
+    for link in range(1, joints.shape[0] - 1):
+        link_distance = jnp.minimum(link_distance, segment_distance(x, y, joints[link], joints[link + 1]))
+    arm = coverage(link_distance - LINK_RADIUS * params.world_size, pixel_size)
+    goal = coverage(square_signed_distance(x, y, sim.goal, params.goal_size), pixel_size)
     brightness = GOAL_LEVEL * goal * (1.0 - arm) + ARM_LEVEL * arm
     return jnp.round(brightness * 255.0).astype(jnp.uint8)[..., None]
