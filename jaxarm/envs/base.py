@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jaxarm.envs.observation import with_image
+from jaxarm.envs.observation import IMAGE, with_image
 
 DIVERGENCE_LIMIT = 1e6
 """Observations beyond this magnitude count as a diverged simulation (see the module docstring)."""
@@ -263,6 +263,10 @@ class Env(abc.ABC, Generic[Params, Sim]):
     def images(self, sim: Sim, params: Params) -> jax.Array:
         """uint8 [H, W, C]: what the env's cameras see in `sim`; only for an env that `draws_images`."""
         raise NotImplementedError(f"{type(self).__name__} draws no images")
+
+    def blank_image(self) -> jax.Array:
+        """uint8 zeros shaped as obs[IMAGE]: the image `_reset` and `_transition` leave for `images` to draw."""
+        return jnp.zeros(self.spec.observation[IMAGE].shape, jnp.uint8)
 
     def reset(self, key: jax.Array, params: Params) -> EnvState[Sim]:
         """Starts an episode. `key` is a PRNG key; the returned state holds a descendant for auto-resets."""

@@ -83,9 +83,10 @@ class AutoReset(Wrapper):
         draw = jax.vmap(self.env.images, in_axes=(0, params_axis))
 
         def draw_group(index: jax.Array, image: jax.Array) -> jax.Array:
-            gather = functools.partial(jnp.take, indices=starting[index], axis=0, mode="clip")
+            envs = starting[index]
+            gather = functools.partial(jnp.take, indices=envs, axis=0, mode="clip")
             group_params = params if params_axis is None else jax.tree.map(gather, params)
-            return image.at[starting[index]].set(draw(jax.tree.map(gather, state.sim), group_params), mode="drop")
+            return image.at[envs].set(draw(jax.tree.map(gather, state.sim), group_params), mode="drop")
 
         # A loop over as many groups as there are starts: one traced copy of the camera, and no work for none.
         image = jax.lax.fori_loop(0, -(-jnp.sum(state.done) // group), draw_group, state.obs[IMAGE])

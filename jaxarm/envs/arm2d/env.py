@@ -27,7 +27,7 @@ from jaxarm.envs.arm2d.arm import (
 from jaxarm.envs.arm2d.camera import grayscale_image
 from jaxarm.envs.arm2d.render import draw_frame
 from jaxarm.envs.base import Env, EnvSpec, Observation, Transition
-from jaxarm.envs.observation import IMAGE, check_obs_mode, observation_parts, pixel_observation
+from jaxarm.envs.observation import check_obs_mode, observation_parts, pixel_observation
 
 
 @struct.dataclass
@@ -87,8 +87,7 @@ class Arm2d(Env[Arm2dParams, Arm2dSim]):
     def _observe(self, sim: Arm2dSim, params: Arm2dParams) -> Observation:
         ends = link_end_positions(sim.angles, params)
         if self.obs_mode != "state":
-            image = jnp.zeros(self.spec.observation[IMAGE].shape, jnp.uint8)  # drawn by `images`
-            return pixel_observation(self.obs_mode, image, (ends / (params.world_size / 2)).ravel())
+            return pixel_observation(self.obs_mode, self.blank_image(), (ends / (params.world_size / 2)).ravel())
         on_goal = (sim.hold_count > 0).astype(jnp.float32)[None]
         return jnp.concatenate(
             [(ends / (params.world_size / 2)).ravel(), ((sim.goal - ends) / params.world_size).ravel(), on_goal]

@@ -208,10 +208,6 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         model = self.episode_model(sim, params)
         return self.camera_image(model, self.poses(model, sim))
 
-    def blank_image(self) -> jax.Array:
-        """uint8 zeros of `image_shape`: the image of an observation before `images` draws it."""
-        return jnp.zeros(self.image_shape, jnp.uint8)
-
     def camera_image(self, model: mjx.Model, data: mjx.Data) -> jax.Array:
         """uint8 [R, R, 2 per camera]: each camera's grayscale, then its depth over `DEPTH_RANGE`, cast in JAX
         (`camera.render`) from the poses in `data` (after `poses`) and the episode's geom sizes."""
