@@ -28,3 +28,19 @@ def test_a_checkpoint_saved_on_other_devices_restores_onto_this_one(tmp_path):
     np.testing.assert_array_equal(restored["params"], state["params"])
     assert int(restored["updates"]) == 7
     assert restored["params"].devices() == {jax.devices()[0]}
+
+
+def test_latest_step_looks_again_when_a_live_run_prunes_a_step_it_is_listing(tmp_path, monkeypatch):
+    checkpoint.save(tmp_path, 3, {"updates": jnp.int32(3)})
+    real_manager = checkpoint.ocp.CheckpointManager
+    calls = []
+
+    def pruned_while_listing(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 1:
+            raise FileNotFoundError("checkpoints/2: removed by the run that wrote it")
+        return real_manager(*args, **kwargs)
+
+    monkeypatch.setattr(checkpoint.ocp, "CheckpointManager", pruned_while_listing)
+    assert checkpoint.latest_step(tmp_path) == 3
+    assert len(calls) == 2

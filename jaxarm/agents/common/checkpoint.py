@@ -42,10 +42,25 @@ def save(directory: pathlib.Path, step: int, state) -> None:
         manager.save(step, args=ocp.args.StandardSave(state), force=True)
 
 
+_LISTING_ATTEMPTS = 3
+"""Looks at a checkpoint folder before a vanishing step is reported as an error (see `latest_step`)."""
+
+
 def latest_step(directory: pathlib.Path) -> int | None:
     """The newest complete checkpoint's step, or None if there is none."""
     if not directory.exists():
         return None
+    for _ in range(_LISTING_ATTEMPTS - 1):
+        try:
+            return _listed_latest_step(directory)
+        except FileNotFoundError:
+            # A live run prunes old steps (max_to_keep) while another process lists them (a test or a viewer
+            # watching it): orbax then stats a step folder that has just gone. Looking again sees the new list.
+            pass
+    return _listed_latest_step(directory)
+
+
+def _listed_latest_step(directory: pathlib.Path) -> int | None:
     with _quiet_reads(), _manager(directory) as manager:
         return manager.latest_step()
 
