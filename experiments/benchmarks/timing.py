@@ -2,6 +2,7 @@
 
 import functools
 import time
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
@@ -58,14 +59,20 @@ def compile_updates(config: RunConfig, num_updates: int):
 
 
 def env_seconds(
-    config: RunConfig, num_envs: int, steps: int, compiler_options: dict | None = None
+    config: RunConfig,
+    num_envs: int,
+    steps: int,
+    compiler_options: dict | None = None,
+    policy: Callable[[envs.Observation], jax.Array] | None = None,
 ) -> tuple[float, float]:
     """(best seconds of `steps` steps of `num_envs` auto-reset envs, compile seconds), `config`'s env and params.
 
     The envs step inside one `lax.scan`, compiled ahead of time with `compiler_options` (None: the env's own,
     `jaxarm.envs.compiler_options`, as our learners compile it), as a learner's rollout steps them, with
     actions drawn as an untrained policy draws them (tanh of a standard normal), from a pool of
-    `ACTION_POOL_SIZE` sets drawn once, so that drawing them costs next to nothing.
+    `ACTION_POOL_SIZE` sets drawn once, so that drawing them costs next to nothing; or, given `policy`
+    (observations [num_envs, ...] -> actions [num_envs, A]), the actions it takes, so that the physics does
+    what that policy makes it do (a trained policy grasps and carries: more contacts than random actions).
     """
     env, params = config.make_env()
     batch = envs.VmapEnv(envs.AutoReset(env), num_envs)
@@ -73,7 +80,8 @@ def env_seconds(
 
     def run(state):
         def body(carry, index):
-            return batch.step(carry, pool[index], params), None
+            action = pool[index] if policy is None else policy(carry.obs)
+            return batch.step(carry, action, params), None
 
         return jax.lax.scan(body, state, jnp.arange(steps) % ACTION_POOL_SIZE)[0]
 

@@ -44,7 +44,7 @@ from experiments import configs
 from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import env_seconds
 from jaxarm import envs
-from jaxarm.agents.common.config import with_pair
+from jaxarm.agents.common.config import apply_overrides, with_pair
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import run_updates
 from jaxarm.agents.ppo import PPOConfig, make_trainer
@@ -64,6 +64,8 @@ class Result:
       total_seconds: the whole run: set-up, network init, compilation and training.
       part_seconds: [PARTS] seconds of each equal part of the training, the first with any compilation brax
         does inside it.
+      policy_env_seconds: seconds per update of the same envs stepping alone under the trained policy's
+        deterministic actions (no learning): the update's physics as this learner's policy drives it.
     """
 
     env_steps: int
@@ -71,6 +73,7 @@ class Result:
     part_seconds: tuple[float, ...]
     success_rate: float
     return_mean: float
+    policy_env_seconds: float
 
     @property
     def train_seconds(self) -> float:
@@ -99,12 +102,13 @@ def base_ppo_config(env_name: str) -> PPOConfig:
     )
 
 
-def ppo_config(env_name: str, num_envs: int | None, env_steps: int | None) -> PPOConfig:
-    """`base_ppo_config(env_name)` for `num_envs` and `env_steps` (None: the preset's), in `PARTS` equal parts.
+def ppo_config(env_name: str, num_envs: int | None, env_steps: int | None, overrides: Sequence[str] = ()) -> PPOConfig:
+    """`base_ppo_config(env_name)` with `overrides` (key=value), for `num_envs` and `env_steps` (None: the
+    preset's), in `PARTS` equal parts.
 
     The budget is rounded up to a multiple of `PARTS` updates.
     """
-    base = base_ppo_config(env_name)
+    base = apply_overrides(base_ppo_config(env_name), overrides)
     num_envs = num_envs or base.num_envs
     env_steps = env_steps or base.total_env_steps
     steps_per_update = num_envs * base.rollout_length
@@ -148,8 +152,19 @@ def run_ours(config: PPOConfig, eval_episodes: int) -> Result:
         state, _ = jax.block_until_ready(compiled(state, hparams))
         part_seconds.append(time.perf_counter() - part_start)
     total_seconds = time.perf_counter() - start
-    success, return_mean = evaluate_policy(config, lambda obs: trainer.act(state, obs), eval_episodes, config.seed)
-    return Result(int(state.env_steps), total_seconds, tuple(part_seconds), success, return_mean)
+
+    def policy(obs):
+        return trainer.act(state, obs)
+
+    success, return_mean = evaluate_policy(config, policy, eval_episodes, config.seed)
+    return Result(
+        int(state.env_steps),
+        total_seconds,
+        tuple(part_seconds),
+        success,
+        return_mean,
+        env_stepping_seconds(config, policy),
+    )
 
 
 def brax_ppo_kwargs(config: PPOConfig, learning_rate: float) -> dict:
@@ -219,26 +234,33 @@ def run_brax(config: PPOConfig, learning_rate: float, eval_episodes: int) -> Res
     part_seconds = tuple(np.diff([0.0] + [walltime for _, walltime in epochs]))
     inference = make_policy(params, deterministic=True)
     unused_key = jax.random.PRNGKey(0)
-    success, return_mean = evaluate_policy(
-        config, lambda obs: inference(obs, unused_key)[0], eval_episodes, config.seed
-    )
-    return Result(int(steps), total_seconds, part_seconds, success, return_mean)
+
+    def policy(obs):
+        return inference(obs, unused_key)[0]
+
+    success, return_mean = evaluate_policy(config, policy, eval_episodes, config.seed)
+    return Result(int(steps), total_seconds, part_seconds, success, return_mean, env_stepping_seconds(config, policy))
 
 
-def env_stepping_seconds(config: PPOConfig) -> float:
+def env_stepping_seconds(config: PPOConfig, policy=None) -> float:
     """Seconds per update of stepping `config`'s envs alone (`num_envs` × `rollout_length` env steps, no learner),
-    compiled with the process's XLA settings as both learners are; timed over one part's updates."""
+    compiled with the process's XLA settings as both learners are; timed over one part's updates. Actions are
+    random (an untrained policy's), or `policy`'s (observations [B, ...] -> actions [B, A])."""
     updates = config.num_updates // PARTS
-    seconds, _ = env_seconds(config, config.num_envs, config.rollout_length * updates, compiler_options={})
+    steps = config.rollout_length * updates
+    seconds, _ = env_seconds(config, config.num_envs, steps, compiler_options={}, policy=policy)
     return seconds / updates
 
 
 def ceiling_figures(config: PPOConfig, ours: Result, brax: Result, env_seconds_per_update: float) -> dict[str, float]:
     """What each learner costs beyond stepping the envs, and the most any learner could run at against brax.
 
-    A learner that cost nothing would take `env_seconds_per_update` per update: brax's steady update time over
-    that is the ceiling on the throughput ratio. The learners' own costs are their steady update times less it.
-    Times are in milliseconds per update.
+    A learner that cost nothing would take `env_seconds_per_update` per update (random actions): brax's steady
+    update time over that is the ceiling on the throughput ratio. The learners' own costs are their steady update
+    times less it. Where the physics costs more under a trained policy than under random actions (contacts), the
+    same figures against each learner's own policy's stepping (`Result.policy_env_seconds`) book that cost to the
+    physics: `ceiling_vs_brax_our_policy` is the ratio a learner costing nothing would reach with the envs doing
+    what our policy makes them do. Times are in milliseconds per update.
     """
     ours_update, brax_update = (result.train_seconds / config.num_updates for result in (ours, brax))
     return {
@@ -250,6 +272,11 @@ def ceiling_figures(config: PPOConfig, ours: Result, brax: Result, env_seconds_p
         "brax_learner_ms": (brax_update - env_seconds_per_update) * 1e3,
         "ceiling_vs_brax": brax_update / env_seconds_per_update,
         "ours_vs_brax": brax_update / ours_update,
+        "ours_policy_env_ms": ours.policy_env_seconds * 1e3,
+        "brax_policy_env_ms": brax.policy_env_seconds * 1e3,
+        "ours_learner_beyond_own_policy_ms": (ours_update - ours.policy_env_seconds) * 1e3,
+        "brax_learner_beyond_own_policy_ms": (brax_update - brax.policy_env_seconds) * 1e3,
+        "ceiling_vs_brax_our_policy": brax_update / ours.policy_env_seconds,
     }
 
 
@@ -262,7 +289,12 @@ def ceiling_line(config: PPOConfig, ours: Result, brax: Result, env_seconds_per_
         f"Steady update: ours {figures['ours_update_ms']:.1f} ms, brax {figures['brax_update_ms']:.1f} ms; beyond "
         f"the env stepping our learner costs {figures['ours_learner_ms']:.1f} ms, brax's "
         f"{figures['brax_learner_ms']:.1f} ms. Ceiling: a learner that cost nothing would run at "
-        f"{figures['ceiling_vs_brax']:.2f}× brax's steady rate; ours runs at {figures['ours_vs_brax']:.2f}×."
+        f"{figures['ceiling_vs_brax']:.2f}× brax's steady rate; ours runs at {figures['ours_vs_brax']:.2f}×. "
+        f"Under each learner's trained policy the env stepping alone takes {figures['ours_policy_env_ms']:.1f} ms "
+        f"(ours) and {figures['brax_policy_env_ms']:.1f} ms (brax's); beyond it our learner costs "
+        f"{figures['ours_learner_beyond_own_policy_ms']:.1f} ms, brax's "
+        f"{figures['brax_learner_beyond_own_policy_ms']:.1f} ms; a learner that cost nothing, its envs driven as "
+        f"ours drives them, would run at {figures['ceiling_vs_brax_our_policy']:.2f}× brax."
     )
 
 
@@ -345,6 +377,11 @@ def main(argv: Sequence[str]) -> None:
         help='MJX implementation of a Panda env for both learners: "jax" or "warp" (warp-lang, an NVIDIA GPU)',
     )
     parser.add_argument(
+        "overrides",
+        nargs="*",
+        help="overrides key=value of the preset both learners map from (learning_rate, anneal_learning_rate: ours)",
+    )
+    parser.add_argument(
         "--learners",
         choices=("both", "jaxarm", "brax"),
         default="both",
@@ -359,7 +396,12 @@ def main(argv: Sequence[str]) -> None:
     if args.quick:
         args.num_envs = args.num_envs or QUICK_NUM_ENVS
         args.env_steps = args.env_steps or QUICK_ENV_STEPS
-    config = dataclasses.replace(ppo_config(args.env, args.num_envs, args.env_steps), seed=args.seed)
+    try:
+        config = dataclasses.replace(
+            ppo_config(args.env, args.num_envs, args.env_steps, args.overrides), seed=args.seed
+        )
+    except ValueError as error:
+        parser.error(str(error))
     if args.impl != "jax":
         # Warp's contact buffer is shared by the batch: sized for this run's envs.
         kwargs = with_pair(with_pair(config.env_kwargs, "impl", args.impl), "max_envs", config.num_envs)
@@ -379,7 +421,7 @@ def main(argv: Sequence[str]) -> None:
         f"{config.rollout_length} steps per update, {config.num_updates} updates, {config.num_minibatches} "
         f"minibatches × {config.num_epochs} epochs, MLPs {config.policy_hidden_sizes}/{config.value_hidden_sizes} "
         f"{config.activation}, γ {config.gamma}; "
-        f"lr ours {config.learning_rate:g} (linear decay), brax {args.brax_learning_rate:g} (constant)",
+        f"lr ours {config.learning_rate:g} ({'linear decay' if config.anneal_learning_rate else 'constant'}), brax {args.brax_learning_rate:g} (constant)",
         flush=True,
     )
     learners = {

@@ -1,6 +1,7 @@
 """The benchmarks' arithmetic and options: equal parts, the steady rate, scan lengths, one learner alone, the
 JSON record each suite writes beside its markdown (the runs themselves are benchmarks)."""
 
+import dataclasses
 import json
 import math
 
@@ -15,7 +16,12 @@ from experiments.benchmarks.training import PARTS, Result, ppo_config
 def test_steady_rate_skips_the_first_part_and_books_the_rest_as_one_off_costs():
     # brax's pattern: the first two epochs compile, the later ones run at the steady rate.
     result = Result(
-        env_steps=4_000, total_seconds=20.0, part_seconds=(7.0, 6.0, 1.0, 2.0), success_rate=1.0, return_mean=0.0
+        env_steps=4_000,
+        total_seconds=20.0,
+        part_seconds=(7.0, 6.0, 1.0, 2.0),
+        success_rate=1.0,
+        return_mean=0.0,
+        policy_env_seconds=0.5,
     )
     assert result.train_seconds == pytest.approx(4.0)
     assert result.compile_seconds == pytest.approx(16.0)
@@ -100,6 +106,14 @@ def test_scaling_suite_writes_its_curves(tmp_path):
     assert (tmp_path / "scaling.png").exists()
 
 
+def test_breakdown_at_the_preset_books_every_phase_of_an_update():
+    config = dataclasses.replace(ppo_config("arm2d", num_envs=16, env_steps=16 * 16 * PARTS), num_minibatches=2)
+    phases = dict(scaling.time_breakdown(config, num_updates=2))
+    assert phases["whole update"] > 0
+    sgd = next(ms for phase, ms in phases.items() if phase.startswith("normaliser update"))
+    assert sgd > 0  # the learning is the bulk of an arm2d update on the CPU
+
+
 def test_ceiling_line_books_each_learner_beyond_the_env_stepping():
     config = ppo_config("arm2d", num_envs=64, env_steps=64 * 16 * PARTS * 10)  # 40 updates
     ours = Result(
@@ -108,6 +122,7 @@ def test_ceiling_line_books_each_learner_beyond_the_env_stepping():
         part_seconds=(3.0, 1.5, 1.5, 1.5),
         success_rate=1.0,
         return_mean=0.0,
+        policy_env_seconds=0.140,
     )  # steady 6 s: 150 ms per update
     brax = Result(
         env_steps=config.total_env_steps,
@@ -115,11 +130,36 @@ def test_ceiling_line_books_each_learner_beyond_the_env_stepping():
         part_seconds=(3.0, 2.0, 2.0, 2.0),
         success_rate=1.0,
         return_mean=0.0,
+        policy_env_seconds=0.160,
     )  # steady 8 s: 200 ms per update
     line = training.ceiling_line(config, ours, brax, env_seconds_per_update=0.125)
     assert "125.0 ms per update" in line
     assert "our learner costs 25.0 ms, brax's 75.0 ms" in line
     assert "would run at 1.60× brax's steady rate; ours runs at 1.33×" in line
+    # Under the trained policies the physics costs more: 140 and 160 ms.
+    assert "beyond it our learner costs 10.0 ms, brax's 40.0 ms" in line
+    assert "as ours drives them, would run at 1.43× brax" in line
+
+
+def test_env_stepping_under_a_policy_takes_the_policys_actions():
+    config = ppo_config("arm2d", num_envs=16, env_steps=16 * 16 * PARTS * 2)
+    calls = []
+
+    def policy(obs):
+        calls.append(obs.shape)  # traced once, inside the scan
+        return jax.numpy.zeros((obs.shape[0], 2))
+
+    seconds = training.env_stepping_seconds(config, policy)
+    assert 0.0 < seconds < 1.0
+    assert calls == [(16, config.make_env()[0].spec.observation_size)]
+
+
+def test_overrides_change_the_preset_both_learners_map_from():
+    config = ppo_config("arm2d", num_envs=64, env_steps=10_000, overrides=("anneal_learning_rate=false",))
+    assert not config.anneal_learning_rate
+    assert training.brax_ppo_kwargs(config, 1e-3)["num_minibatches"] == config.num_minibatches
+    with pytest.raises(ValueError, match="unknown config key"):
+        ppo_config("arm2d", num_envs=64, env_steps=10_000, overrides=("anneal_learnig_rate=false",))
 
 
 def test_env_stepping_alone_is_timed_per_update():

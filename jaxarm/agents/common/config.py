@@ -14,7 +14,7 @@ import ast
 import dataclasses
 import typing
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, TypeVar
 
 import jax
 import jax.numpy as jnp
@@ -233,7 +233,10 @@ def with_pair(pairs: Pairs, name: str, value: Any) -> Pairs:
     return tuple((key, val) for key, val in pairs if key != name) + ((name, value),)
 
 
-def apply_overrides(config: RunConfig, overrides: Iterable[str]) -> RunConfig:
+AnyConfig = TypeVar("AnyConfig", bound=RunConfig)
+
+
+def apply_overrides(config: AnyConfig, overrides: Iterable[str]) -> AnyConfig:
     """Returns `config` with `key=value` overrides applied, each parsed to its field's type.
 
     Raises ValueError with a one-line message (naming the closest key for a typo) on any bad override.
