@@ -4,10 +4,10 @@ For every requested env that is registered (default: arm2d, panda_sort), with th
 - env steps/s of `num_envs` auto-reset envs stepping inside one jitted `lax.scan` (compile excluded);
 - PPO env steps/s: whole updates (rollout, GAE, epochs × minibatches) of our PPO with the preset's
   hyper-parameters at `num_envs` envs, compiled ahead of time, compile excluded;
-- where PPO's time goes at the preset's env count (when the sweep reached it): the same update timed with
-  zero SGD epochs and env stepping alone, so the differences isolate the policy side of the rollout and the
-  learning. With zero epochs nothing uses the advantages, so XLA drops the value passes and GAE as dead
-  code: they are booked with the SGD.
+- where PPO's time goes at the preset's env count (when the sweep reached it): the whole update, the envs
+  stepping alone under random actions, and the envs stepping under the untrained policy's actions (its
+  network and normaliser run each step), so the differences isolate the policy side of the rollout and the
+  learning (the normaliser's update, value passes, GAE and SGD).
 Sizes are tried in increasing order; the previous size's rate shortens each timed call to fit
 `--max-seconds`, and the sweep stops where even the shortest call would not fit (MJX envs on CPU stop
 early; their compile times are minutes there). One device is used; the output and the plot's title say how
@@ -31,7 +31,7 @@ from experiments.benchmarks.timing import compile_updates, env_seconds, timed  #
 from experiments.benchmarks.training import base_ppo_config  # noqa: E402
 from jaxarm import envs  # noqa: E402
 from jaxarm.agents.common.config import with_pair  # noqa: E402
-from jaxarm.agents.ppo import PPOConfig  # noqa: E402
+from jaxarm.agents.ppo import PPOConfig, make_trainer  # noqa: E402
 
 
 def parse_sizes(text: str) -> list[int]:
@@ -62,9 +62,9 @@ def scaling_config(env_name: str, impl: str, max_envs: int) -> PPOConfig:
     return dataclasses.replace(config, env_kwargs=kwargs)
 
 
-def ppo_seconds(base: PPOConfig, num_envs: int, num_updates: int, **overrides) -> tuple[float, float]:
-    """(seconds of `num_updates` PPO updates, compile seconds) at `num_envs` envs; `overrides` edit `base`."""
-    config = dataclasses.replace(base, num_envs=num_envs, **overrides)
+def ppo_seconds(base: PPOConfig, num_envs: int, num_updates: int) -> tuple[float, float]:
+    """(seconds of `num_updates` PPO updates, compile seconds) of `base` at `num_envs` envs."""
+    config = dataclasses.replace(base, num_envs=num_envs)
     compiled, state, hparams, compile_seconds = compile_updates(config, num_updates)
     timed(compiled, state, hparams)  # warm-up
     seconds = min(timed(compiled, state, hparams) for _ in range(2))
@@ -119,20 +119,23 @@ def sweep(sizes: list[int], measure: Measure, target_steps: int, max_seconds: fl
 def time_breakdown(config: PPOConfig, num_updates: int) -> list[tuple[str, float]]:
     """[(phase, milliseconds per update)] of our PPO at the preset's env count (see the module docstring)."""
     full, _ = ppo_seconds(config, config.num_envs, num_updates)
-    no_sgd, _ = ppo_seconds(config, config.num_envs, num_updates, num_epochs=0)
-    env_only, _ = env_seconds(config, config.num_envs, config.rollout_length * num_updates)
+    env_steps = config.rollout_length * num_updates
+    env_only, _ = env_seconds(config, config.num_envs, env_steps)
+    trainer = make_trainer(config)
+    state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), config.hparams())
+    under_policy, _ = env_seconds(config, config.num_envs, env_steps, policy=lambda obs: trainer.act(state, obs))
     sgd_steps = config.num_epochs * config.num_minibatches
     per_update = 1000.0 / num_updates
     return [
         ("whole update", full * per_update),
         (f"env stepping alone ({config.num_envs:,} envs × {config.rollout_length} steps)", env_only * per_update),
-        ("policy sampling and the normaliser", (no_sgd - env_only) * per_update),
+        ("the policy's network and normaliser in the rollout", (under_policy - env_only) * per_update),
         (
-            f"value passes, GAE and SGD: {config.num_epochs} epochs × {config.num_minibatches} minibatches of "
-            f"{config.minibatch_size:,}",
-            (full - no_sgd) * per_update,
+            f"normaliser update, value passes, GAE and SGD: {config.num_epochs} epochs × {config.num_minibatches} "
+            f"minibatches of {config.minibatch_size:,}",
+            (full - under_policy) * per_update,
         ),
-        ("  per SGD step, value passes and GAE included", (full - no_sgd) * per_update / sgd_steps),
+        ("  per SGD step, value passes and GAE included", (full - under_policy) * per_update / sgd_steps),
     ]
 
 
