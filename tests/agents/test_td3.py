@@ -17,13 +17,16 @@ from jaxarm.agents.common.trainer import make_train
 from jaxarm.agents.td3 import TD3Config, make_trainer
 from jaxarm.agents.td3.losses import (
     actor_loss,
+    categorical_projection,
     critic_loss,
     critic_target,
+    distributional_critic_loss,
+    distributional_critic_target,
     n_step_returns,
     polyak_update,
     smoothed_target_action,
 )
-from jaxarm.agents.td3.networks import Critic, apply_critics, make_networks
+from jaxarm.agents.td3.networks import make_networks
 from jaxarm.agents.td3.train import Experience, n_step_experience
 from tests.agents.probe_envs import ConstantRewardEnv, ImageTargetEnv, TargetActionEnv
 
@@ -74,6 +77,44 @@ def test_critic_target_takes_min_and_cuts_bootstrap_only_on_termination():
     target = critic_target(next_q, reward, terminated, discount=jnp.float32(0.9), reward_scale=jnp.float32(2.0))
     # 2·0.5 + 0.9·min(1, 3); 2·1 (terminated); 2·1 + 0.9·4
     np.testing.assert_allclose(target, [1.9, 2.0, 5.6], rtol=1e-6)
+
+
+def test_categorical_projection_shares_each_mass_between_the_two_nearest_atoms():
+    atoms = jnp.array([0.0, 1.0, 2.0])
+    values = jnp.array([[0.5, 1.0, 1.75], [-3.0, 2.7, 1.25]])  # the second row's ends lie beyond the span
+    probs = jnp.array([[0.2, 0.3, 0.5], [0.5, 0.25, 0.25]])
+    # Row 1: 0.5 splits 0.1 / 0.1 onto atoms 0, 1; 1.0 lands on atom 1; 1.75 gives 0.125 to atom 1, 0.375 to 2.
+    # Row 2: -3 clips to atom 0, 2.7 to atom 2; 1.25 gives 0.1875 to atom 1 and 0.0625 to atom 2.
+    expected = [[0.1, 0.525, 0.375], [0.5, 0.1875, 0.3125]]
+    np.testing.assert_allclose(categorical_projection(values, probs, atoms), expected, atol=1e-6)
+
+
+def test_distributional_target_shifts_the_least_critic_and_cuts_bootstrap_only_on_termination():
+    atoms = jnp.linspace(-2.0, 2.0, 5)  # spacing 1
+    low = jnp.log(jnp.array([0.0, 0.0, 0.5, 0.5, 0.0]) + 1e-30)  # mean 0.5
+    high = jnp.log(jnp.array([0.0, 0.0, 0.0, 0.0, 1.0]) + 1e-30)  # mean 2
+    # Critic 0 is the least at transition 0, critic 1 at transition 1.
+    next_logits = jnp.stack([jnp.stack([low, high]), jnp.stack([high, low])])  # [C=2, B=2, N=5]
+    target = distributional_critic_target(
+        next_logits,
+        reward=jnp.array([1.0, 10.0]),
+        terminated=jnp.array([False, True]),
+        discount=jnp.array([0.5, 0.5]),
+        reward_scale=jnp.float32(0.1),
+        atoms=atoms,
+    )
+    # Transition 0: 0.1 + 0.5·{0, 1} = {0.1, 0.6}, half each: atom 0 gets 0.45 + 0.2, atom 1 0.05 + 0.3.
+    # Transition 1 terminated: all its mass at 0.1·10 = 1.
+    np.testing.assert_allclose(target, [[0, 0, 0.65, 0.35, 0], [0, 0, 0, 1, 0]], atol=1e-6)
+    # The cross-entropy of two uniform critics over 5 atoms is log 5 each, whatever the target.
+    np.testing.assert_allclose(distributional_critic_loss(jnp.zeros((2, 2, 5)), target), 2 * np.log(5), rtol=1e-6)
+
+
+def test_config_rejects_one_atom_and_an_empty_span():
+    with pytest.raises(ValueError, match="critic_atoms must be 0"):
+        TD3Config(critic_atoms=1).validate()
+    with pytest.raises(ValueError, match="value_min"):
+        TD3Config(critic_atoms=11, value_min=1.0, value_max=1.0).validate()
 
 
 def test_n_step_returns_stop_at_an_episode_end_and_at_the_rollout_end():
@@ -177,16 +218,27 @@ DDPG = dict(num_critics=1, policy_delay=1, target_smoothing=False)
 
 THREE_STEP = dict(n_step=3, rollout_length=4, grad_steps_per_update=8)
 """3-step returns; four times the gradient steps per update, as an update collects four times the steps."""
+C51 = dict(critic_atoms=21, value_min=-1.0, value_max=3.0)
+"""Distributional critics, atoms 0.2 apart over returns of −1 … 3."""
 
 
 @pytest.mark.parametrize(
     "terminate, expected_q, learner",
-    [(False, 2.0, {}), (True, 1.0, DDPG), (False, 2.0, THREE_STEP), (True, 1.0, {**DDPG, **THREE_STEP})],
+    [
+        (False, 2.0, {}),
+        (True, 1.0, DDPG),
+        (False, 2.0, THREE_STEP),
+        (True, 1.0, {**DDPG, **THREE_STEP}),
+        (False, 2.0, C51),
+        (True, 1.0, C51),
+    ],
     ids=[
         "td3-truncation-bootstraps",
         "ddpg-termination-cuts",
         "td3-3-step-returns-across-truncations",
         "ddpg-3-step-returns-cut-at-termination",
+        "td3-c51-truncation-bootstraps",
+        "td3-c51-termination-cuts",
     ],
 )
 def test_critic_learns_constant_reward_value(terminate, expected_q, learner):
@@ -199,19 +251,43 @@ def test_critic_learns_constant_reward_value(terminate, expected_q, learner):
     trainer, state, metrics = train(config, env, env_params)
     obs = jnp.ones((3, 1))
     actions = jnp.array([[-1.0], [0.0], [1.0]])
-    q = apply_critics(Critic(config.hidden_sizes), state.critic_params, obs, actions)
+    networks = make_networks(config, action_size=1)
+    q = networks.q_values(networks.q(state.critic_params, obs, actions))
     assert q.shape == (config.num_critics, 3)
     np.testing.assert_allclose(q, expected_q, atol=0.1)
     # The actor trained in every update after learning_starts, with or without a policy delay.
     assert np.all(np.asarray(metrics.actor_loss[-10:]) != 0)
 
 
-def test_actor_learns_observation_dependent_target_action():
+@pytest.mark.parametrize("critics", [{}, dict(critic_atoms=51, value_min=-2.0, value_max=0.0)], ids=["td3", "td3-c51"])
+def test_actor_learns_observation_dependent_target_action(critics):
+    # Rewards −Σ(a − target)² of two dims in ±0.5 lie in −2 … 0: the distributional critics' span.
     env = TargetActionEnv(action_size=2)
-    config = TD3Config(num_envs=8, learning_starts=256, total_env_steps=8_000, grad_steps_per_update=4, **SMALL)
+    config = TD3Config(
+        num_envs=8, learning_starts=256, total_env_steps=8_000, grad_steps_per_update=4, **SMALL, **critics
+    )
     trainer, state, _ = train(config, env, env.default_params())
     targets = jax.random.uniform(jax.random.PRNGKey(5), (64, 2), minval=-0.5, maxval=0.5)
     np.testing.assert_allclose(trainer.act(state, targets), targets, atol=0.1)
+
+
+def test_mixed_exploration_noise_spreads_the_noise_over_the_envs():
+    # The actor barely moves (a tiny learning rate) and sees one observation: it keeps one action, and each
+    # stored action less that action is env e's noise, of std 0.2 · (e + 1) / 4.
+    env = ConstantRewardEnv()
+    config = TD3Config(
+        num_envs=4,
+        learning_starts=0,
+        total_env_steps=8_000,
+        exploration_noise=0.2,
+        mixed_exploration_noise=True,
+        actor_learning_rate=1e-12,
+        **{**SMALL, "buffer_size": 8_000},
+    )
+    trainer, state, _ = train(config, env, env.default_params())
+    policy = trainer.act(state, jnp.ones((1, 1)))[0, 0]
+    noise = (np.asarray(state.replay.items.action)[:, 0] - float(policy)).reshape(-1, config.num_envs)
+    np.testing.assert_allclose(noise.std(axis=0), [0.05, 0.1, 0.15, 0.2], rtol=0.1)
 
 
 def test_normalised_observations_learn_a_target_shown_far_off_scale():

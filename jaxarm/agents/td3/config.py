@@ -48,6 +48,15 @@ class TD3Config(RunConfig):
       grad_steps_per_update: gradient (critic) steps per update; a multiple of `policy_delay`.
       n_step: rewards summed per stored transition before the target bootstraps (n-step returns, within each
         update's rollout of `rollout_length` steps, never across an episode's end); 1 for one-step TD3.
+      critic_atoms: 0: each critic outputs Q. N ≥ 2: each outputs a categorical distribution of the (scaled)
+        return over N atoms evenly spaced on [`value_min`, `value_max`] (C51), trained by cross-entropy against
+        the target critics' distribution shifted by the reward, discounted and projected back onto the atoms;
+        of the target critics, the one whose mean is least gives each transition's target (clipped double Q),
+        and the actor ascends the first critic's mean.
+      value_min, value_max: the atoms' span, in units of scaled return (`reward_scale` · return): returns
+        beyond it count as its ends.
+      mixed_exploration_noise: env e of B explores with noise std `exploration_noise` · (e + 1) / B instead of
+        `exploration_noise` in every env: a spread from nearly greedy to the widest.
     """
 
     num_envs: int = inherit(RunConfig, "num_envs", 16)
@@ -80,13 +89,17 @@ class TD3Config(RunConfig):
     rollout_length: int = static(1, COUNT)
     grad_steps_per_update: int = static(4, COUNT)
     n_step: int = static(1, COUNT)
+    critic_atoms: int = static(0, NON_NEGATIVE)
+    value_min: float = static(-10.0)
+    value_max: float = static(10.0)
+    mixed_exploration_noise: bool = False
 
     @property
     def env_steps_per_update(self) -> int:
         return self.num_envs * self.rollout_length
 
     def validate(self) -> None:
-        """RunConfig's checks, whole policy-delay blocks, and room for one update's steps."""
+        """RunConfig's checks, whole policy-delay blocks, a distribution's atoms, and room for one update's steps."""
         super().validate()
         if self.grad_steps_per_update % self.policy_delay:
             raise ValueError(
@@ -98,6 +111,10 @@ class TD3Config(RunConfig):
                 f"n_step ({self.n_step}) must not exceed rollout_length ({self.rollout_length}): returns are summed "
                 "within one update's rollout"
             )
+        if self.critic_atoms == 1:
+            raise ValueError("critic_atoms must be 0 (a critic outputs Q) or at least 2 (a distribution over atoms)")
+        if self.critic_atoms and not self.value_min < self.value_max:
+            raise ValueError(f"value_min ({self.value_min}) must be below value_max ({self.value_max})")
         if self.env_steps_per_update > self.buffer_size:
             raise ValueError(
                 f"buffer_size ({self.buffer_size}) must hold one update's {self.env_steps_per_update} env steps"

@@ -67,6 +67,62 @@ def critic_target(
     return jax.lax.stop_gradient(reward_scale * reward + bootstrap)
 
 
+def categorical_projection(values: jax.Array, probs: jax.Array, atoms: jax.Array) -> jax.Array:
+    """C51's projection: probability masses at arbitrary values, shared out between the two nearest atoms.
+
+    A mass at value v (clipped to the atoms' span) goes to the atoms on either side of it in proportion to how
+    near each is, so the projection keeps the total mass and, inside the span, the mean.
+
+    Args:
+      values: [B, M] where each mass sits.
+      probs: [B, M] the masses.
+      atoms: [N] evenly spaced, increasing.
+    Returns: [B, N] the masses on the atoms.
+    """
+    spacing = atoms[1] - atoms[0]
+    position = (jnp.clip(values, atoms[0], atoms[-1]) - atoms[0]) / spacing  # [B, M] in atom units
+    # Triangle weights max(0, 1 - |position - j|): the two atoms around each position, nearer weighing more
+    # (exactly one where the position falls on an atom). [B, M, N]
+    share = jnp.maximum(0.0, 1.0 - jnp.abs(position[..., None] - jnp.arange(atoms.shape[0])))
+    return jnp.einsum("bm,bmn->bn", probs, share)
+
+
+def expected_values(logits: jax.Array, atoms: jax.Array) -> jax.Array:
+    """Means of categorical distributions over `atoms` [N]: logits [..., N] -> [...]."""
+    return jnp.sum(jax.nn.softmax(logits, axis=-1) * atoms, axis=-1)
+
+
+def distributional_critic_target(
+    next_logits: jax.Array,
+    reward: jax.Array,
+    terminated: jax.Array,
+    discount: jax.Array,
+    reward_scale: jax.Array,
+    atoms: jax.Array,
+) -> jax.Array:
+    """The categorical target: reward_scale·r + discount·(1 − terminated)·Z', projected onto the atoms, with Z' the
+    distribution of the target critic whose mean is least at each transition (clipped double Q).
+
+    Args:
+      next_logits: [C, B, N] target critics' logits at the next observation and (smoothed) target action.
+      reward, terminated, discount, reward_scale: as in `critic_target`.
+      atoms: [N].
+    Returns: [B, N] target probabilities, with no gradient.
+    """
+    probs = jax.nn.softmax(next_logits, axis=-1)
+    least = jnp.argmin(jnp.sum(probs * atoms, axis=-1), axis=0)  # [B]
+    chosen = jnp.take_along_axis(probs, least[None, :, None], axis=0)[0]  # [B, N]
+    bootstrap = jnp.broadcast_to(discount, reward.shape) * (1.0 - terminated.astype(jnp.float32))
+    values = (reward_scale * reward)[:, None] + bootstrap[:, None] * atoms
+    return jax.lax.stop_gradient(categorical_projection(values, chosen, atoms))
+
+
+def distributional_critic_loss(logits: jax.Array, target: jax.Array) -> jax.Array:
+    """Sum over critics of the mean cross-entropy of their distributions against the target:
+    logits [C, B, N], target [B, N] probabilities -> []."""
+    return jnp.sum(jnp.mean(-jnp.sum(target * jax.nn.log_softmax(logits, axis=-1), axis=-1), axis=-1))
+
+
 def critic_loss(q: jax.Array, target: jax.Array) -> jax.Array:
     """Sum over critics of the mean squared TD error: q [C, B], target [B] -> []."""
     return jnp.sum(jnp.mean(jnp.square(q - target), axis=-1))

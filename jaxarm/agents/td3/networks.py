@@ -14,10 +14,12 @@ from typing import Any
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxarm.agents.common.encoders import PixelEncoder
 from jaxarm.agents.common.networks import MLP, apply_module
 from jaxarm.agents.td3.config import TD3Config
+from jaxarm.agents.td3.losses import expected_values
 from jaxarm.envs import Observation
 
 
@@ -36,16 +38,20 @@ class Actor(nn.Module):
 
 
 class Critic(nn.Module):
-    """(obs [..., O] (or a camera observation, through `encoder`), action [..., A]) -> Q [...]."""
+    """(obs [..., O] (or a camera observation, through `encoder`), action [..., A]) -> Q [...], or with `atoms`
+    N > 0 the logits [..., N] of a categorical distribution of the return over N atoms."""
 
     hidden_sizes: Sequence[int]
     activation: str = "relu"
     encoder: PixelEncoder | None = None
+    atoms: int = 0
 
     @nn.compact
     def __call__(self, obs: Observation, action: jax.Array) -> jax.Array:
         features = obs if self.encoder is None else self.encoder(obs)
-        return MLP(self.hidden_sizes, 1, self.activation)(jnp.concatenate([features, action], axis=-1))[..., 0]
+        inputs = jnp.concatenate([features, action], axis=-1)
+        outputs = MLP(self.hidden_sizes, max(self.atoms, 1), self.activation)(inputs)
+        return outputs if self.atoms else outputs[..., 0]
 
 
 def init_critics(critic: Critic, key: jax.Array, num_critics: int, obs: Observation, action: jax.Array):
@@ -62,7 +68,8 @@ def init_critics(critic: Critic, key: jax.Array, num_critics: int, obs: Observat
 
 
 def apply_critics(critic: Critic, params, obs: Observation, action: jax.Array) -> jax.Array:
-    """Q of every critic: stacked params, obs [B, ...], action [B, A] -> [num_critics, B]."""
+    """Every critic's output: stacked params, obs [B, ...], action [B, A] -> Q [num_critics, B] (or logits
+    [num_critics, B, N] of distributional critics)."""
     return jax.vmap(partial(apply_module, critic), in_axes=(0, None, None))(params, obs, action)
 
 
@@ -82,11 +89,13 @@ class TD3Networks:
       critic: one critic of the ensemble (likewise).
       shared_encoder: the encoder whose params the critic params hold under "encoder", beside the stacked
         heads under "heads"; None where each network has its own or there is none.
+      atoms: [N] the return values of distributional critics' atoms; None where the critics output Q.
     """
 
     actor: Actor
     critic: Critic
     shared_encoder: PixelEncoder | None
+    atoms: np.ndarray | None = None
 
     def init(self, actor_key: jax.Array, critic_key: jax.Array, num_critics: int, obs: Observation, action):
         """(actor params, critic params) for one unbatched observation and action [A]."""
@@ -111,9 +120,14 @@ class TD3Networks:
         return apply_module(self.actor, actor_params, jax.lax.stop_gradient(encoded))
 
     def q(self, critic_params: Params, encoded: Observation | jax.Array, action: jax.Array) -> jax.Array:
-        """Q of every critic [C, B] at the encoded observations and actions [B, A]."""
+        """Every critic's output at the encoded observations and actions [B, A]: Q [C, B], or the logits
+        [C, B, N] of distributional critics (`q_values` gives their means)."""
         heads = critic_params if self.shared_encoder is None else critic_params["heads"]
         return apply_critics(self.critic, heads, encoded, action)
+
+    def q_values(self, outputs: jax.Array) -> jax.Array:
+        """Q [C, B] from the critics' outputs (`q`): the distributions' means, or Q itself."""
+        return outputs if self.atoms is None else expected_values(outputs, jnp.asarray(self.atoms))
 
 
 def make_networks(config: TD3Config, action_size: int, camera: bool = False) -> TD3Networks:
@@ -123,8 +137,12 @@ def make_networks(config: TD3Config, action_size: int, camera: bool = False) -> 
     shared = encoder if config.shared_encoder else None
     # A flax module is a definition: one serves every network that has its own encoder, each with its own params.
     own = None if shared else encoder
+    atoms = None
+    if config.critic_atoms:
+        atoms = np.linspace(config.value_min, config.value_max, config.critic_atoms, dtype=np.float32)
     return TD3Networks(
         Actor(config.hidden_sizes, action_size, config.activation, own),
-        Critic(config.hidden_sizes, config.activation, own),
+        Critic(config.hidden_sizes, config.activation, own, config.critic_atoms),
         shared,
+        atoms,
     )

@@ -6,14 +6,15 @@ buffer, then run `grad_steps_per_update` gradient steps in blocks of `policy_del
 by one actor step and one Polyak step of both target networks. Camera observations are stored as uint8 frames
 and read through conv encoders (networks.py), with DrQ's random shift on training batches when
 `random_shift_pad` > 0. With `n_step` > 1 each stored transition carries the discounted rewards of up to n
-steps of its rollout (losses.n_step_returns). With `normalize_observations` the networks read observations
-standardised by running statistics of every collected step (the replay keeps them raw). Hyper-parameters
-arrive as `HParams` data, so `jax.vmap(make_train(trainer))(keys, hparams)` trains seeds × hyper-parameters
-at once.
+steps of its rollout (losses.n_step_returns). With `critic_atoms` the critics learn distributions of the return
+(C51, losses.distributional_critic_target) and the actor their means. With `normalize_observations` the networks
+read observations standardised by running statistics of every collected step (the replay keeps them raw).
+Hyper-parameters arrive as `HParams` data, so `jax.vmap(make_train(trainer))(keys, hparams)` trains seeds ×
+hyper-parameters at once.
 """
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import jax
@@ -33,6 +34,8 @@ from jaxarm.agents.td3.losses import (
     actor_loss,
     critic_loss,
     critic_target,
+    distributional_critic_loss,
+    distributional_critic_target,
     n_step_returns,
     polyak_update,
     smoothed_target_action,
@@ -205,6 +208,11 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             updates=jnp.zeros((), jnp.int32),
         )
 
+    # [B, 1] each env's share of `exploration_noise` (see `TD3Config.mixed_exploration_noise`).
+    exploration_scales = jnp.ones((config.num_envs, 1))
+    if config.mixed_exploration_noise:
+        exploration_scales = (jnp.arange(1, config.num_envs + 1) / config.num_envs)[:, None]
+
     def collect(state: TD3State, hparams: HParams, key: jax.Array):
         """Steps the envs `rollout_length` times; returns (env state, env steps, experience [T*B], states [T, B])."""
 
@@ -214,7 +222,8 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             shape = (config.num_envs, action_size)
             obs = standardized(state.normalizer, env_state.obs)
             policy = networks.action(state.actor_params, networks.encode(state.critic_params, obs))
-            noisy = jnp.clip(policy + hparams.exploration_noise * jax.random.normal(noise_key, shape), -1.0, 1.0)
+            noise = exploration_scales * hparams.exploration_noise * jax.random.normal(noise_key, shape)
+            noisy = jnp.clip(policy + noise, -1.0, 1.0)
             random = jax.random.uniform(random_key, shape, minval=-1.0, maxval=1.0)
             action = jnp.where(env_steps < config.learning_starts, random, noisy)
             next_state = batch_env.step(env_state, to_env_action(action), env_params)
@@ -249,12 +258,19 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         if config.target_smoothing:
             noise = hparams.target_noise * jax.random.normal(noise_key, next_action.shape)
             next_action = smoothed_target_action(next_action, noise, hparams.target_noise_clip)
-        next_q = networks.q(target_critic_params, next_encoded, next_action)
-        target = critic_target(next_q, batch.reward, batch.terminated, batch.discount, hparams.reward_scale)
+        next_outputs = networks.q(target_critic_params, next_encoded, next_action)
+        target_args = (batch.reward, batch.terminated, batch.discount, hparams.reward_scale)
+        loss_of_outputs: Callable[[jax.Array, jax.Array], jax.Array]
+        if networks.atoms is None:
+            target = critic_target(next_outputs, *target_args)
+            loss_of_outputs = critic_loss
+        else:
+            target = distributional_critic_target(next_outputs, *target_args, jnp.asarray(networks.atoms))
+            loss_of_outputs = distributional_critic_loss
 
         def loss_fn(params):
-            q = networks.q(params, networks.encode(params, batch.obs), batch.action)
-            return critic_loss(q, target), q
+            outputs = networks.q(params, networks.encode(params, batch.obs), batch.action)
+            return loss_of_outputs(outputs, target), networks.q_values(outputs)
 
         (loss, q), grads = jax.value_and_grad(loss_fn, has_aux=True)(critic_params)
         updates, opt_state = optax.adam(hparams.critic_learning_rate).update(grads, opt_state, critic_params)
@@ -264,7 +280,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         encoded = networks.encode(critic_params, obs)
 
         def loss_fn(actor_params):
-            q = networks.q(critic_params, encoded, networks.action(actor_params, encoded))
+            q = networks.q_values(networks.q(critic_params, encoded, networks.action(actor_params, encoded)))
             return actor_loss(q[0])
 
         loss, grads = jax.value_and_grad(loss_fn)(params)
