@@ -27,6 +27,7 @@ from jaxarm.envs.panda_sort import (  # noqa: E402
 )
 from jaxarm.envs.panda_sort.curriculum import place_in_hand  # noqa: E402
 from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE  # noqa: E402
+from jaxarm.envs.panda_sort.reward import SHAPING_TERMS  # noqa: E402
 from jaxarm.envs.panda_sort.scripted import script_start, scripted_action  # noqa: E402
 from tests.envs.compiled import compiled, same_worker  # noqa: E402
 
@@ -110,7 +111,7 @@ def with_object(env, state, shape: int, size: float, pose, velocity=(0.0,) * 6):
 
 
 def shaping_potential(env, state, params) -> np.ndarray:
-    """[4] weighted shaping potentials of a (non-batched) state, recomputed from its sim."""
+    """[S] weighted shaping potentials of a (non-batched) state, recomputed from its sim."""
     model = env.episode_model(state.sim, params)
     return np.asarray(env.shaping_potential(env.kinematics(model, state.sim), state.sim, params))
 
@@ -146,7 +147,7 @@ def scripted_pick_and_place(step, state, params, bin_xy, max_steps=300):
         terms = state.info.reward_terms
         correct.append(float(terms.correct_bin))
         wrong.append(float(terms.wrong_bin))
-        shaping.append(float(terms.reach + terms.grasp + terms.lift + terms.carry))
+        shaping.append(float(terms.shaping()))
         if bool(state.terminated):
             break
     return state, np.array(correct), np.array(wrong), np.array(shaping)
@@ -213,8 +214,10 @@ def test_frictionless_bin_walls_still_stop_an_object_thrown_at_them(env, params,
     ],
 )
 def test_scripted_pick_and_place_scores_500_exactly_once(env, params, reset, step, shape, size, yaw):
+    params = params.replace(toss_weight=jnp.float32(3.0))  # every shaping term in play
     pose = [0.5, -0.1, size + 0.001, np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)]
     state = with_object(env, reset(jax.random.key(0), params), shape, size, pose)
+    state = state.replace(sim=state.sim.replace(potential=jnp.asarray(shaping_potential(env, state, params))))
     initial_potential = float(state.sim.potential.sum())
     state, correct, wrong, shaping = scripted_pick_and_place(
         step, state, params, np.array(env.layout.bin_centers[shape])
@@ -223,7 +226,7 @@ def test_scripted_pick_and_place_scores_500_exactly_once(env, params, reset, ste
     assert list(correct[correct != 0]) == [500.0] and not np.any(wrong)
     assert int(state.info.correct_count) == 1 and bool(state.episode.success)
     # Potential-based shaping telescopes: a placed object is worth every term's full weight.
-    full = float(params.reach_weight + params.grasp_weight + params.lift_weight + params.carry_weight)
+    full = sum(float(getattr(params, f"{name}_weight")) for name in SHAPING_TERMS)
     np.testing.assert_allclose(shaping.sum(), full - initial_potential, atol=1e-3)
     state, terms = run_steps(step, state, params, [np.zeros(5)] * 3)
     assert not np.any(terms.correct_bin) and not np.any(terms.wrong_bin)
@@ -319,7 +322,7 @@ def test_grasp_ready_starts_keep_other_objects_clear_of_the_hand(env3):
 @pytest.mark.mjx
 def test_presorted_starts_leave_one_object_in_play_worth_its_own_placement(env3):
     params = env3.default_params()
-    weights = np.array([params.reach_weight, params.grasp_weight, params.lift_weight, params.carry_weight])
+    weights = np.array([getattr(params, f"{name}_weight") for name in SHAPING_TERMS])
     presorted = params.replace(presorted_prob=jnp.float32(1.0))
     full, _, _ = batched_resets(params, seed=12, count=16)
     states, positions, _ = batched_resets(presorted, seed=12, count=16)

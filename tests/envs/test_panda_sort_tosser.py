@@ -11,14 +11,16 @@ import pytest
 
 from jaxarm.envs.panda.robot import ARM_SPEED_LIMITS
 from jaxarm.envs.panda_sort import MODE_JOINT, SHAPE_CUBE, SHAPE_SPHERE, PandaSort
+from jaxarm.envs.panda_sort.reward import SHAPING_TERMS
 from jaxarm.envs.panda_sort.scripted_throw import aimed_throw, throw_action
 from tests.envs.compiled import compiled, same_worker
-from tests.envs.test_panda_sort import with_object
+from tests.envs.test_panda_sort import shaping_potential, with_object
 
 pytestmark = same_worker("panda_sort_tosser")
 
 REACH_SAMPLES = 20_000
 GRAVITY = 9.81
+TOSS_WEIGHT = 10.0
 
 
 def wall_distances(layout) -> np.ndarray:
@@ -71,13 +73,28 @@ def test_a_thrown_object_lands_in_the_aimed_bin_and_scores(shape, aimed, reward)
     velocity = ballistic_velocity(release, target, flight_s=0.6)
     state = shared.reset(jax.random.key(0), params)
     state = with_object(env, state, shape, size, [*release, 1, 0, 0, 0], [*velocity, 0, 0, 0])
-    rewards = []
+    # The toss potential of the object in flight, by hand: 1 − tanh(d / toss_scale), d to its own bin's centre.
+    params = params.replace(toss_weight=jnp.float32(TOSS_WEIGHT))
+    own_bin = np.array(env.layout.bin_centers[shape])
+    toss = TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(release[:2] - own_bin) / float(params.toss_scale)))
+    state = state.replace(sim=state.sim.replace(potential=jnp.asarray(shaping_potential(env, state, params))))
+    np.testing.assert_allclose(float(state.sim.potential[SHAPING_TERMS.index("toss")]), toss, rtol=1e-5)
+    rewards, tosses = [], []
     for _ in itertools.repeat(None, 30):  # 1.2 s: the flight and then some
         state = shared.step(state, jnp.zeros(env.spec.action_shape), params)
         terms = state.info.reward_terms
         rewards.append((float(terms.correct_bin), float(terms.wrong_bin), float(terms.floor)))
+        tosses.append(float(terms.toss))
     scored = [value for step in rewards for value in step if value != 0]
     assert scored == [reward], rewards
+    landed = next(t for t, step in enumerate(rewards) if any(step))
+    if shape == aimed:
+        # Flying towards its own bin the object earns toss shaping every step, and in the bin the full weight.
+        assert min(tosses[:landed]) > 0, tosses
+        np.testing.assert_allclose(sum(tosses), TOSS_WEIGHT - toss, atol=1e-3)
+    else:
+        # Landing in another bin hands back what the toss term paid (it counts zero there).
+        np.testing.assert_allclose(sum(tosses), -toss, atol=1e-3)
 
 
 THROW_STEPS = 110

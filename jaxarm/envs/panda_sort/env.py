@@ -60,6 +60,7 @@ from jaxarm.envs.panda_sort.render import dress_objects
 from jaxarm.envs.panda_sort.reward import (
     IN_CORRECT_BIN,
     IN_PLAY,
+    SHAPING_TERMS,
     PandaSortInfo,
     RewardTerms,
     carry_targets,
@@ -332,7 +333,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         return (sim.target + slots) % self.objects_count if self.target_first else slots
 
     def shaping_potential(self, data: mjx.Data, sim: PandaSortSim, params: PandaSortParams) -> jax.Array:
-        """[4] weighted shaping potentials of `sim` (reward.shaping_potential), `data` its kinematics."""
+        """[S] weighted shaping potentials of `sim` (reward.shaping_potential), `data` its kinematics."""
         return shaping_potential(self.ids, self.layout, data, sim, params, self.target_first)
 
     # --- the contract -------------------------------------------------------------------------------
@@ -372,7 +373,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             colour=jax.random.uniform(colour_key, (n, 3), minval=0.15, maxval=0.95),
             outcome=outcome,
             target=start.focus.astype(jnp.int32),
-            potential=jnp.zeros(4, jnp.float32),
+            potential=jnp.zeros(len(SHAPING_TERMS), jnp.float32),
             queued_actions=self.initial_action_queue(),
             noise_key=jax.random.fold_in(key, 2),
         )

@@ -58,6 +58,10 @@ class PandaSortParams(RobotParams):
       carry_scale: distance over which the carry term rises (metres).
       carry_height: height above the table of the carry target (metres): over the bin walls, and in a straight
         line from anywhere in the spawn region without touching them.
+      toss_weight: weight of the toss potential 1 − tanh(d / toss_scale), d the horizontal distance from an
+        in-play object, held or not, to the centre of its own bin: it rises while an object flies towards its
+        bin, where the carry term (held objects only) cannot follow a throw (the tosser; 0 elsewhere).
+      toss_scale: distance over which the toss term rises (metres).
       held_start_prob: chance that an episode starts with the focus object (a slot drawn uniformly per
         episode) already between the closed fingers, at the arm's start pose (a curriculum: the policy sees
         carrying and releasing before it can grasp; evaluate with 0).
@@ -103,6 +107,8 @@ class PandaSortParams(RobotParams):
     lift_height: jax.Array = ranged(POSITIVE)
     carry_scale: jax.Array = ranged(POSITIVE)
     carry_height: jax.Array = ranged(NON_NEGATIVE)
+    toss_weight: jax.Array = ranged()
+    toss_scale: jax.Array = ranged(POSITIVE)
     held_start_prob: jax.Array = ranged(UNIT_INTERVAL)
     ready_start_prob: jax.Array = ranged(UNIT_INTERVAL)
     presorted_prob: jax.Array = ranged(UNIT_INTERVAL)
@@ -149,6 +155,8 @@ def default_params() -> PandaSortParams:
         lift_height=f32(0.1),
         carry_scale=f32(0.2),
         carry_height=f32(0.15),
+        toss_weight=f32(0.0),
+        toss_scale=f32(0.5),
         held_start_prob=f32(0.0),
         ready_start_prob=f32(0.0),
         presorted_prob=f32(0.0),

@@ -6,10 +6,13 @@ Either way it leaves play for the rest of the episode (the env parks it), so it 
 
 Dense shaping is potential-based: each shaping term pays the change of its potential over the step (reach:
 the tool centre near an object; grasp: an object held; lift: a held object lifted; carry: a lifted object
-near the point above its own bin), summed over objects, with an object in its own bin counting as the
-maximum of every term and one elsewhere as zero. Over an episode the shaping sums to the final potential
-minus the first, so no behaviour (hovering with an object over its bin, say) can farm it.
+near the point above its own bin; toss: an object, held or flying, horizontally near its own bin), summed
+over objects, with an object in its own bin counting as the maximum of every term and one elsewhere as zero.
+Over an episode the shaping sums to the final potential minus the first, so no behaviour (hovering with an
+object over its bin, say) can farm it.
 """
+
+import dataclasses
 
 import jax
 import jax.numpy as jnp
@@ -39,6 +42,10 @@ HELD_MIN_WIDTH = 1.0
 1.4 sizes, a small sphere squeezed to about 1.5)."""
 
 
+SHAPING_TERMS = ("reach", "grasp", "lift", "carry", "toss")
+"""The shaping potentials, in the order `shaping_potential` stacks them."""
+
+
 class RewardTerms(struct.PyTreeNode):
     """The reward of one step, term by term (they sum to `EnvState.reward`)."""
 
@@ -50,13 +57,18 @@ class RewardTerms(struct.PyTreeNode):
     grasp: jax.Array
     lift: jax.Array
     carry: jax.Array
+    toss: jax.Array
 
     def total(self) -> jax.Array:
         return sum(jax.tree.leaves(self), jnp.zeros((), jnp.float32))
 
+    def shaping(self) -> jax.Array:
+        """[] the shaping terms' sum."""
+        return sum((getattr(self, name) for name in SHAPING_TERMS), jnp.zeros((), jnp.float32))
+
     @classmethod
     def zeros(cls) -> "RewardTerms":
-        return cls(*(jnp.zeros((), jnp.float32) for _ in range(8)))
+        return cls(*(jnp.zeros((), jnp.float32) for _ in dataclasses.fields(cls)))
 
 
 class PandaSortInfo(struct.PyTreeNode):
@@ -109,8 +121,8 @@ def next_target(ids: ModelIds, data: mjx.Data, sim: PandaSortSim) -> jax.Array:
 def shaping_potential(
     ids: ModelIds, layout: Layout, data: mjx.Data, sim: PandaSortSim, params: PandaSortParams, target_first: bool
 ) -> jax.Array:
-    """[4] weighted potentials (reach, grasp, lift, carry), each summed over objects (see the module docstring);
-    with `target_first`, in-play objects other than the target count zero."""
+    """[S] weighted potentials (`SHAPING_TERMS`), each summed over objects (see the module docstring); with
+    `target_first`, in-play objects other than the target count zero."""
     in_play = sim.outcome == IN_PLAY
     position = object_positions(ids, sim.qpos)
     distance = tcp_distances(ids, data, sim)
@@ -122,19 +134,22 @@ def shaping_potential(
         & (jnp.sum(fingers) > HELD_MIN_WIDTH * sim.size)
     )
     lift = held * jnp.clip((position[:, 2] - sim.size) / params.lift_height, 0.0, 1.0)
-    to_target = jnp.linalg.norm(position - carry_targets(layout, sim.shape, params.carry_height), axis=-1)
+    carry_target = carry_targets(layout, sim.shape, params.carry_height)
+    to_target = jnp.linalg.norm(position - carry_target, axis=-1)
+    to_bin = jnp.linalg.norm(position[:, :2] - carry_target[:, :2], axis=-1)
     stages = jnp.stack(
         [
             1.0 - jnp.tanh(distance / params.reach_scale),
             held.astype(jnp.float32),
             lift,
             lift * (1.0 - jnp.tanh(to_target / params.carry_scale)),
+            1.0 - jnp.tanh(to_bin / params.toss_scale),
         ]
-    )  # [4, N]
+    )  # [S, N]
     slots = jnp.arange(len(ids.object_qpos))
     shaped = in_play & (slots == sim.target) if target_first else in_play
     per_object = jnp.where(shaped, stages, (sim.outcome == IN_CORRECT_BIN).astype(jnp.float32))
-    weights = jnp.stack([params.reach_weight, params.grasp_weight, params.lift_weight, params.carry_weight])
+    weights = jnp.stack([getattr(params, f"{name}_weight") for name in SHAPING_TERMS])
     return weights * jnp.sum(per_object, axis=1)
 
 
@@ -145,16 +160,13 @@ def reward_terms(sim: PandaSortSim, previous: PandaSortSim, params: PandaSortPar
     def count(outcome: int) -> jax.Array:
         return jnp.sum(newly & (sim.outcome == outcome)).astype(jnp.float32)
 
-    reach, grasp, lift, carry = sim.potential - previous.potential
+    shaping = dict(zip(SHAPING_TERMS, sim.potential - previous.potential, strict=True))
     return RewardTerms(
         time=params.step_reward,
         floor=params.floor_reward * count(ON_FLOOR),
         wrong_bin=params.wrong_bin_reward * count(IN_WRONG_BIN),
         correct_bin=params.correct_bin_reward * count(IN_CORRECT_BIN),
-        reach=reach,
-        grasp=grasp,
-        lift=lift,
-        carry=carry,
+        **shaping,
     )
 
 

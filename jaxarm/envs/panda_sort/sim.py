@@ -18,7 +18,7 @@ class PandaSortSim(struct.PyTreeNode):
       outcome: [N] int32 IN_PLAY, IN_CORRECT_BIN, IN_WRONG_BIN or ON_FLOOR (reward.py).
       target: [] int32 the slot being worked on: the curricula's object at reset; when it leaves play, the
         in-play object nearest the tool centre. Used only by envs built with `target_first`.
-      potential: [4] weighted shaping potentials (reach, grasp, lift, carry) of the current state.
+      potential: [S] weighted shaping potentials (`reward.SHAPING_TERMS`) of the current state.
       queued_actions: [L, A] the last L actions, newest first, not yet all applied (L = the env's
         `max_action_latency`; `action_latency` picks which one the servos receive).
       noise_key: PRNG key of the observation noise.
