@@ -233,6 +233,13 @@ def with_pair(pairs: Pairs, name: str, value: Any) -> Pairs:
     return tuple((key, val) for key, val in pairs if key != name) + ((name, value),)
 
 
+def with_pairs(pairs: Pairs, changes: Pairs) -> Pairs:
+    """`pairs` with each (name, value) of `changes` set in turn (`with_pair`)."""
+    for name, value in changes:
+        pairs = with_pair(pairs, name, value)
+    return pairs
+
+
 AnyConfig = TypeVar("AnyConfig", bound=RunConfig)
 
 
