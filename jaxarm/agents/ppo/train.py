@@ -21,7 +21,7 @@ from jaxarm.agents.common.permutation import random_permutation
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig
-from jaxarm.agents.ppo.networks import NetworkParams, make_networks
+from jaxarm.agents.ppo.networks import NetworkParams, PPONetworks, make_networks
 from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
 from jaxarm.export.numpy_policy import NumpyPolicy
 
@@ -29,7 +29,8 @@ SGD_STEPS_UNROLLED = 4
 """Minibatch steps per iteration of an epoch's loop. An iteration of a loop on the GPU waits for the previous one,
 so its small kernels start one after the other with gaps between them; four steps per iteration cut the SGD phase
 of a sorter update from 18.2 to 16.7 ms at 4,096 envs × 16 steps, 16 minibatches, and from 38.5 to 32.0 ms at
-8,192 × 16, 32 minibatches (NVIDIA H100). Every step unrolled gained nothing more and compiled 3-6x longer."""
+8,192 × 16, 32 minibatches (NVIDIA H100; `bench learner` times it). Every step unrolled gained nothing more and
+compiled 3-6x longer."""
 
 
 class PPOState(struct.PyTreeNode):
@@ -94,6 +95,66 @@ def make_optimizer(hparams: HParams, learning_rate) -> optax.GradientTransformat
     return optax.chain(optax.clip_by_global_norm(hparams.max_grad_norm), optax.adam(learning_rate, eps=1e-5))
 
 
+def minibatch_loss(
+    config: PPOConfig, networks: PPONetworks, params, normalizer, batch: Samples, hparams: HParams, key
+) -> tuple[jax.Array, losses.LossTerms]:
+    """PPO's loss on one minibatch (clipped surrogate, value error, entropy bonus) and its terms."""
+    action_dist = networks.action_dist
+    dist_params = networks.policy_params(params, normalizer, batch.obs)
+    log_prob = action_dist.log_prob(dist_params, batch.raw_action)
+    advantages = batch.advantage
+    if config.normalize_advantages:
+        advantages = losses.normalize(advantages)
+    policy_loss, approx_kl, clip_fraction = losses.clipped_policy_loss(
+        log_prob, batch.log_prob, advantages, hparams.clip_epsilon
+    )
+    value_loss = losses.value_loss(networks.value(params, normalizer, batch.obs), batch.target)
+    entropy = jnp.mean(action_dist.entropy(dist_params, key))
+    total = policy_loss + hparams.value_coef * value_loss - hparams.entropy_coef * entropy
+    return total, losses.LossTerms(policy_loss, value_loss, entropy, approx_kl, clip_fraction)
+
+
+def sgd_epochs(
+    config: PPOConfig,
+    networks: PPONetworks,
+    params,
+    opt_state,
+    normalizer,
+    samples: Samples,
+    hparams: HParams,
+    learning_rate,
+    key,
+    unroll: int = SGD_STEPS_UNROLLED,
+):
+    """`num_epochs` passes of `num_minibatches` clipped-surrogate steps over freshly shuffled `samples`
+    ([T·B, ...] per field), `unroll` steps per iteration of each epoch's loop.
+
+    Returns ((params, opt_state), (loss terms, grad norms)), the last two [num_epochs, num_minibatches].
+    """
+    optimizer = make_optimizer(hparams, learning_rate)
+
+    def sgd_step(carry, minibatch_and_key):
+        params, opt_state = carry
+        minibatch, key = minibatch_and_key
+        grads, terms = jax.grad(minibatch_loss, argnums=2, has_aux=True)(
+            config, networks, params, normalizer, minibatch, hparams, key
+        )
+        updates, opt_state = optimizer.update(grads, opt_state, params)
+        return (optax.apply_updates(params, updates), opt_state), (terms, optax.global_norm(grads))
+
+    def epoch(carry, key):
+        permute_key, step_key = jax.random.split(key)
+        order = random_permutation(permute_key, config.env_steps_per_update)
+        minibatches = jax.tree.map(
+            lambda x: x[order].reshape((config.num_minibatches, config.minibatch_size) + x.shape[1:]), samples
+        )
+        return jax.lax.scan(
+            sgd_step, carry, (minibatches, jax.random.split(step_key, config.num_minibatches)), unroll=unroll
+        )
+
+    return jax.lax.scan(epoch, (params, opt_state), jax.random.split(key, config.num_epochs))
+
+
 def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
     """PPO for `config` (see the module docstring). `env`, `env_params` replace the config's env (probes)."""
     config.validate()
@@ -138,20 +199,6 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         )
         return env_state, rollout, summarise_episodes(states)
 
-    def minibatch_loss(params, normalizer, batch, hparams, key):
-        dist_params = networks.policy_params(params, normalizer, batch.obs)
-        log_prob = action_dist.log_prob(dist_params, batch.raw_action)
-        advantages = batch.advantage
-        if config.normalize_advantages:
-            advantages = losses.normalize(advantages)
-        policy_loss, approx_kl, clip_fraction = losses.clipped_policy_loss(
-            log_prob, batch.log_prob, advantages, hparams.clip_epsilon
-        )
-        value_loss = losses.value_loss(networks.value(params, normalizer, batch.obs), batch.target)
-        entropy = jnp.mean(action_dist.entropy(dist_params, key))
-        total = policy_loss + hparams.value_coef * value_loss - hparams.entropy_coef * entropy
-        return total, losses.LossTerms(policy_loss, value_loss, entropy, approx_kl, clip_fraction)
-
     def advantage_samples(state: PPOState, rollout: Rollout, hparams: HParams):
         """(normaliser updated with the rollout's observations, [T·B] training samples with GAE targets)."""
         normalizer = observation_normalizer.update(state.normalizer, config.normalize_observations, rollout.obs)
@@ -169,35 +216,6 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets)
         return normalizer, jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
 
-    def sgd_epochs(params, opt_state, normalizer, samples: Samples, hparams: HParams, learning_rate, key):
-        """`num_epochs` passes of `num_minibatches` clipped-surrogate steps over freshly shuffled `samples`.
-
-        Returns ((params, opt_state), (loss terms, grad norms)), the last two [num_epochs, num_minibatches].
-        """
-        optimizer = make_optimizer(hparams, learning_rate)
-
-        def sgd_step(carry, minibatch_and_key):
-            params, opt_state = carry
-            minibatch, key = minibatch_and_key
-            grads, terms = jax.grad(minibatch_loss, has_aux=True)(params, normalizer, minibatch, hparams, key)
-            updates, opt_state = optimizer.update(grads, opt_state, params)
-            return (optax.apply_updates(params, updates), opt_state), (terms, optax.global_norm(grads))
-
-        def epoch(carry, key):
-            permute_key, step_key = jax.random.split(key)
-            order = random_permutation(permute_key, config.env_steps_per_update)
-            minibatches = jax.tree.map(
-                lambda x: x[order].reshape((config.num_minibatches, config.minibatch_size) + x.shape[1:]), samples
-            )
-            return jax.lax.scan(
-                sgd_step,
-                carry,
-                (minibatches, jax.random.split(step_key, config.num_minibatches)),
-                unroll=SGD_STEPS_UNROLLED,
-            )
-
-        return jax.lax.scan(epoch, (params, opt_state), jax.random.split(key, config.num_epochs))
-
     def update(state: PPOState, hparams: HParams) -> tuple[PPOState, PPOMetrics]:
         collect_key, shuffle_key, next_key = jax.random.split(state.key, 3)
         with jax.named_scope("collect"):
@@ -208,7 +226,15 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         learning_rate = hparams.learning_rate * (1.0 - progress if config.anneal_learning_rate else 1.0)
         with jax.named_scope("sgd"):
             (params, opt_state), (terms, grad_norms) = sgd_epochs(
-                state.params, state.opt_state, normalizer, samples, hparams, learning_rate, shuffle_key
+                config,
+                networks,
+                state.params,
+                state.opt_state,
+                normalizer,
+                samples,
+                hparams,
+                learning_rate,
+                shuffle_key,
             )
         env_steps = state.env_steps + config.env_steps_per_update
         new_state = PPOState(
