@@ -8,9 +8,10 @@ import math
 import jax
 import pytest
 
-from experiments.benchmarks import arm2d, record, scaling, training
+from experiments.benchmarks import arm2d, learner, record, scaling, training
 from experiments.benchmarks.arm2d import default_max_env_steps, scan_length
 from experiments.benchmarks.training import PARTS, Result, ppo_config
+from jaxarm import envs
 
 
 def test_steady_rate_skips_the_first_part_and_books_the_rest_as_one_off_costs():
@@ -88,6 +89,26 @@ def test_arm2d_suite_writes_its_table_rows(capsys, tmp_path):
         assert row["env_steps_per_second"] > 0 and row["env_steps_per_second_without_auto_reset"] > 0
         assert f"| {row['envs']:,} | {row['env_steps_per_second']:,.3g} |" in out
     assert written["numpy_single_env_steps_per_second"] > 0
+
+
+def test_learner_suite_times_the_sgd_phase_per_unroll(tmp_path):
+    argv = ["--config", "ppo_arm2d", "--unrolls", "1,0", "--repeats", "1", "--out", str(tmp_path)]
+    argv += ["num_envs=16", "rollout_length=8", "num_minibatches=4", "num_epochs=2"]
+    learner.main(argv)
+    written = read_record(tmp_path, "learner", argv)
+    assert [row["unroll"] for row in written["rows"]] == [1, 0]
+    assert all(row["sgd_ms"] > 0 for row in written["rows"])
+    assert written["sgd_steps"] == 8 and written["minibatch_size"] == 32
+    with pytest.raises(SystemExit):
+        learner.main(["--config", "td3_arm2d"])  # not a PPO preset
+
+
+def test_random_samples_take_the_envs_shapes_and_frames_stay_uint8():
+    spec = envs.make("arm2d", obs_mode="pixels").spec
+    samples = learner.random_samples(jax.random.PRNGKey(0), spec, 5)
+    image = samples.obs["image"]
+    assert image.dtype == jax.numpy.uint8 and image.shape == (5, *spec.observation["image"].shape)
+    assert samples.raw_action.shape == (5, spec.action_size) and samples.target.shape == (5,)
 
 
 @pytest.mark.slow
