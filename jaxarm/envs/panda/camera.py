@@ -45,7 +45,7 @@ def _ahead(t: jax.Array) -> jax.Array:
 
 
 def _nearer(first: Hit, second: Hit) -> Hit:
-    """The nearer of two hits."""
+    """The nearer of two hits (or of two (distance, anything) pairs: `cast` keeps the brightness beside it)."""
     closer = second[0] < first[0]
     return jnp.where(closer, second[0], first[0]), jnp.where(closer, second[1], first[1])
 
@@ -245,9 +245,8 @@ def cast(
         )
         origin = (origins[index, 0], origins[index, 1], origins[index, 2])
         distance, cosine = RAY_TESTS[geom_type](origin, (x, y, z), geom_size[ids[index]])
-        closer = distance < nearest
-        nearest = jnp.where(closer, distance, nearest)
-        brightness = jnp.where(closer, scene.luma[index] * (AMBIENT + (1 - AMBIENT) * cosine), brightness)
+        shade = scene.luma[index] * (AMBIENT + (1 - AMBIENT) * cosine)
+        nearest, brightness = _nearer((nearest, brightness), (distance, shade))
     return nearest, brightness
 
 
