@@ -3,9 +3,11 @@
 For studies whose points are separate runs (a batch-size study stopped at equal wall clock with
 `run.py --stop-after-minutes`, or runs from several sessions): reads each run's config.json, metrics.jsonl and,
 where present, eval.json; prints a markdown table (batch, steady env steps/s, env steps, wall clock, training
-success and return at the end and at the wall clock all runs reached, deterministic evaluation) and draws the
-training success rate and return over env steps and over wall clock, runs overlaid. Training success counts
-every training episode, curricula starts included, so it compares runs of one preset, not with evaluations.
+success and return at the end and at the wall clock all runs reached, the best evaluation during training and
+the final one) and draws the training success rate and return over env steps and over wall clock, runs
+overlaid, with the evaluations during training (`eval_every_updates`) as points on the success panels. Training
+success counts every training episode, curricula starts included, so it compares runs of one preset, not with
+evaluations; evaluations compare any runs of one task.
 """
 
 import argparse
@@ -31,6 +33,8 @@ class RunCurves:
         episode return.
       steps_per_second: the median env-steps rate after the first logged chunk (compile excluded).
       evaluation: eval.json's contents, or None.
+      eval_env_steps, eval_wall_seconds, eval_success: [E] the evaluations during training: env steps and
+        seconds when each ran, and the success rate of its fresh episodes (E = 0 where the run made none).
     """
 
     label: str
@@ -41,12 +45,17 @@ class RunCurves:
     returns: np.ndarray
     steps_per_second: float
     evaluation: dict | None
+    eval_env_steps: np.ndarray
+    eval_wall_seconds: np.ndarray
+    eval_success: np.ndarray
 
 
 def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
     """Reads a run directory; ValueError if it holds no finished episodes."""
     config, _ = rundir.read_config(run_dir)
-    rows = [row for row in rundir.read_metrics(run_dir) if row.get("episodes/episodes", 0) > 0]
+    metrics = rundir.read_metrics(run_dir)
+    rows = [row for row in metrics if row.get("episodes/episodes", 0) > 0]
+    evaluations = [row for row in metrics if "eval/success_rate" in row]
     if not rows:
         raise ValueError(f"{run_dir} has no metrics with finished episodes")
 
@@ -68,6 +77,9 @@ def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
         returns=plots.rolling_mean(column("episodes/return_mean"), window, episodes),
         steps_per_second=float(np.median(rates)) if len(rates) else float("nan"),
         evaluation=json.loads(eval_path.read_text()) if eval_path.exists() else None,
+        eval_env_steps=np.array([row["env_steps"] for row in evaluations], float),
+        eval_wall_seconds=np.array([row["wall_time"] for row in evaluations], float),
+        eval_success=np.array([row["eval/success_rate"] for row in evaluations], float),
     )
 
 
@@ -82,16 +94,24 @@ def table(runs: list[RunCurves]) -> str:
     common = min(run.wall_seconds[-1] for run in runs)
     lines = [
         f"| run | env steps per update | env steps/s | env steps | wall s | training success | return | "
-        f"success at {common:.0f} s | return at {common:.0f} s | eval success |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        f"success at {common:.0f} s | return at {common:.0f} s | best eval during training (env steps, s) | "
+        "eval success |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for run in runs:
         evaluated = f"{run.evaluation['success_rate']:.1%} ({run.evaluation['episodes']:,})" if run.evaluation else "—"
+        best = "—"
+        if len(run.eval_success):
+            index = int(np.argmax(run.eval_success))
+            best = (
+                f"{run.eval_success[index]:.1%} ({run.eval_env_steps[index]:,.0f}, {run.eval_wall_seconds[index]:.0f})"
+            )
         batch = f"{run.batch:,}" if run.batch else "—"
         lines.append(
             f"| {run.label} | {batch} | {run.steps_per_second:,.0f} | {run.env_steps[-1]:,.0f} | "
             f"{run.wall_seconds[-1]:.0f} | {run.success[-1]:.1%} | {run.returns[-1]:.1f} | "
-            f"{value_at(run, run.success, common):.1%} | {value_at(run, run.returns, common):.1f} | {evaluated} |"
+            f"{value_at(run, run.success, common):.1%} | {value_at(run, run.returns, common):.1f} | "
+            f"{best} | {evaluated} |"
         )
     return "\n".join(lines)
 
@@ -131,7 +151,13 @@ def main(argv=None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     print(table(runs))
-    curves = {run.label: (run.env_steps, run.wall_seconds, run.success, run.returns) for run in runs}
+    curves = {
+        run.label: (
+            (run.env_steps, run.wall_seconds, run.success, run.returns),
+            (run.eval_env_steps, run.eval_wall_seconds, run.eval_success),
+        )
+        for run in runs
+    }
     plots.run_comparison(curves, pathlib.Path(args.out), f"{args.title} ({device})")
     print(f"wrote {args.out}")
     return 0

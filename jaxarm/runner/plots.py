@@ -105,18 +105,24 @@ def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
 
 
 def run_comparison(curves: dict, path: pathlib.Path, title: str) -> None:
-    """Training success rate and return over env steps (left) and over wall clock (right), runs overlaid.
+    """Training success rate and return over env steps (left) and over wall clock (right), runs overlaid, and
+    the evaluations during training as points joined by dashes on the success panels.
 
-    `curves` maps a run's label to (env_steps, wall_seconds, success, returns), each [updates]. The title
+    `curves` maps a run's label to ((env_steps, wall_seconds, success, returns), (eval_env_steps,
+    eval_wall_seconds, eval_success)): the first four [updates], the evaluations' [E] (E may be 0). The title
     names the device.
     """
     fig, axes = figure(12, 8, columns=2, rows=2)
-    for index, (label, (steps, wall, success, returns)) in enumerate(curves.items()):
+    for index, (label, ((steps, wall, success, returns), (eval_steps, eval_wall, eval_success))) in enumerate(
+        curves.items()
+    ):
         for row, values in enumerate((success, returns)):
             for column, x in enumerate((steps, wall)):
                 axes[row][column].plot(x, values, color=f"C{index}", label=label)
+        for column, x in enumerate((eval_steps, eval_wall)):
+            axes[0][column].plot(x, eval_success, "o--", color=f"C{index}", markersize=4)
     for column, xlabel in enumerate(("env steps", "wall clock since the first jit (s)")):
-        axes[0][column].set_ylabel("success rate (training episodes, rolling)")
+        axes[0][column].set_ylabel("success (line: training, rolling; dots: evaluations)")
         axes[0][column].set_ylim(-0.02, 1.02)
         axes[1][column].set_ylabel("episode return (training, rolling)")
         axes[1][column].set_xlabel(xlabel)

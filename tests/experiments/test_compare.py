@@ -10,26 +10,32 @@ from experiments import compare, configs
 from jaxarm.runner import rundir
 
 
-def write_run(run_dir, num_envs: int, rows: list[tuple[float, float, float, float, float]], device=None):
+def write_run(
+    run_dir,
+    num_envs: int,
+    rows: list[tuple[float, float, float, float, float]],
+    device=None,
+    evaluations: dict[int, float] | None = None,
+):
     """A run directory with `ppo_arm2d` at `num_envs` and metric rows of
-    (wall_time, steps_per_second, episodes, success_rate, return_mean)."""
+    (wall_time, steps_per_second, episodes, success_rate, return_mean); `evaluations` maps an update (from 1)
+    to the success rate of an evaluation logged with it."""
     config = dataclasses.replace(configs.get("ppo_arm2d"), num_envs=num_envs)
     rundir.write_config(run_dir, config, "ppo_arm2d")
     lines = []
     for update, (wall, rate, episodes, success, returns) in enumerate(rows, start=1):
-        lines.append(
-            json.dumps(
-                {
-                    "updates": update,
-                    "wall_time": wall,
-                    "steps_per_second": rate,
-                    "env_steps": update * num_envs * config.rollout_length,
-                    "episodes/episodes": episodes,
-                    "episodes/success_rate": success,
-                    "episodes/return_mean": returns,
-                }
-            )
-        )
+        row = {
+            "updates": update,
+            "wall_time": wall,
+            "steps_per_second": rate,
+            "env_steps": update * num_envs * config.rollout_length,
+            "episodes/episodes": episodes,
+            "episodes/success_rate": success,
+            "episodes/return_mean": returns,
+        }
+        if update in (evaluations or {}):
+            row["eval/success_rate"] = evaluations[update]
+        lines.append(json.dumps(row))
     (run_dir / "metrics.jsonl").write_text("\n".join(lines) + "\n")
     if device:
         (run_dir / "eval.json").write_text(json.dumps({"episodes": 100, "success_rate": 0.5, "device": device}))
@@ -51,6 +57,7 @@ def test_a_run_reads_back_with_its_batch_rate_and_episode_weighted_curves(tmp_pa
     np.testing.assert_allclose(run.returns, [-1.0, 3.0, 5.0])
     assert run.steps_per_second == 400.0  # median after the first chunk (wall 10 s holds the compilation)
     assert run.evaluation is None
+    assert run.eval_success.shape == (0,)
     assert np.isnan(compare.value_at(run, run.success, 9.0))
     assert compare.value_at(run, run.returns, 13.0) == 3.0
 
@@ -62,18 +69,22 @@ def test_the_table_compares_runs_at_the_wall_clock_all_of_them_reached(tmp_path)
         128,
         [(10.0, 100.0, 2, 0.1, 0.5), (20.0, 100.0, 2, 0.3, 1.5), (30.0, 100.0, 2, 0.9, 9.5)],
         "GPU X",
+        evaluations={1: 0.25, 2: 0.75, 3: 0.5},
     )
     runs = [compare.load_run(short), compare.load_run(long, "big batch")]
+    np.testing.assert_allclose(runs[1].eval_env_steps, [2048.0, 4096.0, 6144.0])
+    np.testing.assert_allclose(runs[1].eval_wall_seconds, [10.0, 20.0, 30.0])
     lines = compare.table(runs).splitlines()
     assert "success at 20 s" in lines[0]
     assert lines[3].startswith("| big batch | 2,048 |")
-    assert "| 90.0% | 9.5 | 30.0% | 1.5 | 50.0% (100) |" in lines[3]
+    assert "| 90.0% | 9.5 | 30.0% | 1.5 | 75.0% (4,096, 20) | 50.0% (100) |" in lines[3]
+    assert "| — | 50.0% (100) |" in lines[2]
     assert compare.device_name(runs, None) == "GPU X"
 
 
 def test_the_cli_draws_the_figure_and_names_the_device_or_refuses(tmp_path, capsys):
     first = write_run(tmp_path / "first", 64, [(10.0, 100.0, 2, 0.2, 1.0), (20.0, 100.0, 2, 0.4, 2.0)])
-    second = write_run(tmp_path / "second", 64, [(10.0, 100.0, 2, 0.2, 1.0)])
+    second = write_run(tmp_path / "second", 64, [(10.0, 100.0, 2, 0.2, 1.0)], evaluations={1: 0.5})
     out = tmp_path / "compare.png"
     assert compare.main([str(first), str(second), "--out", str(out)]) == 2
     assert "--device" in capsys.readouterr().err
