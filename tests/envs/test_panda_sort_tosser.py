@@ -9,9 +9,10 @@ import mujoco
 import numpy as np
 import pytest
 
+from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda.robot import ARM_SPEED_LIMITS
 from jaxarm.envs.panda_sort import MODE_JOINT, SHAPE_CUBE, SHAPE_SPHERE, PandaSort
-from jaxarm.envs.panda_sort.reward import SHAPING_TERMS
+from jaxarm.envs.panda_sort.reward import FLOOR_Z, SHAPING_TERMS
 from jaxarm.envs.panda_sort.scripted_throw import aimed_throw, throw_action
 from tests.envs.compiled import compiled, same_worker
 from tests.envs.test_panda_sort import shaping_potential, with_object
@@ -95,6 +96,37 @@ def test_a_thrown_object_lands_in_the_aimed_bin_and_scores(shape, aimed, reward)
     else:
         # Landing in another bin hands back what the toss term paid (it counts zero there).
         np.testing.assert_allclose(sum(tosses), -toss, atol=1e-3)
+
+
+@pytest.mark.mjx
+def test_a_throw_that_falls_short_keeps_the_toss_potential_of_where_it_fell():
+    shared = compiled("panda_sort_tosser")
+    env, params = shared.env, shared.params.replace(toss_weight=jnp.float32(TOSS_WEIGHT))
+    release, short = np.array([0.4, 0.6, 0.35]), np.array([0.36, 0.95, -0.3])  # onto the floor between the tables
+    velocity = ballistic_velocity(release, short, flight_s=0.5)
+    state = shared.reset(jax.random.key(0), params)
+    state = with_object(env, state, SHAPE_CUBE, 0.025, [*release, 1, 0, 0, 0], [*velocity, 0, 0, 0])
+    state = state.replace(sim=state.sim.replace(potential=jnp.asarray(shaping_potential(env, state, params))))
+    toss_index = SHAPING_TERMS.index("toss")
+    released = float(state.sim.potential[toss_index])
+    tosses, floors = [], []
+    for _ in itertools.repeat(None, 30):
+        state = shared.step(state, jnp.zeros(env.spec.action_shape), params)
+        tosses.append(float(state.info.reward_terms.toss))
+        floors.append(float(state.info.reward_terms.floor))
+    assert [value for value in floors if value] == [-50.0]
+    # It left play where it dropped below the table top: on its flight path, within a step's travel of the
+    # point where the path crosses that height.
+    crossing_s = max(np.roots([-GRAVITY / 2, velocity[2], release[2] - FLOOR_Z]))
+    crossing = release[:2] + velocity[:2] * crossing_s
+    fell = np.asarray(state.sim.exit_xy[0])
+    assert np.linalg.norm(fell - crossing) < np.linalg.norm(velocity[:2]) * CONTROL_DT, (fell, crossing)
+    # On the floor it keeps the toss potential of that spot, by hand, and the toss terms telescope to it.
+    own_bin = np.array(env.layout.bin_centers[SHAPE_CUBE])
+    kept = TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(fell - own_bin) / float(params.toss_scale)))
+    assert kept > 0.1 * TOSS_WEIGHT
+    np.testing.assert_allclose(float(state.sim.potential[toss_index]), kept, rtol=1e-5)
+    np.testing.assert_allclose(sum(tosses), kept - released, atol=1e-3)
 
 
 THROW_STEPS = 110

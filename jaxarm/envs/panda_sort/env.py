@@ -372,6 +372,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             size=size,
             colour=jax.random.uniform(colour_key, (n, 3), minval=0.15, maxval=0.95),
             outcome=outcome,
+            exit_xy=jnp.zeros((n, 2), jnp.float32),
             target=start.focus.astype(jnp.int32),
             potential=jnp.zeros(len(SHAPING_TERMS), jnp.float32),
             queued_actions=self.initial_action_queue(),
@@ -392,7 +393,9 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         applied, queued = delayed_action(sim.queued_actions, action, params.action_latency)
         data = data.replace(ctrl=self._ctrl(model, data, applied, params))
         data = self.simulate(model, data)
-        outcome = next_outcome(sim.outcome, sim.shape, object_positions(self.ids, data.qpos), self.layout)
+        position = object_positions(self.ids, data.qpos)
+        outcome = next_outcome(sim.outcome, sim.shape, position, self.layout)
+        leaving = (sim.outcome == IN_PLAY) & (outcome != IN_PLAY)
         qpos, qvel = park(self.ids, data.qpos, data.qvel, outcome != IN_PLAY)
         noise_key, obs_key = jax.random.split(sim.noise_key)
         next_sim = sim.replace(
@@ -401,6 +404,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             qacc_warmstart=data.qacc_warmstart,
             ctrl=data.ctrl,
             outcome=outcome,
+            exit_xy=jnp.where(leaving[:, None], position[:, :2], sim.exit_xy),
             queued_actions=queued,
             noise_key=noise_key,
         )

@@ -59,8 +59,9 @@ class PandaSortParams(RobotParams):
       carry_height: height above the table of the carry target (metres): over the bin walls, and in a straight
         line from anywhere in the spawn region without touching them.
       toss_weight: weight of the toss potential 1 − tanh(d / toss_scale), d the horizontal distance from an
-        in-play object, held or not, to the centre of its own bin: it rises while an object flies towards its
-        bin, where the carry term (held objects only) cannot follow a throw (the tosser; 0 elsewhere).
+        in-play object, held or not, to the centre of its own bin (for one that fell to the floor, from where it
+        dropped below the table top): it rises while an object flies towards its bin, where the carry term (held
+        objects only) cannot follow a throw (the tosser; 0 elsewhere).
       toss_scale: distance over which the toss term rises (metres).
       held_start_prob: chance that an episode starts with the focus object (a slot drawn uniformly per
         episode) already between the closed fingers, at the arm's start pose (a curriculum: the policy sees

@@ -7,7 +7,9 @@ Either way it leaves play for the rest of the episode (the env parks it), so it 
 Dense shaping is potential-based: each shaping term pays the change of its potential over the step (reach:
 the tool centre near an object; grasp: an object held; lift: a held object lifted; carry: a lifted object
 near the point above its own bin; toss: an object, held or flying, horizontally near its own bin), summed
-over objects, with an object in its own bin counting as the maximum of every term and one elsewhere as zero.
+over objects, with an object in its own bin counting as the maximum of every term and one elsewhere as zero,
+except that one which fell to the floor keeps the toss term of where it fell: a throw that falls short of its
+bin keeps credit for its range and aim.
 Over an episode the shaping sums to the final potential minus the first, so no behaviour (hovering with an
 object over its bin, say) can farm it.
 """
@@ -146,9 +148,13 @@ def shaping_potential(
             1.0 - jnp.tanh(to_bin / params.toss_scale),
         ]
     )  # [S, N]
+    in_own_bin = (sim.outcome == IN_CORRECT_BIN).astype(jnp.float32)
+    fell_to_bin = jnp.linalg.norm(sim.exit_xy - carry_target[:, :2], axis=-1)
+    fallen_toss = (sim.outcome == ON_FLOOR) * (1.0 - jnp.tanh(fell_to_bin / params.toss_scale))
+    out_of_play = jnp.stack([in_own_bin + fallen_toss if name == "toss" else in_own_bin for name in SHAPING_TERMS])
     slots = jnp.arange(len(ids.object_qpos))
     shaped = in_play & (slots == sim.target) if target_first else in_play
-    per_object = jnp.where(shaped, stages, (sim.outcome == IN_CORRECT_BIN).astype(jnp.float32))
+    per_object = jnp.where(shaped, stages, out_of_play)
     weights = jnp.stack([getattr(params, f"{name}_weight") for name in SHAPING_TERMS])
     return weights * jnp.sum(per_object, axis=1)
 

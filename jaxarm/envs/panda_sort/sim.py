@@ -16,6 +16,8 @@ class PandaSortSim(struct.PyTreeNode):
       size: [N] half-size / radius of each object (metres).
       colour: [N, 3] RGB of each object; drawn only, never observed, unrelated to the shape.
       outcome: [N] int32 IN_PLAY, IN_CORRECT_BIN, IN_WRONG_BIN or ON_FLOOR (reward.py).
+      exit_xy: [N, 2] where each out-of-play object left play, horizontally (metres): for one that fell, where
+        it dropped below the table top (zeros while in play and for presorted objects).
       target: [] int32 the slot being worked on: the curricula's object at reset; when it leaves play, the
         in-play object nearest the tool centre. Used only by envs built with `target_first`.
       potential: [S] weighted shaping potentials (`reward.SHAPING_TERMS`) of the current state.
@@ -32,6 +34,7 @@ class PandaSortSim(struct.PyTreeNode):
     size: jax.Array
     colour: jax.Array
     outcome: jax.Array
+    exit_xy: jax.Array
     target: jax.Array
     potential: jax.Array
     queued_actions: jax.Array
