@@ -25,7 +25,7 @@ from jaxarm.envs.panda_sort import (  # noqa: E402
     SHAPE_SPHERE,
     PandaSort,
 )
-from jaxarm.envs.panda_sort.curriculum import place_in_hand  # noqa: E402
+from jaxarm.envs.panda_sort.curriculum import StartDraw, place_in_hand, pose_in_hand  # noqa: E402
 from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE  # noqa: E402
 from jaxarm.envs.panda_sort.reward import SHAPING_TERMS  # noqa: E402
 from jaxarm.envs.panda_sort.scripted import script_start, scripted_action  # noqa: E402
@@ -248,9 +248,35 @@ def test_scripted_placement_in_another_bin_scores_200_once(env, params, reset, s
 def curriculum_start(env, state, params, shape: int, held: bool):
     """`state` re-placed for a held (or grasp-ready) start of object 0 as `shape` (the arm as reset left it)."""
     sim = state.sim.replace(shape=jnp.array([shape], jnp.int32))
-    data = env.kinematics(env.episode_model(sim, params), sim)
-    sim = place_in_hand(env.ids, sim, data, jnp.int32(0), jnp.bool_(held), jnp.bool_(not held), jnp.bool_(False))
+    model = env.episode_model(sim, params)
+    data = env.kinematics(model, sim)
+    start = StartDraw(
+        focus=jnp.int32(0),
+        presorted=jnp.zeros(1, bool),
+        held=jnp.bool_(held),
+        ready=jnp.bool_(not held),
+        hover=jnp.bool_(False),
+        wound_up=jnp.bool_(False),
+        blend=jnp.float32(1.0 if held else 0.0),
+    )
+    sim = place_in_hand(env.ids, sim, model, data, start)
     return state.replace(sim=sim.replace(potential=env.shaping_potential(data, sim, params)))
+
+
+@pytest.mark.mjx
+def test_the_pose_in_hand_of_a_tool_pointing_down_is_the_held_starts_upright_pose(env, params, reset):
+    """`pose_in_hand`, for any orientation of the hand (wound-up starts), agrees with a held start's upright pose
+    where the tool points down: the same centre, and the same orientation but for the hand's small tilt."""
+    held = params.replace(held_start_prob=jnp.float32(1.0))
+    state = reset(jax.random.key(0), held)
+    model = env.episode_model(state.sim, held)
+    data = env.kinematics(model, state.sim)
+    pose = np.asarray(pose_in_hand(env.ids, model, data))
+    placed = np.asarray(state.sim.qpos[env.ids.object_qpos[0] + np.arange(7)])
+    np.testing.assert_allclose(pose[:3], placed[:3], atol=2e-4)
+    tilt = np.arccos(-float(data.site_xmat[env.ids.robot.tcp_site].reshape(3, 3)[2, 2]))
+    turn = 2 * np.arccos(min(1.0, abs(float(np.dot(pose[3:], placed[3:])))))
+    assert tilt < 0.05 and turn <= tilt + 1e-3, (turn, tilt)
 
 
 @pytest.mark.mjx

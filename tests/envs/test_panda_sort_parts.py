@@ -91,3 +91,20 @@ def test_curricula_draw_in_their_proportions():
     assert not np.any(presorted[np.arange(4000), focus]), "the curricula's object is never presorted"
     assert np.all(presorted.sum(axis=1) == 2), "with probability 1 every other object starts sorted"
     np.testing.assert_array_equal(np.asarray(draws.blend)[np.asarray(draws.held)], 1.0)
+
+
+def test_wound_up_starts_are_held_starts_and_leave_the_other_draws_as_they_were():
+    params = default_params().replace(held_start_prob=jnp.float32(0.25), ready_start_prob=jnp.float32(0.5))
+    keys = jax.random.split(jax.random.key(0), (2, 4000))
+
+    def draws(wind_up_start_prob: float):
+        wound = params.replace(wind_up_start_prob=jnp.float32(wind_up_start_prob))
+        return jax.vmap(lambda start, objects: draw_start(start, objects, 3, wound))(keys[0], keys[1])
+
+    plain, wound = draws(0.0), draws(0.5)
+    assert not np.any(plain.wound_up)
+    held = np.asarray(wound.held)
+    assert not np.any(np.asarray(wound.wound_up) & ~held)
+    assert abs(float(np.asarray(wound.wound_up)[held].mean()) - 0.5) < 0.05
+    for field in ("focus", "presorted", "held", "ready", "hover", "blend"):
+        np.testing.assert_array_equal(getattr(wound, field), getattr(plain, field), err_msg=field)

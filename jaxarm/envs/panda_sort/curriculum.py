@@ -2,21 +2,38 @@
 
 With the params' probabilities an episode starts with its focus object (any slot) held between the closed
 fingers, or grasp-ready: on the table right under the tool, between the open fingers of the lowered arm, or
-(half of those) below them at a random height. Independently, each other object may start presorted: in its
-own bin, out of play. Everything else starts as a plain episode: every object on the table, the arm raised.
+(half of those) below them at a random height. A held start may begin wound up to throw (the tosser): the arm
+at the scripted throw's wind-up posture, facing the held object's bin. Independently, each other object may start
+presorted: in its own bin, out of play. Everything else starts as a plain episode: every object on the table, the
+arm raised.
 """
 
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from mujoco import mjx
+from mujoco.mjx._src import math as mjx_math
 
 from jaxarm.envs.panda.robot import FINGER_OPEN, PAD_ABOVE_TCP, yaw_of_quaternion, yaw_of_rotation
 from jaxarm.envs.panda_sort.model import ModelIds
 from jaxarm.envs.panda_sort.objects import GRIP_HALF_WIDTH
 from jaxarm.envs.panda_sort.params import PandaSortParams
 from jaxarm.envs.panda_sort.sim import PandaSortSim
+
+WIND_UP_POSTURE = np.array([0.0, -1.5, 0.0, -0.35, 0.0, 3.4, -0.785], np.float32)
+"""Joints 2-7 of the throw's wind-up (joint 1 faces the bin): upper arm leaning back, hand raised behind, the
+pads facing along the swing (scripted_throw.py). Turned a quarter the other way, pitching the hand about the
+pads' normal let the object slide out at once."""
+FLIP_ABOUT_X = np.array([0.0, 1.0, 0.0, 0.0], np.float32)
+"""Half a turn about x (w, x, y, z), from the tool centre's frame to a held object's: the tool's z axis points out
+of the hand, the object's up into it."""
+
+
+def wound_up_posture(bin_xy: jax.Array) -> jax.Array:
+    """[2] a bin's centre -> [7] the wind-up posture with the base turned to face it."""
+    return jnp.asarray(WIND_UP_POSTURE).at[0].set(jnp.arctan2(bin_xy[1], bin_xy[0]))
 
 
 class StartDraw(NamedTuple):
@@ -28,6 +45,7 @@ class StartDraw(NamedTuple):
       held: [] bool, the focus object starts between the closed fingers.
       ready: [] bool, the focus object starts under the open fingers (grasp-ready, or hovering below them).
       hover: [] bool, a grasp-ready start with the hand raised over the object.
+      wound_up: [] bool, a held start with the arm wound up to throw.
       blend: [] where the arm starts between the grasp posture (0) and the start posture (1), in joint space.
     """
 
@@ -36,6 +54,7 @@ class StartDraw(NamedTuple):
     held: jax.Array
     ready: jax.Array
     hover: jax.Array
+    wound_up: jax.Array
     blend: jax.Array
 
 
@@ -54,33 +73,44 @@ def draw_start(start_key: jax.Array, objects_key: jax.Array, objects_count: int,
     # (in joint space) between the low and the start one keeps the tool pointing down within 1.5 cm of the
     # same vertical; from 0.4 of the way up (11 cm, ±1.5 cm of posture noise) the pads clear the tallest object.
     hover = ready & (height_draw >= 0.5)
+    # A key of its own, so that the other starts draw as they did before the wind-up existed.
+    wound_up = held & (jax.random.uniform(jax.random.fold_in(start_key, 1)) < params.wind_up_start_prob)
     blend = jnp.where(hover, 0.4 + 1.2 * (height_draw - 0.5), jnp.where(ready, 0.0, 1.0))
-    return StartDraw(focus=focus, presorted=presorted, held=held, ready=ready, hover=hover, blend=blend)
+    return StartDraw(
+        focus=focus, presorted=presorted, held=held, ready=ready, hover=hover, wound_up=wound_up, blend=blend
+    )
 
 
-def place_in_hand(
-    ids: ModelIds,
-    sim: PandaSortSim,
-    data: mjx.Data,
-    focus: jax.Array,
-    held: jax.Array,
-    ready: jax.Array,
-    hover: jax.Array,
-) -> PandaSortSim:
-    """Curriculum starts for object `focus` (an int32 slot), with `data` the kinematics of `sim`. Where `held`:
-    between the closed fingers at the tool centre, faces towards the pads. Where `ready`: on the table under
-    the tool centre, between the open fingers (faces towards the pads) or, where also `hover`, below them at
-    the yaw it was drawn with. Elsewhere `sim` is returned unchanged."""
+def pose_in_hand(ids: ModelIds, model: mjx.Model, data: mjx.Data) -> jax.Array:
+    """[7] pose of an object held between the pads, whatever the hand's orientation: centred between them,
+    its z axis against the tool centre's (so upright when the tool points down)."""
     robot = ids.robot
+    z_axis = data.site_xmat[robot.tcp_site].reshape(3, 3)[:, 2]
+    site_quat = mjx_math.quat_mul(data.xquat[model.site_bodyid[robot.tcp_site]], model.site_quat[robot.tcp_site])
+    centre = data.site_xpos[robot.tcp_site] - PAD_ABOVE_TCP * z_axis
+    return jnp.concatenate([centre, mjx_math.quat_mul(site_quat, jnp.asarray(FLIP_ABOUT_X))])
+
+
+def place_in_hand(ids: ModelIds, sim: PandaSortSim, model: mjx.Model, data: mjx.Data, start: StartDraw) -> PandaSortSim:
+    """Curriculum starts for the `start.focus` object, with `data` the kinematics of `sim`. Where `start.held`:
+    between the closed fingers at the tool centre, faces towards the pads (upright, or where `start.wound_up` in
+    the hand's frame). Where `start.ready`: on the table under the tool centre, between the open fingers (faces
+    towards the pads) or, where also `start.hover`, below them at the yaw it was drawn with. Elsewhere `sim` is
+    returned unchanged."""
+    robot = ids.robot
+    focus, held = start.focus, start.held
     pose_idx = jnp.asarray(ids.object_qpos)[focus] + jnp.arange(7)
     own_quat = sim.qpos[pose_idx[3:]]
-    yaw = jnp.where(hover, yaw_of_quaternion(own_quat), yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3)))
+    yaw = jnp.where(
+        start.hover, yaw_of_quaternion(own_quat), yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
+    )
     tcp = data.site_xpos[robot.tcp_site]
     height = jnp.where(held, tcp[2] + PAD_ABOVE_TCP, sim.size[focus] + 0.001)
     pose = jnp.concatenate([tcp[:2], height[None], jnp.stack([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])])
+    pose = jnp.where(start.wound_up, pose_in_hand(ids, model, data), pose)
     grip = jnp.asarray(GRIP_HALF_WIDTH)[sim.shape[focus]] * sim.size[focus]
     fingers = jnp.where(held, grip, FINGER_OPEN)
     qpos = sim.qpos.at[pose_idx].set(pose).at[robot.finger_qpos].set(fingers)
     ctrl = sim.ctrl.at[7:].set(jnp.where(held, 0.0, FINGER_OPEN))
-    moved = held | ready
+    moved = held | start.ready
     return sim.replace(qpos=jnp.where(moved, qpos, sim.qpos), ctrl=jnp.where(moved, ctrl, sim.ctrl))

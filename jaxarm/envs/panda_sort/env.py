@@ -43,7 +43,7 @@ from jaxarm.envs.panda.robot import (
     yaw_of_rotation,
 )
 from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
-from jaxarm.envs.panda_sort.curriculum import draw_start, place_in_hand
+from jaxarm.envs.panda_sort.curriculum import draw_start, place_in_hand, wound_up_posture
 from jaxarm.envs.panda_sort.layout import make_layout
 from jaxarm.envs.panda_sort.model import ModelIds, build_model, resolve_ids
 from jaxarm.envs.panda_sort.objects import (
@@ -359,6 +359,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         pose = jnp.stack([xy[:, 0], xy[:, 1], size + 0.001, jnp.cos(yaw / 2), zero, zero, jnp.sin(yaw / 2)], -1)
         noise = jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
         arm_q = (1.0 - start.blend) * self.grasp_qpos + start.blend * self.start_qpos + noise
+        own_bin = jnp.asarray(self.layout.bin_centers)[shape[start.focus]]
+        arm_q = jnp.where(start.wound_up, wound_up_posture(own_bin) + noise, arm_q)
         resting = self.resting(arm_q, FINGER_OPEN)
         qpos = resting.qpos.at[pose_index(ids)].set(pose)
         outcome = jnp.where(start.presorted, IN_CORRECT_BIN, IN_PLAY).astype(jnp.int32)
@@ -380,7 +382,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
-        sim = place_in_hand(ids, sim, data, start.focus, start.held, start.ready, start.hover)
+        sim = place_in_hand(ids, sim, model, data, start)
         sim = sim.replace(potential=self.shaping_potential(data, sim, params))
         # Moving the focus object to the hand changes no robot quantity, so `data` still serves the observation.
         noise_key, obs_key = jax.random.split(sim.noise_key)

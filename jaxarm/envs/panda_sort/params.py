@@ -69,6 +69,10 @@ class PandaSortParams(RobotParams):
       ready_start_prob: chance that an episode starts grasp-ready: the focus object on the table right under
         the tool, between the open fingers of the lowered arm, or (half of these) below them at a random height
         and yaw (the next stages of that curriculum; evaluate with 0).
+      wind_up_start_prob: chance that a held start begins wound up to throw, at rest: the arm at the scripted
+        throw's wind-up posture (`curriculum.WIND_UP_POSTURE`) with its base turned to face the held object's own
+        bin (the tosser's curriculum: the policy meets the swing and the release before the wind-up; evaluate
+        with 0).
       presorted_prob: chance that each object other than the focus starts already in its own bin, out of play
         (a curriculum over object count: with several objects, episodes with fewer left to sort; it earns no
         placement reward; evaluate with 0).
@@ -112,6 +116,7 @@ class PandaSortParams(RobotParams):
     toss_scale: jax.Array = ranged(POSITIVE)
     held_start_prob: jax.Array = ranged(UNIT_INTERVAL)
     ready_start_prob: jax.Array = ranged(UNIT_INTERVAL)
+    wind_up_start_prob: jax.Array = ranged(UNIT_INTERVAL)
     presorted_prob: jax.Array = ranged(UNIT_INTERVAL)
     object_size: jax.Array = ranged(POSITIVE)
     size_scale_low: jax.Array = ranged(POSITIVE)
@@ -160,6 +165,7 @@ def default_params() -> PandaSortParams:
         toss_scale=f32(0.5),
         held_start_prob=f32(0.0),
         ready_start_prob=f32(0.0),
+        wind_up_start_prob=f32(0.0),
         presorted_prob=f32(0.0),
         object_size=f32(0.025),
         size_scale_low=f32(0.5),

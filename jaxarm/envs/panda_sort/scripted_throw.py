@@ -19,13 +19,11 @@ from flax import struct
 
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda.robot import ARM_SPEED_LIMITS
+from jaxarm.envs.panda_sort.curriculum import wound_up_posture
 from jaxarm.envs.panda_sort.env import SERVO_LEAD_OBS_SIZE
 from jaxarm.envs.panda_sort.params import PandaSortParams
 
 OPEN, CLOSED = 1.0, -1.0
-WIND_UP_POSTURE = np.array([0.0, -1.5, 0.0, -0.35, 0.0, 3.4, -0.785], np.float32)
-"""Joints 2-7 of the wind-up (joint 1 faces the bin), with the pads facing along the swing: turned a quarter
-the other way, pitching the hand about the pads' normal let the object slide out at once."""
 SWING_DIRECTION = np.array([0.0, 1.0, 0.0, -1.0, 0.0, -1.0, 0.0], np.float32)
 """Which way each joint turns in the swing: shoulder forward, elbow and wrist folding the hand over."""
 SWING_SPEED = 0.9
@@ -64,11 +62,9 @@ class Throw:
 
 def aimed_throw(start: np.ndarray, bin_xy: np.ndarray, swing_start: float, release_step: int) -> Throw:
     """The throw from arm posture `start` [7] towards a bin at `bin_xy` [2]: the base turned to face it."""
-    wind_up = WIND_UP_POSTURE.copy()
-    wind_up[0] = np.arctan2(bin_xy[1], bin_xy[0])
     return Throw(
         start=jnp.asarray(start, jnp.float32),
-        wind_up=jnp.asarray(wind_up),
+        wind_up=wound_up_posture(jnp.asarray(bin_xy, jnp.float32)),
         swing_velocity=jnp.asarray(SWING_SPEED * ARM_SPEED_LIMITS * SWING_DIRECTION),
         swing_start=jnp.float32(swing_start),
         release_step=jnp.int32(release_step),
