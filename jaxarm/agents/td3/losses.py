@@ -109,9 +109,8 @@ def distributional_critic_target(
       atoms: [N].
     Returns: [B, N] target probabilities, with no gradient.
     """
-    probs = jax.nn.softmax(next_logits, axis=-1)
-    least = jnp.argmin(jnp.sum(probs * atoms, axis=-1), axis=0)  # [B]
-    chosen = jnp.take_along_axis(probs, least[None, :, None], axis=0)[0]  # [B, N]
+    least = jnp.argmin(expected_values(next_logits, atoms), axis=0)  # [B]
+    chosen = jnp.take_along_axis(jax.nn.softmax(next_logits, axis=-1), least[None, :, None], axis=0)[0]  # [B, N]
     bootstrap = jnp.broadcast_to(discount, reward.shape) * (1.0 - terminated.astype(jnp.float32))
     values = (reward_scale * reward)[:, None] + bootstrap[:, None] * atoms
     return jax.lax.stop_gradient(categorical_projection(values, chosen, atoms))
