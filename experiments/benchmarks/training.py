@@ -141,6 +141,21 @@ def evaluate_policy(config: PPOConfig, policy, episodes: int, seed: int) -> tupl
     return summary["success_rate"], summary["return_mean"]
 
 
+def trained_result(
+    config: PPOConfig,
+    policy,
+    eval_episodes: int,
+    env_steps: int,
+    total_seconds: float,
+    part_seconds: tuple[float, ...],
+) -> Result:
+    """A learner's `Result` from its training's timings and its trained deterministic `policy` (obs [B, ...] ->
+    action [B, A]): evaluated on fresh episodes, then timed driving the envs alone."""
+    success, return_mean = evaluate_policy(config, policy, eval_episodes, config.seed)
+    policy_env_seconds = env_stepping_seconds(config, policy)
+    return Result(env_steps, total_seconds, part_seconds, success, return_mean, policy_env_seconds)
+
+
 def run_ours(config: PPOConfig, eval_episodes: int) -> Result:
     """Trains our PPO (`PARTS` calls of one AOT-compiled program) and evaluates it."""
     trainer = make_trainer(config)
@@ -161,15 +176,7 @@ def run_ours(config: PPOConfig, eval_episodes: int) -> Result:
     def policy(obs):
         return trainer.act(state, obs)
 
-    success, return_mean = evaluate_policy(config, policy, eval_episodes, config.seed)
-    return Result(
-        int(state.env_steps),
-        total_seconds,
-        tuple(part_seconds),
-        success,
-        return_mean,
-        env_stepping_seconds(config, policy),
-    )
+    return trained_result(config, policy, eval_episodes, int(state.env_steps), total_seconds, tuple(part_seconds))
 
 
 def brax_ppo_kwargs(config: PPOConfig, learning_rate: float) -> dict:
@@ -243,8 +250,7 @@ def run_brax(config: PPOConfig, learning_rate: float, eval_episodes: int) -> Res
     def policy(obs):
         return inference(obs, unused_key)[0]
 
-    success, return_mean = evaluate_policy(config, policy, eval_episodes, config.seed)
-    return Result(int(steps), total_seconds, part_seconds, success, return_mean, env_stepping_seconds(config, policy))
+    return trained_result(config, policy, eval_episodes, int(steps), total_seconds, part_seconds)
 
 
 def env_stepping_seconds(config: PPOConfig, policy=None) -> float:
