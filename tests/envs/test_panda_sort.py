@@ -257,6 +257,7 @@ def curriculum_start(env, state, params, shape: int, held: bool):
         ready=jnp.bool_(not held),
         hover=jnp.bool_(False),
         wound_up=jnp.bool_(False),
+        wind_up=jnp.float32(1.0),
         blend=jnp.float32(1.0 if held else 0.0),
     )
     sim = place_in_hand(env.ids, sim, model, data, start)

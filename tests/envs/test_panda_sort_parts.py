@@ -97,14 +97,21 @@ def test_wound_up_starts_are_held_starts_and_leave_the_other_draws_as_they_were(
     params = default_params().replace(held_start_prob=jnp.float32(0.25), ready_start_prob=jnp.float32(0.5))
     keys = jax.random.split(jax.random.key(0), (2, 4000))
 
-    def draws(wind_up_start_prob: float):
-        wound = params.replace(wind_up_start_prob=jnp.float32(wind_up_start_prob))
+    def draws(wind_up_start_prob: float, wind_up_spread: float = 0.0):
+        wound = params.replace(
+            wind_up_start_prob=jnp.float32(wind_up_start_prob), wind_up_spread=jnp.float32(wind_up_spread)
+        )
         return jax.vmap(lambda start, objects: draw_start(start, objects, 3, wound))(keys[0], keys[1])
 
-    plain, wound = draws(0.0), draws(0.5)
+    plain, wound, spread = draws(0.0), draws(0.5), draws(0.5, 0.5)
     assert not np.any(plain.wound_up)
     held = np.asarray(wound.held)
     assert not np.any(np.asarray(wound.wound_up) & ~held)
     assert abs(float(np.asarray(wound.wound_up)[held].mean()) - 0.5) < 0.05
+    np.testing.assert_array_equal(wound.wind_up, 1.0)
+    # Spread over [0.5, 1] of the way to the wind-up, uniformly.
+    way = np.asarray(spread.wind_up)
+    assert 0.5 <= way.min() < 0.51 and 0.99 < way.max() <= 1.0 and abs(way.mean() - 0.75) < 0.01
+    np.testing.assert_array_equal(spread.wound_up, wound.wound_up)
     for field in ("focus", "presorted", "held", "ready", "hover", "blend"):
         np.testing.assert_array_equal(getattr(wound, field), getattr(plain, field), err_msg=field)

@@ -152,7 +152,7 @@ def starts(params):
 @jax.jit
 def thrown(states, throws, params):
     """THROW_STEPS steps of each of the batched `throws` from its state: per env and step, [3] the scores (own
-    bin, another, floor) and [7] the arm's joint speeds."""
+    bin, another, floor), [7] the arm's joint speeds and [] the grasp potential."""
     env = joint_tosser()
 
     def one(state, throw):
@@ -160,7 +160,8 @@ def thrown(states, throws, params):
             state = env.step(state, throw_action(state.obs, t, throw, params), params)
             terms = state.info.reward_terms
             scored = jnp.stack([terms.correct_bin, terms.wrong_bin, terms.floor])
-            return state, (scored, state.sim.qvel[env.ids.robot.arm_qpos])
+            grasp = state.sim.potential[SHAPING_TERMS.index("grasp")]
+            return state, (scored, state.sim.qvel[env.ids.robot.arm_qpos], grasp)
 
         return jax.lax.scan(step, state, jnp.arange(THROW_STEPS))[1]
 
@@ -195,7 +196,8 @@ def test_the_arm_throws_held_objects_into_their_bins_within_franka_speed_limits(
     throws = jax.vmap(lambda bin_xy: aimed_throw(env.start_qpos, bin_xy, SWING_START, RELEASE_STEP))(
         jnp.asarray(own_bins(states))
     )
-    assert scored_in_own_bin(*thrown(states, throws, params)) >= 3
+    scored, joint_speed, _ = thrown(states, throws, params)
+    assert scored_in_own_bin(scored, joint_speed) >= 3
 
 
 WOUND_UP_RELEASE_STEP = 16
@@ -223,4 +225,32 @@ def test_wound_up_starts_hold_the_object_facing_its_bin_and_their_swing_scores()
     throws = jax.vmap(
         lambda posture, bin_xy: aimed_throw(posture, bin_xy, 2.0, WOUND_UP_RELEASE_STEP).replace(wind_up=posture)
     )(postures, jnp.asarray(bins))
-    assert scored_in_own_bin(*thrown(states, throws, params)) >= 2
+    scored, joint_speed, _ = thrown(states, throws, params)
+    assert scored_in_own_bin(scored, joint_speed) >= 2
+
+
+@pytest.mark.mjx
+def test_wound_up_starts_spread_over_the_way_there_hold_their_object():
+    """With `wind_up_spread` 1 a wound-up start's arm begins anywhere on the way (in joint space) from the held
+    start's posture to the wind-up facing the object's bin, the object between the pads: held still there, the
+    arm keeps every object in its grip."""
+    env = joint_tosser()
+    params = env.default_params().replace(
+        held_start_prob=jnp.float32(1.0), wind_up_start_prob=jnp.float32(1.0), wind_up_spread=jnp.float32(1.0)
+    )
+    states = starts(params)
+    bins = own_bins(states)
+    postures = np.asarray(states.sim.qpos[:, env.ids.robot.arm_qpos])
+    way = np.asarray(jax.vmap(wound_up_posture)(jnp.asarray(bins))) - env.start_qpos
+    fraction = np.sum((postures - env.start_qpos) * way, axis=1) / np.sum(way * way, axis=1)
+    np.testing.assert_allclose(postures, env.start_qpos + fraction[:, None] * way, atol=2 * float(params.home_noise))
+    assert fraction.min() < 0.4 and fraction.max() > 0.6, fraction
+    grasp_weight = float(params.grasp_weight)
+    np.testing.assert_allclose(states.sim.potential[:, SHAPING_TERMS.index("grasp")], grasp_weight, rtol=1e-6)
+    # A plan that never swings nor lets go: the arm holds still, the fingers closed.
+    stay = jax.vmap(lambda posture, bin_xy: aimed_throw(posture, bin_xy, 1e3, 1000).replace(wind_up=posture))(
+        jnp.asarray(postures), jnp.asarray(bins)
+    )
+    scored, _, grasp = thrown(states, stay, params)
+    assert not np.any(np.asarray(scored))
+    assert np.asarray(grasp)[:, -1].min() > 0.9 * grasp_weight, np.asarray(grasp)[:, -1]

@@ -3,9 +3,9 @@
 With the params' probabilities an episode starts with its focus object (any slot) held between the closed
 fingers, or grasp-ready: on the table right under the tool, between the open fingers of the lowered arm, or
 (half of those) below them at a random height. A held start may begin wound up to throw (the tosser): the arm
-at the scripted throw's wind-up posture, facing the held object's bin. Independently, each other object may start
-presorted: in its own bin, out of play. Everything else starts as a plain episode: every object on the table, the
-arm raised.
+at the scripted throw's wind-up posture, facing the held object's bin, or somewhere on the way there.
+Independently, each other object may start presorted: in its own bin, out of play. Everything else starts as a
+plain episode: every object on the table, the arm raised.
 """
 
 from typing import NamedTuple
@@ -46,6 +46,7 @@ class StartDraw(NamedTuple):
       ready: [] bool, the focus object starts under the open fingers (grasp-ready, or hovering below them).
       hover: [] bool, a grasp-ready start with the hand raised over the object.
       wound_up: [] bool, a held start with the arm wound up to throw.
+      wind_up: [] how far a wound-up start's arm is from the held start's posture (0) to the wind-up (1).
       blend: [] where the arm starts between the grasp posture (0) and the start posture (1), in joint space.
     """
 
@@ -55,6 +56,7 @@ class StartDraw(NamedTuple):
     ready: jax.Array
     hover: jax.Array
     wound_up: jax.Array
+    wind_up: jax.Array
     blend: jax.Array
 
 
@@ -75,9 +77,17 @@ def draw_start(start_key: jax.Array, objects_key: jax.Array, objects_count: int,
     hover = ready & (height_draw >= 0.5)
     # A key of its own, so that the other starts draw as they did before the wind-up existed.
     wound_up = held & (jax.random.uniform(jax.random.fold_in(start_key, 1)) < params.wind_up_start_prob)
+    wind_up = 1.0 - params.wind_up_spread * jax.random.uniform(jax.random.fold_in(start_key, 2))
     blend = jnp.where(hover, 0.4 + 1.2 * (height_draw - 0.5), jnp.where(ready, 0.0, 1.0))
     return StartDraw(
-        focus=focus, presorted=presorted, held=held, ready=ready, hover=hover, wound_up=wound_up, blend=blend
+        focus=focus,
+        presorted=presorted,
+        held=held,
+        ready=ready,
+        hover=hover,
+        wound_up=wound_up,
+        wind_up=wind_up,
+        blend=blend,
     )
 
 

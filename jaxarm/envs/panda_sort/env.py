@@ -360,7 +360,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         noise = jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
         arm_q = (1.0 - start.blend) * self.grasp_qpos + start.blend * self.start_qpos + noise
         own_bin = jnp.asarray(self.layout.bin_centers)[shape[start.focus]]
-        arm_q = jnp.where(start.wound_up, wound_up_posture(own_bin) + noise, arm_q)
+        wound_up = arm_q + start.wind_up * (wound_up_posture(own_bin) + noise - arm_q)
+        arm_q = jnp.where(start.wound_up, wound_up, arm_q)
         resting = self.resting(arm_q, FINGER_OPEN)
         qpos = resting.qpos.at[pose_index(ids)].set(pose)
         outcome = jnp.where(start.presorted, IN_CORRECT_BIN, IN_PLAY).astype(jnp.int32)

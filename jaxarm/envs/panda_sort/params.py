@@ -73,6 +73,10 @@ class PandaSortParams(RobotParams):
         throw's wind-up posture (`curriculum.WIND_UP_POSTURE`) with its base turned to face the held object's own
         bin (the tosser's curriculum: the policy meets the swing and the release before the wind-up; evaluate
         with 0).
+      wind_up_spread: how far back towards the held start's posture a wound-up start may begin: the arm starts
+        a fraction of the way from that posture to the wind-up drawn uniformly from [1 − spread, 1], in joint
+        space (0: always wound up; 1: anywhere on the way, so the policy also meets the wind-up from each point
+        of it).
       presorted_prob: chance that each object other than the focus starts already in its own bin, out of play
         (a curriculum over object count: with several objects, episodes with fewer left to sort; it earns no
         placement reward; evaluate with 0).
@@ -117,6 +121,7 @@ class PandaSortParams(RobotParams):
     held_start_prob: jax.Array = ranged(UNIT_INTERVAL)
     ready_start_prob: jax.Array = ranged(UNIT_INTERVAL)
     wind_up_start_prob: jax.Array = ranged(UNIT_INTERVAL)
+    wind_up_spread: jax.Array = ranged(UNIT_INTERVAL)
     presorted_prob: jax.Array = ranged(UNIT_INTERVAL)
     object_size: jax.Array = ranged(POSITIVE)
     size_scale_low: jax.Array = ranged(POSITIVE)
@@ -166,6 +171,7 @@ def default_params() -> PandaSortParams:
         held_start_prob=f32(0.0),
         ready_start_prob=f32(0.0),
         wind_up_start_prob=f32(0.0),
+        wind_up_spread=f32(0.0),
         presorted_prob=f32(0.0),
         object_size=f32(0.025),
         size_scale_low=f32(0.5),
