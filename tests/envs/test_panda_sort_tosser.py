@@ -58,6 +58,25 @@ def test_no_pose_of_the_arm_reaches_a_bin():
     assert farthest < nearest_wall, "no part of the arm (bounding spheres) reaches a bin wall"
 
 
+def test_the_video_camera_frames_the_arm_wound_up_and_every_bin():
+    """The `front` camera of a 320x240 video holds each bin, the robot's base and the hand wound up to throw."""
+    env = compiled("panda_sort_tosser").env
+    model, robot = env.mj_model, env.ids.robot
+    data = mujoco.MjData(model)
+    data.qpos[robot.arm_qpos] = np.asarray(wound_up_posture(jnp.asarray(env.layout.bin_centers[1])))
+    mujoco.mj_forward(model, data)
+    points = [[x, y, env.layout.bin_wall_height] for x, y in env.layout.bin_centers]
+    points += [[0.0, 0.0, 0.0], data.site_xpos[robot.tcp_site]]
+    camera = model.camera("front").id
+    # Camera frame: x right, y up, looking along -z.
+    seen = (np.array(points) - data.cam_xpos[camera]) @ data.cam_xmat[camera].reshape(3, 3)
+    half_height = np.tan(np.radians(model.cam_fovy[camera]) / 2)
+    assert np.all(seen[:, 2] < 0)
+    image = seen[:, :2] / -seen[:, 2:]
+    assert np.all(np.abs(image[:, 0]) < 0.95 * half_height * 320 / 240), image
+    assert np.all(np.abs(image[:, 1]) < 0.95 * half_height), image
+
+
 def ballistic_velocity(start: np.ndarray, target: np.ndarray, flight_s: float) -> np.ndarray:
     """[3] launch velocity carrying a point from `start` to `target` in `flight_s` seconds under gravity alone."""
     return (target - start) / flight_s + np.array([0.0, 0.0, GRAVITY * flight_s / 2])

@@ -23,6 +23,20 @@ class BoxGeom:
 
 
 @dataclasses.dataclass(frozen=True)
+class View:
+    """Where a drawing camera stands: its position and its image's right and up axes (MJCF `xyaxes`), in the
+    world frame."""
+
+    pos: tuple[float, float, float]
+    xyaxes: tuple[float, float, float, float, float, float]
+
+
+TOSS_VIEW = View(pos=(2.6, 0.45, 1.05), xyaxes=(0.0, 1.0, 0.0, -0.28, 0.0, 0.96))
+"""The tosser's video camera: farther back than scene.xml's `front`, so that the frame holds the arm, the gap
+and the far table's bins, and the arc of a throw between them."""
+
+
+@dataclasses.dataclass(frozen=True)
 class Layout:
     """Static scene geometry.
 
@@ -37,6 +51,7 @@ class Layout:
       spawn_high: (x, y) upper corner of the object spawn region.
       spawn_cells: (nx, ny) grid of spawn cells; each object gets its own cell, so objects never overlap.
       blocker: optional thin bar between the spawn region and the bins.
+      front_view: where the `front` camera (videos) stands, if not where assets/scene.xml puts it.
     """
 
     tables: tuple[BoxGeom, ...]
@@ -48,6 +63,7 @@ class Layout:
     spawn_high: tuple[float, float] = (0.72, 0.16)
     spawn_cells: tuple[int, int] = (3, 3)
     blocker: BoxGeom | None = None
+    front_view: View | None = None
 
     @property
     def bin_walls(self) -> tuple[BoxGeom, ...]:
@@ -88,4 +104,4 @@ def make_layout(blocker: bool = False, tosser: bool = False) -> Layout:
         tables = (BoxGeom((0.375, 0.025, -0.02), (0.475, 0.475, 0.02)),)
         bins = _bin_row(0.36, 0.36)
     bar = BoxGeom((0.51, 0.235, 0.05), (0.23, 0.005, 0.05)) if blocker else None
-    return Layout(tables=tables, bin_centers=bins, blocker=bar)
+    return Layout(tables=tables, bin_centers=bins, blocker=bar, front_view=TOSS_VIEW if tosser else None)

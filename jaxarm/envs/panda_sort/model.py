@@ -126,6 +126,11 @@ def build_spec(objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm
     if layout.blocker is not None:
         _add_box(world, "blocker", layout.blocker, [0.7, 0.2, 0.2, 1])
         static.append("blocker")
+    if layout.front_view is not None:
+        camera = spec.camera("front")
+        camera.pos = layout.front_view.pos
+        camera.alt.type = mujoco.mjtOrientation.mjORIENTATION_XYAXES
+        camera.alt.xyaxes = layout.front_view.xyaxes
     for slot in range(objects_count):
         _add_object(world, slot)
 
