@@ -41,6 +41,18 @@ def test_every_preset_is_valid():
         configs.get(name)  # validates
 
 
+def test_every_sorter_preset_trains_with_curricula_and_evaluates_the_plain_task():
+    sorter_presets = [name for name in configs.names() if configs.get(name).env.startswith("panda_sort")]
+    assert "ppo_sorter_toss" in sorter_presets
+    for name in sorter_presets:
+        config = configs.get(name)
+        training = envs.override_params(panda_sort_params.default_params(), dict(config.env_params))
+        evaluation = envs.override_params(training, dict(config.eval_env_params))
+        assert float(training.held_start_prob) > 0, name
+        for start in ("held_start_prob", "ready_start_prob", "presorted_prob"):
+            assert float(getattr(evaluation, start)) == 0.0, (name, start)
+
+
 CONFIG_CLASSES = [PPOConfig, TD3Config]
 ISSUE_VALUES = [
     # The values a new user tried, which trained (or crashed late) before they were refused.
