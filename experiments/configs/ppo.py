@@ -213,7 +213,8 @@ def ppo_sorter_toss() -> PPOConfig:
     # joint speed limits (tests/envs/test_panda_sort_tosser.py); ppo_sorter_warp's learner. Seeds 0-2, sharing
     # one H100 (Warp, 8,192 envs, 1.3-1.4e5 env steps/s each), threw 93.1%, 97.7% and 95.0% of fresh episodes'
     # objects into their bins after 983, 1,085 and 985 s of training (90M, 123M and 90M env steps; seed 1
-    # alone for its last 99 s), and passed 80% after 760, 1,068 and 643 s (docs/benchmarks-log.md).
+    # alone for its last 99 s), and passed 80% after 760, 1,068 and 643 s. Seed 0 alone (3.79e5 env steps/s)
+    # passed 80% after 301 s (65.5M env steps) and placed 96.6% after 380 s (docs/benchmarks-log.md).
     return dataclasses.replace(
         ppo_sorter_warp(),
         env="panda_sort_tosser",
