@@ -138,20 +138,21 @@ def shaping_potential(
     lift = held * jnp.clip((position[:, 2] - sim.size) / params.lift_height, 0.0, 1.0)
     carry_target = carry_targets(layout, sim.shape, params.carry_height)
     to_target = jnp.linalg.norm(position - carry_target, axis=-1)
-    to_bin = jnp.linalg.norm(position[:, :2] - carry_target[:, :2], axis=-1)
+    # The toss term follows an object to where it fell, so one that fell short keeps credit for its range and aim.
+    on_floor = sim.outcome == ON_FLOOR
+    toss_xy = jnp.where(on_floor[:, None], sim.exit_xy, position[:, :2])
+    toss = 1.0 - jnp.tanh(jnp.linalg.norm(toss_xy - carry_target[:, :2], axis=-1) / params.toss_scale)
     stages = jnp.stack(
         [
             1.0 - jnp.tanh(distance / params.reach_scale),
             held.astype(jnp.float32),
             lift,
             lift * (1.0 - jnp.tanh(to_target / params.carry_scale)),
-            1.0 - jnp.tanh(to_bin / params.toss_scale),
+            toss,
         ]
     )  # [S, N]
     in_own_bin = (sim.outcome == IN_CORRECT_BIN).astype(jnp.float32)
-    fell_to_bin = jnp.linalg.norm(sim.exit_xy - carry_target[:, :2], axis=-1)
-    fallen_toss = (sim.outcome == ON_FLOOR) * (1.0 - jnp.tanh(fell_to_bin / params.toss_scale))
-    out_of_play = jnp.stack([in_own_bin + fallen_toss if name == "toss" else in_own_bin for name in SHAPING_TERMS])
+    out_of_play = jnp.stack([in_own_bin + on_floor * toss if name == "toss" else in_own_bin for name in SHAPING_TERMS])
     slots = jnp.arange(len(ids.object_qpos))
     shaped = in_play & (slots == sim.target) if target_first else in_play
     per_object = jnp.where(shaped, stages, out_of_play)
