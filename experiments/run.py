@@ -17,7 +17,7 @@ import jax
 from experiments import configs
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import loop, rundir, show
+from jaxarm.runner import loop, processes, rundir, show
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.sinks import WandbOptions
 
@@ -56,15 +56,38 @@ def parse_args(argv):
     parser.add_argument(
         "--distributed",
         action="store_true",
-        help="call jax.distributed.initialize() first (multi-host: run the same command on every host)",
+        help="one of several processes (several hosts, or one process per GPU): run the same command in each, "
+        "with the same --out; on SLURM the processes find each other alone, elsewhere give the three options below",
     )
+    parser.add_argument("--coordinator", metavar="HOST:PORT", help="with --distributed: process 0's address")
+    parser.add_argument("--num-processes", type=int, help="with --distributed: how many processes in all")
+    parser.add_argument("--process-id", type=int, help="with --distributed: this process's index, from 0")
     parser.add_argument("overrides", nargs="*", help="config overrides key=value (env_params.NAME=VALUE too)")
     args = parser.parse_args(argv)
     if not (args.list or args.config or args.resume):
         parser.error("give --config NAME, --resume RUN_DIR or --list")
     if args.resume and args.config:
         parser.error("--resume takes the config saved in the run directory; give no --config")
+    joining = (args.coordinator, args.num_processes, args.process_id)
+    if any(option is not None for option in joining) and not args.distributed:
+        parser.error("--coordinator, --num-processes and --process-id go with --distributed")
+    if args.distributed and args.config and not args.out and not (args.list or args.show):
+        parser.error("with --distributed give --out: every process must write to the same run directory")
     return args
+
+
+def join_processes(args) -> None:
+    """Joins the run's other processes (`jax.distributed.initialize`); ValueError in one line where that fails."""
+    try:
+        jax.distributed.initialize(
+            coordinator_address=args.coordinator, num_processes=args.num_processes, process_id=args.process_id
+        )
+    except (ValueError, RuntimeError) as error:
+        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+        raise ValueError(
+            f"--distributed could not join the other processes ({first_line}); outside SLURM give --coordinator "
+            "HOST:PORT, --num-processes N and --process-id I"
+        ) from None
 
 
 def quiet_libraries() -> None:
@@ -77,7 +100,11 @@ def quiet_libraries() -> None:
 def main(argv=None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     if args.distributed:
-        jax.distributed.initialize()
+        try:
+            join_processes(args)
+        except ValueError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
     if args.list:
         for name, description in configs.describe().items():
             print(f"{name:24s} {description}")
@@ -112,6 +139,8 @@ def main(argv=None) -> int:
         print(error, file=sys.stderr)
         quiet_libraries()
         return 130
+    if not processes.is_primary():
+        return 0
     print(
         f"{run_dir}: success_rate {result['success_rate']:.3f}, return_mean {result['return_mean']:.2f}, "
         f"{result['env_steps']:,} env steps in {result['train_wall_time']:.1f} s on {result['device']}"

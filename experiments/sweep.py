@@ -125,6 +125,9 @@ def collect(config: RunConfig, base: RunConfig, dynamic: list[dict], seeds: int,
     """
     rows, curves = [], {}
     finished = metrics.episodes.episodes > 0
+    env_steps = np.broadcast_to(
+        np.arange(1, finished.shape[1] + 1) * config.env_steps_per_update, finished.shape
+    ).astype(np.float64)
     for index, combo in enumerate(dynamic):
         members = slice(index * seeds, (index + 1) * seeds)
         label = describe(config, base, combo)
@@ -134,7 +137,7 @@ def collect(config: RunConfig, base: RunConfig, dynamic: list[dict], seeds: int,
         curves[label] = tuple(
             np.where(finished[members], values[members], np.nan) if masked else values[members]
             for values, masked in (
-                (metrics.env_steps, False),
+                (env_steps, False),
                 (metrics.episodes.success_rate, True),
                 (metrics.episodes.return_mean, True),
             )

@@ -3,7 +3,8 @@
 A field states its range once, in its dataclass metadata (`Range` under the key `RANGE`): run configs through
 `static(...)` and `dynamic(...)` (jaxarm.agents.common.config), env params through `ranged(...)`. The checks
 here are generic: beyond each field's declared range, every float must be finite and every integer must fit in
-int32 (the dtype of jaxarm's step counters, indices and int params). Messages name the field and what it must be,
+int32 (the dtype of jaxarm's update counters, indices and int params), or in int64 where the range says the count
+lives on the host alone (`Range.host_count`: a budget in env steps). Messages name the field and what it must be,
 in one line. Nothing here runs inside jit: params made inside a compiled program are not checked, and the envs
 clean up what such params break (see jaxarm.envs.base).
 """
@@ -21,6 +22,7 @@ RANGE = "range"
 """The metadata key under which a field declares its `Range`."""
 
 INT32 = np.iinfo(np.int32)
+INT64 = np.iinfo(np.int64)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -31,6 +33,7 @@ class Range:
       gt, ge: exclusive and inclusive lower bounds (None: none).
       lt, le: exclusive and inclusive upper bounds (None: none).
       choices: the allowed values of a choice (strings, or an int param's codes); empty for a numeric range.
+      host_count: an integer that only the host holds (never a device array), so it may use all of int64.
     """
 
     gt: float | None = None
@@ -38,6 +41,7 @@ class Range:
     lt: float | None = None
     le: float | None = None
     choices: tuple[Any, ...] = ()
+    host_count: bool = False
 
     def admits(self, value: Any) -> bool:
         """Whether `value` (a scalar, or every element of an array) lies in the range."""
@@ -67,6 +71,8 @@ POSITIVE = Range(gt=0)
 NON_NEGATIVE = Range(ge=0)
 COUNT = Range(ge=1)
 """An integer count or size of at least one."""
+HOST_COUNT = Range(ge=1, host_count=True)
+"""A count of at least one kept on the host alone (env steps of a budget), up to int64's maximum."""
 UNIT_INTERVAL = Range(ge=0, le=1)
 DISCOUNT = Range(gt=0, le=1)
 
@@ -94,8 +100,9 @@ def _check_number(name: str, value: Any, integer: bool, allowed: Range | None) -
     if integer:
         if not _is_int(value):
             raise ValueError(f"{name} must be an integer, got {value!r}")
-        if not INT32.min <= value <= INT32.max:
-            raise ValueError(f"{name} must fit in int32 (at most {INT32.max:,} in magnitude), got {value:,}")
+        bits = INT64 if allowed is not None and allowed.host_count else INT32
+        if not bits.min <= value <= bits.max:
+            raise ValueError(f"{name} must fit in {bits.dtype} (at most {bits.max:,} in magnitude), got {value:,}")
     else:
         if not _is_number(value):
             raise ValueError(f"{name} must be a number, got {value!r}")

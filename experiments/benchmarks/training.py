@@ -176,7 +176,8 @@ def run_ours(config: PPOConfig, eval_episodes: int) -> Result:
     def policy(obs):
         return trainer.act(state, obs)
 
-    return trained_result(config, policy, eval_episodes, int(state.env_steps), total_seconds, tuple(part_seconds))
+    env_steps = int(state.updates) * trainer.env_steps_per_update
+    return trained_result(config, policy, eval_episodes, env_steps, total_seconds, tuple(part_seconds))
 
 
 def brax_ppo_kwargs(config: PPOConfig, learning_rate: float) -> dict:

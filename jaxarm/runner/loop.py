@@ -6,7 +6,8 @@ The learner is compiled in chunks of `updates_per_chunk` updates; between chunks
 lines, TensorBoard, optionally wandb), shows progress, checks for NaN/inf, evaluates (`eval_every_updates`)
 and checkpoints the whole learner state. A resumed run continues from the latest checkpoint; on CPU the result
 is bit-identical to an uninterrupted run. Ctrl-C or SIGTERM stops at the next chunk end with a checkpoint.
-With several devices the env batch is split across all of them (data parallel, jaxarm/agents/common/sharding.py).
+With several devices the env batch is split across all of them (data parallel, jaxarm/agents/common/sharding.py),
+and with several processes (`jax.distributed`) process 0 alone writes the run directory (processes.py).
 """
 
 import contextlib
@@ -21,14 +22,16 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
+from jax.sharding import Mesh
 
 from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
-from jaxarm.agents.common.sharding import data_mesh, data_parallel
-from jaxarm.agents.common.trainer import make_chunk_runner
-from jaxarm.runner import plots, progress, rundir
+from jaxarm.agents.common.sharding import data_mesh, state_shardings
+from jaxarm.agents.common.trainer import Trainer, make_chunk_runner
+from jaxarm.runner import plots, processes, progress, rundir
 from jaxarm.runner.sinks import Sink, TensorBoardSink, WandbOptions, WandbSink
 
 FINAL_EVAL_SEED_OFFSET = 1_000_003
@@ -54,15 +57,32 @@ def first_non_finite(flat_metrics: dict[str, np.ndarray]) -> tuple[int, str] | N
     return min(found) if found else None
 
 
+@jax.jit
+def _all_finite(state) -> jax.Array:
+    leaves = [leaf for leaf in jax.tree.leaves(state) if jnp.issubdtype(leaf.dtype, jnp.floating)]
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(leaf)) for leaf in leaves]))
+
+
 def state_is_finite(state) -> bool:
-    leaves = [leaf for leaf in jax.tree.leaves(state) if np.issubdtype(np.asarray(leaf).dtype, np.floating)]
-    return all(bool(np.all(np.isfinite(np.asarray(leaf)))) for leaf in leaves)
+    """Whether every float of `state` is finite; computed where the state lives (on every device, in every
+    process), so that only one bool comes back."""
+    return bool(_all_finite(state))
 
 
-def metric_rows(flat: dict[str, np.ndarray], first_update: int, wall_time: float, steps_per_second: float):
+def metric_rows(
+    flat: dict[str, np.ndarray], first_update: int, env_steps_per_update: int, wall_time: float, steps_per_second: float
+):
+    """One JSON-ready row per update of a chunk: its count, env steps so far (a Python int, past int32 too), the
+    chunk's wall clock and rate, and its metrics."""
     count = len(next(iter(flat.values())))
     for index in range(count):
-        row = {"updates": first_update + index + 1, "wall_time": wall_time, "steps_per_second": steps_per_second}
+        updates = first_update + index + 1
+        row = {
+            "updates": updates,
+            "env_steps": updates * env_steps_per_update,
+            "wall_time": wall_time,
+            "steps_per_second": steps_per_second,
+        }
         row.update({name: float(values[index]) for name, values in flat.items()})
         yield row
 
@@ -132,11 +152,12 @@ def train(
     Without, the directory must be new, empty, or hold a run that never reached its first checkpoint. Raises
     rundir.RunDirError (foreign files, in use, already a run), TrainingDiverged on NaN/inf, TrainingInterrupted
     after Ctrl-C or SIGTERM; with `options.stop_after_s`, the first chunk past it is checkpointed and the
-    evaluation describes that state.
+    evaluation describes that state. With several processes (`jax.distributed`) every process calls this with
+    the same arguments; process 0 alone writes the directory (processes.py).
     """
     run_dir = pathlib.Path(run_dir)
     rundir.check_holds_a_run_or_nothing(run_dir)
-    with rundir.locked(run_dir):
+    with _locked_by_primary(run_dir):
         return _train_locked(config, preset, run_dir, resume, options)
 
 
@@ -147,8 +168,24 @@ def resume(run_dir: pathlib.Path, overrides: Sequence[str] = (), options=Options
     # Checked before the lock writes anything: a directory that is no run, or overrides it may not take.
     config, preset = rundir.read_config(run_dir)
     config = rundir.apply_resume_overrides(config, list(overrides))
-    with rundir.locked(run_dir):
+    with _locked_by_primary(run_dir):
         return _train_locked(config, preset, run_dir, True, options, list(overrides)), config
+
+
+def _locked_by_primary(run_dir: pathlib.Path) -> contextlib.AbstractContextManager:
+    """The run directory's lock, held by the process that writes it (processes.is_primary)."""
+    return rundir.locked(run_dir) if processes.is_primary() else contextlib.nullcontext()
+
+
+@dataclasses.dataclass
+class _Start:
+    """Where a run starts: its learner state (placed on the devices), updates done, wall seconds already spent,
+    and the best evaluation so far."""
+
+    state: Any
+    done_updates: int
+    wall_offset: float
+    best: dict | None
 
 
 def _train_locked(
@@ -156,62 +193,95 @@ def _train_locked(
 ) -> dict:
     """`train`, with the lock held; a resume's `overrides` are recorded once its checkpoint is restored."""
     trainer = registry.make_trainer(config)
-    hparams = config.hparams()
     run_steps = config.num_updates * config.env_steps_per_update
-    if run_steps > config.total_env_steps:
+    if run_steps > config.total_env_steps and processes.is_primary():
         print(
             f"total_env_steps={config.total_env_steps:,} runs as {run_steps:,} env steps: {config.num_updates:,} "
             f"updates in whole chunks of {config.chunk_updates:,}",
             file=sys.stderr,
         )
-    checkpoints = run_dir / "checkpoints"
+    mesh = data_mesh()
+    # Under the mesh, VmapEnv steps each device's envs on that device (jaxarm.envs.wrappers.over_env_batch).
+    with jax.set_mesh(mesh):
+        start = _start(trainer, config, preset, run_dir, resume, overrides, mesh)
+        state, done_updates, train_time = _train_chunks(trainer, config, run_dir, options, start, mesh)
+        return _final_evaluation(trainer, config, preset, run_dir, state, done_updates, train_time)
+
+
+def _start(
+    trainer: Trainer,
+    config: RunConfig,
+    preset: str,
+    run_dir: pathlib.Path,
+    resume: bool,
+    overrides: Sequence[str],
+    mesh: Mesh,
+) -> _Start:
+    """The run's starting point: a fresh (or warm-started) learner state, written as a new run, or the latest
+    checkpoint's. A run that died before its first checkpoint starts afresh."""
+    primary = processes.is_primary()
     has_run = (run_dir / "config.json").exists()
-    if has_run and not rundir.any_checkpoint_files(run_dir):
+    restart = has_run and not rundir.any_checkpoint_files(run_dir)
+    # Every process has looked before the primary clears anything.
+    processes.wait_for_all("run directory read")
+    if restart:
         # Died before its first checkpoint (Ctrl-C while compiling, NaN at once, a full disk): nothing to keep.
-        print(f"{run_dir} has no checkpoint yet: starting it afresh", file=sys.stderr)
-        rundir.clear_run(run_dir)
-        resume = False
+        if primary:
+            print(f"{run_dir} has no checkpoint yet: starting it afresh", file=sys.stderr)
+            rundir.clear_run(run_dir)
+        has_run, resume = False, False
     elif has_run and not resume:
         raise rundir.RunDirError(f"{run_dir} already holds a run; use --resume {run_dir} or another --out")
     elif resume and not has_run:
         raise rundir.RunDirError(f"{run_dir} is not a run directory: no config.json")
+    like = jax.eval_shape(trainer.init, jax.random.PRNGKey(config.seed), config.hparams())
+    shardings = state_shardings(like, mesh)
     if resume:
-        state = rundir.restore_state(run_dir, trainer, config)
+        state = rundir.restore_state(run_dir, trainer, config, shardings=shardings)
         done_updates = int(state.updates)
-        if overrides:
-            rundir.record_resume(run_dir, config, preset, overrides, done_updates)
-        rundir.truncate_metrics(run_dir, done_updates)
+        if primary:
+            if overrides:
+                rundir.record_resume(run_dir, config, preset, overrides, done_updates)
+            rundir.truncate_metrics(run_dir, done_updates)
         wall_offset = max([row["wall_time"] for row in rundir.read_metrics(run_dir)], default=0.0)
-    else:
-        state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams)
-        if config.init_from:
-            state = rundir.warm_starter(config)(state)
+        best_path = run_dir / "best.json"
+        best = json.loads(best_path.read_text()) if best_path.exists() else None
+        return _Start(state, done_updates, wall_offset, best)
+    state = jax.jit(trainer.init, out_shardings=shardings)(jax.random.PRNGKey(config.seed), config.hparams())
+    if config.init_from:
+        state = jax.device_put(rundir.warm_starter(config)(state), shardings)
+    if primary:
         # Written once the start state exists: a warm start that fails leaves no half-made run directory.
         rundir.write_config(run_dir, config, preset)
-        done_updates, wall_offset = 0, 0.0
-    if jax.device_count() > 1:
-        state = data_parallel(state, data_mesh())
+    return _Start(state, 0, 0.0, None)
+
+
+def _train_chunks(
+    trainer: Trainer, config: RunConfig, run_dir: pathlib.Path, options: Options, start: _Start, mesh: Mesh
+) -> tuple[Any, int, float]:
+    """Runs chunks of updates from `start` until the budget, the time limit or a stop request, logging,
+    evaluating and checkpointing between them; returns (learner state, updates done, wall seconds of training
+    in all, earlier segments included)."""
+    hparams = config.hparams()
+    primary = processes.is_primary()
     evaluator = rundir.make_evaluator(trainer, config, config.eval_episodes)
     eval_key = jax.random.PRNGKey(config.seed + FINAL_EVAL_SEED_OFFSET)
-    best_path = run_dir / "best.json"
-    best = json.loads(best_path.read_text()) if resume and best_path.exists() else None
+    checkpoints = run_dir / "checkpoints"
+    shardings = state_shardings(start.state, mesh)
+    state, done_updates, best = start.state, start.done_updates, start.best
     runners: dict[int, Callable] = {}
     last_saved = done_updates
-    start = time.perf_counter()
+    clock = time.perf_counter()
     stop = StopRequests()
+    steps_per_update = trainer.env_steps_per_update
     with contextlib.ExitStack() as stack:
-        sinks: list[Sink] = [TensorBoardSink(run_dir / "tensorboard")]
-        if options.wandb:
-            sinks.append(WandbSink(options.wandb, run_dir, json.loads((run_dir / "config.json").read_text())))
-        for sink in sinks:
-            stack.callback(sink.close)
         stack.enter_context(stop.installed())
-        bar = stack.enter_context(progress.Progress(trainer.num_updates * trainer.env_steps_per_update))
-        log = stack.enter_context((run_dir / "metrics.jsonl").open("a"))
-        bar.advance_to(done_updates * trainer.env_steps_per_update)
+        log = _RunLog(stack, run_dir, trainer, options) if primary else None
+        if log:
+            log.bar.advance_to(done_updates * steps_per_update)
         while done_updates < trainer.num_updates:
             count = min(config.updates_per_chunk, trainer.num_updates - done_updates)
-            runner = runners.setdefault(count, make_chunk_runner(trainer, count))
+            runner = runners.setdefault(count, make_chunk_runner(trainer, count, shardings))
             chunk_start = time.perf_counter()
             state, metrics = runner(state, hparams)
             flat = rundir.flatten_metrics(jax.device_get(metrics))
@@ -223,8 +293,9 @@ def _train_locked(
                 metric_rows(
                     flat,
                     done_updates,
-                    wall_offset + time.perf_counter() - start,
-                    count * trainer.env_steps_per_update / chunk_time,
+                    steps_per_update,
+                    start.wall_offset + time.perf_counter() - clock,
+                    count * steps_per_update / chunk_time,
                 )
             )
             if crossed(config.eval_every_updates, done_updates, done_updates + count):
@@ -233,42 +304,78 @@ def _train_locked(
                 if better(result, best):
                     best = {"updates": done_updates + count, **result}
                     checkpoint.save(run_dir / "best", done_updates + count, state)
-                    rundir.write_json(best_path, best)
-            for row in rows:
-                log.write(json.dumps(row) + "\n")
-                for sink in sinks:
-                    sink.write(row)
-            log.flush()
+                    if primary:
+                        rundir.write_json(run_dir / "best.json", best)
             done_updates += count
-            out_of_time = options.stop_after_s is not None and time.perf_counter() - start > options.stop_after_s
+            if log:
+                log.write(rows, done_updates * steps_per_update, flat)
+            out_of_time = options.stop_after_s is not None and time.perf_counter() - clock > options.stop_after_s
+            # Agreed by every process: one that stopped alone would leave the others waiting in a collective.
+            out_of_time, stopping = processes.any_process(out_of_time), processes.any_process(stop.requested)
             if (
                 done_updates - last_saved >= config.checkpoint_every_updates
                 or done_updates == trainer.num_updates
                 or out_of_time
-                or stop.requested
+                or stopping
             ):
                 checkpoint.save(checkpoints, done_updates, state)
                 last_saved = done_updates
-            bar.update(done_updates * trainer.env_steps_per_update, rows[-1]["steps_per_second"], flat)
             if options.on_chunk:
                 options.on_chunk(done_updates)
-            if stop.requested:
+            if stopping:
                 raise TrainingInterrupted(
                     f"interrupted: checkpoint at update {done_updates} of {trainer.num_updates} saved in "
                     f"{checkpoints}; continue with: python -m experiments.run --resume {run_dir}"
                 )
             if out_of_time:
                 break
-    train_time = wall_offset + time.perf_counter() - start
-    result = evaluator(state, eval_key)
+    return state, done_updates, start.wall_offset + time.perf_counter() - clock
+
+
+class _RunLog:
+    """The primary process's outputs between chunks: metrics.jsonl, the sinks (TensorBoard, wandb) and the
+    progress bar, each closed with `stack`."""
+
+    def __init__(self, stack: contextlib.ExitStack, run_dir: pathlib.Path, trainer: Trainer, options: Options):
+        self.sinks: list[Sink] = [TensorBoardSink(run_dir / "tensorboard")]
+        if options.wandb:
+            self.sinks.append(WandbSink(options.wandb, run_dir, json.loads((run_dir / "config.json").read_text())))
+        for sink in self.sinks:
+            stack.callback(sink.close)
+        self.bar = stack.enter_context(progress.Progress(trainer.num_updates * trainer.env_steps_per_update))
+        self.file = stack.enter_context((run_dir / "metrics.jsonl").open("a"))
+
+    def write(self, rows: list[dict], env_steps: int, flat: dict[str, np.ndarray]) -> None:
+        for row in rows:
+            self.file.write(json.dumps(row) + "\n")
+            for sink in self.sinks:
+                sink.write(row)
+        self.file.flush()
+        self.bar.update(env_steps, rows[-1]["steps_per_second"], flat)
+
+
+def _final_evaluation(
+    trainer: Trainer,
+    config: RunConfig,
+    preset: str,
+    run_dir: pathlib.Path,
+    state,
+    done_updates: int,
+    train_time: float,
+) -> dict:
+    """Evaluates the final state (also under the randomised params, if any), writes eval.json and curve.png
+    (the primary process) and returns the results."""
+    eval_key = jax.random.PRNGKey(config.seed + FINAL_EVAL_SEED_OFFSET)
+    result = rundir.make_evaluator(trainer, config, config.eval_episodes)(state, eval_key)
     if config.randomize:
         randomized = rundir.make_evaluator(trainer, config, config.eval_episodes, randomized=True)(state, eval_key)
         result.update({f"randomized/{name}": value for name, value in randomized.items() if name != "device"})
     result["train_wall_time"] = train_time
-    result["env_steps"] = int(state.env_steps)
+    result["env_steps"] = done_updates * trainer.env_steps_per_update
     result["finished"] = done_updates == trainer.num_updates
-    rundir.write_json(run_dir / "eval.json", result)
-    plots.learning_curve(rundir.read_metrics(run_dir), run_dir / "curve.png", title=preset)
+    if processes.is_primary():
+        rundir.write_json(run_dir / "eval.json", result)
+        plots.learning_curve(rundir.read_metrics(run_dir), run_dir / "curve.png", title=preset)
     return result
 
 

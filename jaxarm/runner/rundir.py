@@ -180,11 +180,12 @@ def read_config(run_dir: pathlib.Path) -> tuple[RunConfig, str]:
     return config, preset
 
 
-def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig, best: bool = False):
+def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig, best: bool = False, shardings=None):
     """The latest checkpointed learner state of `run_dir`, or with `best` the one that scored best in evaluation
-    during training (CheckpointError if none or mismatched)."""
+    during training (CheckpointError if none or mismatched), placed with `shardings` (a pytree like the state;
+    None: on this process's first device)."""
     like = jax.eval_shape(trainer.init, jax.random.PRNGKey(config.seed), config.hparams())
-    return checkpoint.restore(run_dir / ("best" if best else "checkpoints"), like)
+    return checkpoint.restore(run_dir / ("best" if best else "checkpoints"), like, shardings=shardings)
 
 
 def warm_starter(config: RunConfig) -> Callable[[Any], Any]:

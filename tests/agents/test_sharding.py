@@ -1,4 +1,5 @@
-"""A PPO run split over 4 (forced host) devices matches the single-device run within float tolerance."""
+"""A PPO run split over 4 (forced host) devices, each stepping its own envs, matches the single-device run within
+float tolerance."""
 
 import os
 import subprocess
@@ -9,7 +10,7 @@ import pytest
 
 PROBE = textwrap.dedent("""
     import jax, numpy as np
-    from jaxarm.agents.common.sharding import data_mesh, data_parallel
+    from jaxarm.agents.common.sharding import data_mesh, data_parallel, state_shardings
     from jaxarm.agents.common.trainer import make_chunk_runner
     from jaxarm.agents.ppo import PPOConfig, make_trainer
 
@@ -19,16 +20,22 @@ PROBE = textwrap.dedent("""
     trainer = make_trainer(config)
     hparams = config.hparams()
 
-    def final(state):
-        chunk = make_chunk_runner(trainer, config.updates_per_chunk)
+    def final(state, shardings=None):
+        chunk = make_chunk_runner(trainer, config.updates_per_chunk, shardings)
         for _ in range(trainer.num_updates // config.updates_per_chunk):
             state, _ = chunk(state, hparams)
         return state
 
     init = jax.jit(trainer.init)  # a fresh state per run: the chunk runner donates its input
     single = final(init(jax.random.PRNGKey(0), hparams))
-    split = final(data_parallel(init(jax.random.PRNGKey(0), hparams), data_mesh()))
+    mesh = data_mesh()
+    with jax.set_mesh(mesh):  # VmapEnv steps each device's envs there (over_env_batch)
+        start = data_parallel(init(jax.random.PRNGKey(0), hparams), mesh)
+        step = jax.jit(trainer.update).lower(start, hparams).as_text()
+        assert "shard_map" in step or "sdy.manual_computation" in step, "the env batch was not split by device"
+        split = final(start, state_shardings(start, mesh))
     assert len(split.env_state.obs.sharding.device_set) == 4
+    assert split.env_state.obs.sharding.spec[0] == "data"
     gap = max(float(np.max(np.abs(np.asarray(a) - np.asarray(b))))
               for a, b in zip(jax.tree.leaves(single.params), jax.tree.leaves(split.params)))
     print("max param gap", gap)

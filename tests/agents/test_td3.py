@@ -195,6 +195,20 @@ def test_replay_stores_pre_reset_next_obs_and_truncation_is_not_termination():
     assert float(metrics.episodes.episodes) == 2
 
 
+def test_the_warm_up_reads_updates_past_int32_env_steps():
+    # 2^30 updates of 6 env steps each are 6.4e9 env steps, past int32: still past learning_starts, so it learns.
+    config = TD3Config(
+        num_envs=2, rollout_length=3, learning_starts=12, total_env_steps=6, **{**SMALL, "buffer_size": 16}
+    )
+    trainer = make_trainer(config)
+    fresh = trainer.init(jax.random.PRNGKey(0), config.hparams())
+    update = jax.jit(trainer.update)
+    _, warming = update(fresh, config.hparams())
+    _, learning = update(fresh.replace(updates=jnp.int32(2**30)), config.hparams())
+    assert float(warming.critic_loss) == 0.0
+    assert float(learning.critic_loss) > 0.0
+
+
 # DDPG is a configuration of the same learner
 
 

@@ -223,3 +223,17 @@ def test_robustness_rows_vmap_each_params_values_and_match_the_nominal(finished_
 def test_bad_perturbations_are_refused_in_one_line(finished_run, capsys, perturb, message):
     assert eval_cli.main([str(finished_run), "--episodes", "4", "--perturb", perturb]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_a_ten_billion_step_budget_runs_resumes_and_counts_past_int32(tmp_path):
+    run_dir = tmp_path / "long"
+    long_budget = ["total_env_steps=10000000000", "--out", str(run_dir), "--stop-after-minutes", "0"]
+    assert run_cli(*SMALL, *long_budget[:1], *long_budget[1:]) == 0
+    assert run.main(["--resume", str(run_dir), "--stop-after-minutes", "0"]) == 0
+    config, _ = rundir.read_config(run_dir)
+    assert config.total_env_steps == 10_000_000_000
+    assert config.num_updates * config.env_steps_per_update >= 10_000_000_000
+    assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 9))
+    # The host counts env steps in Python ints: rows of a run far past int32 carry exact counts.
+    far = next(loop.metric_rows({"loss": np.zeros(1)}, 3_000_000, 1024, 0.0, 1.0))
+    assert far["env_steps"] == 3_000_001 * 1024

@@ -65,19 +65,23 @@ def _listed_latest_step(directory: pathlib.Path) -> int | None:
         return manager.latest_step()
 
 
-def restore(directory: pathlib.Path, like, step: int | None = None):
-    """Restores the checkpoint `step` (default: latest) into the structure, shapes and dtypes of `like`.
+def restore(directory: pathlib.Path, like, step: int | None = None, shardings=None):
+    """Restores the checkpoint `step` (default: latest) into the structure, shapes and dtypes of `like`, placed
+    with `shardings` (a pytree of shardings like `like`; None: every leaf on this process's first device).
 
     Raises CheckpointError when there is none, or when it cannot be read into `like`.
     """
     step = latest_step(directory) if step is None else step
     if step is None:
         raise CheckpointError(f"no checkpoint found in {directory}")
-    # Every leaf is read onto this process's default device: left to itself, orbax places a leaf as it was
-    # saved, and refuses a checkpoint written on another machine's devices (a GPU run evaluated on a laptop).
-    # Callers that shard a state place it again afterwards.
-    here = jax.sharding.SingleDeviceSharding(jax.devices()[0])
-    abstract = jax.tree.map(lambda leaf: jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=here), like)
+    # Every leaf is placed as asked: left to itself, orbax places a leaf as it was saved, and refuses a checkpoint
+    # written on other devices (a GPU run evaluated on a laptop, 4 processes' run resumed by 1).
+    if shardings is None:
+        here = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
+        shardings = jax.tree.map(lambda _: here, like)
+    abstract = jax.tree.map(
+        lambda leaf, sharding: jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=sharding), like, shardings
+    )
     try:
         with _quiet_reads(), _manager(directory) as manager:
             restored = manager.restore(step, args=ocp.args.StandardRestore(abstract))

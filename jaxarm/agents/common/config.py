@@ -118,7 +118,7 @@ class RunConfig:
     eval_env_params: Pairs = ()
     randomize: Pairs = ()
     num_envs: int = static(256, COUNT)
-    total_env_steps: int = static(1_000_000, COUNT)
+    total_env_steps: int = static(1_000_000, ranges.HOST_COUNT)
     updates_per_chunk: int = static(10, COUNT)
     checkpoint_every_updates: int = static(50, COUNT)
     eval_episodes: int = static(1000, COUNT)
@@ -166,11 +166,10 @@ class RunConfig:
         here, or in a learner's config, which extends this after `super().validate()`), an unknown env or env
         kwarg, or env params out of their ranges. Each field's own range was checked when the config was built.
         """
-        steps = self.num_updates * self.env_steps_per_update
-        if steps > ranges.INT32.max:
+        if self.num_updates > ranges.INT32.max:
             raise ValueError(
-                f"total_env_steps={self.total_env_steps:,} (run as {steps:,} env steps in whole chunks) exceeds "
-                f"the learners' int32 step counter ({ranges.INT32.max:,})"
+                f"total_env_steps={self.total_env_steps:,} needs {self.num_updates:,} updates, more than the learners' "
+                f"int32 update counter holds ({ranges.INT32.max:,}): collect more env steps per update"
             )
         try:
             self.make_eval_env(randomized=True)

@@ -1,30 +1,38 @@
-"""Data-parallel placement of a learner state over devices with `jax.sharding` (not pmap).
+"""Data-parallel placement of a learner state over devices with `jax.sharding` (not pmap), in one process or many.
 
-The env batch (every leaf of `state.env_state`, leading axis [num_envs]) is split across a 1-D mesh named
-"data"; everything else (parameters, optimizer state, normaliser, replay, key) is replicated. The same
-jitted update then runs SPMD: XLA partitions the rollout across devices and inserts the all-reduces
-that average gradients, so results match a single device up to float summation order.
+The env batch (every leaf of `state.env_state`, leading axis [num_envs]) is split across a 1-D mesh over
+every device of every process, named ENV_AXIS; everything else (parameters, optimizer state, normaliser,
+replay, key) is replicated. The same jitted update then runs SPMD: traced under the mesh (`jax.set_mesh`),
+`VmapEnv` steps each device's share of the envs on that device alone (`jaxarm.envs.wrappers.over_env_batch`),
+and XLA inserts the all-reduces that average gradients, so results match a single device up to float summation
+order. `num_envs` is the whole batch, over all devices: a config computes the same run on any number of them.
 """
 
 import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from jaxarm.envs.wrappers import ENV_AXIS
+
 
 def data_mesh(devices=None) -> Mesh:
-    """A 1-D mesh named "data" over `devices` (default: all devices of all processes)."""
-    return Mesh(np.array(jax.devices() if devices is None else devices), ("data",))
+    """A 1-D mesh named ENV_AXIS over `devices` (default: all devices of all processes)."""
+    return Mesh(np.array(jax.devices() if devices is None else devices), (ENV_AXIS,))
 
 
-def data_parallel(state, mesh: Mesh):
-    """Places `state` on `mesh`: `state.env_state` split along axis 0, all other leaves replicated.
-
-    Raises ValueError when the env batch does not divide by the number of devices.
-    """
+def state_shardings(state, mesh: Mesh):
+    """The shardings of `state` (a learner state, or its `jax.eval_shape`) on `mesh`: `state.env_state` split
+    along axis 0, all other leaves replicated. Raises ValueError when the env batch does not divide by the
+    number of devices."""
     count = mesh.devices.size
     num_envs = jax.tree.leaves(state.env_state)[0].shape[0]
     if num_envs % count:
         raise ValueError(f"num_envs={num_envs} must divide by the {count} devices it is split over")
-    replicated = jax.device_put(state.replace(env_state=None), NamedSharding(mesh, PartitionSpec()))
-    split = jax.device_put(state.env_state, NamedSharding(mesh, PartitionSpec("data")))
-    return replicated.replace(env_state=split)
+    replicated, split = NamedSharding(mesh, PartitionSpec()), NamedSharding(mesh, PartitionSpec(ENV_AXIS))
+    return jax.tree.map(lambda _: replicated, state).replace(env_state=jax.tree.map(lambda _: split, state.env_state))
+
+
+def data_parallel(state, mesh: Mesh):
+    """Places `state` on `mesh` (`state_shardings`). With several processes each passes the same `state` (the
+    same seed, or the same checkpoint) and keeps its devices' shards."""
+    return jax.device_put(state, state_shardings(state, mesh))

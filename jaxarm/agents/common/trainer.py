@@ -57,11 +57,14 @@ def make_train(trainer: Trainer) -> Callable[[jax.Array, Any], tuple[Any, Any]]:
     return train
 
 
-def make_chunk_runner(trainer: Trainer, updates_per_chunk: int):
-    """A jitted `(state, hparams) -> (state, metrics [updates_per_chunk])`; compiled once, reused."""
+def make_chunk_runner(trainer: Trainer, updates_per_chunk: int, state_shardings=None):
+    """A jitted `(state, hparams) -> (state, metrics [updates_per_chunk])`; compiled once, reused. The state
+    comes out with `state_shardings` (a pytree of shardings like the state, see jaxarm.agents.common.sharding),
+    or as XLA places it where None."""
     return jax.jit(
         partial(run_updates, trainer, num_updates=updates_per_chunk),
         donate_argnums=0,
+        out_shardings=None if state_shardings is None else (state_shardings, None),
         compiler_options=trainer.compiler_options,
     )
 

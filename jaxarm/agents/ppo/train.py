@@ -42,8 +42,8 @@ class PPOState(struct.PyTreeNode):
       normalizer: brax running mean/std of observations (of a camera observation, its proprio part).
       env_state: [num_envs] batched env state.
       key: PRNG key (raw uint32[2]).
-      env_steps: env steps taken so far.
-      updates: updates done so far.
+      updates: [] int32, updates done so far (env steps: `updates × env_steps_per_update`, counted on the host,
+        where they may pass int32).
     """
 
     params: NetworkParams
@@ -51,7 +51,6 @@ class PPOState(struct.PyTreeNode):
     normalizer: observation_normalizer.Normalizer
     env_state: EnvState
     key: jax.Array
-    env_steps: jax.Array
     updates: jax.Array
 
 
@@ -59,7 +58,6 @@ class PPOState(struct.PyTreeNode):
 class PPOMetrics:
     """Scalars logged per update."""
 
-    env_steps: jax.Array
     episodes: EpisodeSummary
     loss: losses.LossTerms
     learning_rate: jax.Array
@@ -173,7 +171,6 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
             normalizer=observation_normalizer.init(env.spec),
             env_state=batch_env.reset(env_key, env_params),
             key=run_key,
-            env_steps=jnp.zeros((), jnp.int32),
             updates=jnp.zeros((), jnp.int32),
         )
 
@@ -236,18 +233,15 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
                 learning_rate,
                 shuffle_key,
             )
-        env_steps = state.env_steps + config.env_steps_per_update
         new_state = PPOState(
             params=params,
             opt_state=opt_state,
             normalizer=normalizer,
             env_state=env_state,
             key=next_key,
-            env_steps=env_steps,
             updates=state.updates + 1,
         )
         metrics = PPOMetrics(
-            env_steps=env_steps,
             episodes=episodes,
             loss=jax.tree.map(jnp.mean, terms),
             learning_rate=learning_rate,

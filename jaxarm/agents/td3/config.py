@@ -6,6 +6,7 @@ experiments/configs/td3.py).
 
 import dataclasses
 
+from jaxarm import ranges
 from jaxarm.agents.common.config import RunConfig, dynamic, inherit, static
 from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
@@ -118,4 +119,9 @@ class TD3Config(RunConfig):
         if self.env_steps_per_update > self.buffer_size:
             raise ValueError(
                 f"buffer_size ({self.buffer_size}) must hold one update's {self.env_steps_per_update} env steps"
+            )
+        if self.learning_starts + self.env_steps_per_update > ranges.INT32.max:
+            raise ValueError(
+                f"learning_starts ({self.learning_starts:,}) plus one update's env steps must fit in int32, the "
+                "warm-up's step counter"
             )

@@ -98,8 +98,8 @@ class TD3State(struct.PyTreeNode):
       replay: the replay buffer of `Experience`.
       env_state: the [num_envs] auto-resetting envs.
       key: PRNG key (raw uint32).
-      env_steps: [] int32, env steps collected so far.
-      updates: [] int32, updates done so far.
+      updates: [] int32, updates done so far (env steps: `updates × env_steps_per_update`, counted on the host,
+        where they may pass int32).
     """
 
     actor_params: Mapping[str, Any]
@@ -112,18 +112,16 @@ class TD3State(struct.PyTreeNode):
     replay: replay.ReplayState
     env_state: EnvState
     key: jax.Array
-    env_steps: jax.Array
     updates: jax.Array
 
 
 @struct.dataclass
 class TD3Metrics:
-    """Per-update metrics, [] each: env steps so far, finished episodes, and the update's mean losses and Q.
+    """Per-update metrics, [] each: finished episodes, and the update's mean losses and Q.
 
     The losses and Q are 0 before `learning_starts` (no gradient steps yet).
     """
 
-    env_steps: jax.Array
     episodes: EpisodeSummary
     critic_loss: jax.Array
     actor_loss: jax.Array
@@ -204,7 +202,6 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             replay=replay.init(example, config.buffer_size),
             env_state=batch_env.reset(env_key, env_params),
             key=state_key,
-            env_steps=jnp.zeros((), jnp.int32),
             updates=jnp.zeros((), jnp.int32),
         )
 
@@ -212,6 +209,13 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     exploration_scales = jnp.ones((config.num_envs, 1))
     if config.mixed_exploration_noise:
         exploration_scales = (jnp.arange(1, config.num_envs + 1) / config.num_envs)[:, None]
+
+    warm_up_updates = -(-config.learning_starts // config.env_steps_per_update)
+
+    def warm_up_steps(updates: jax.Array) -> jax.Array:
+        """[] int32 env steps collected before update `updates`, as far as `learning_starts` reads them: counted
+        up to the first update past the warm-up and constant after, so that the count never leaves int32."""
+        return jnp.minimum(updates, warm_up_updates) * config.env_steps_per_update
 
     def collect(state: TD3State, hparams: HParams, key: jax.Array):
         """Steps the envs `rollout_length` times; returns (env state, env steps, experience [T*B], states [T, B])."""
@@ -239,7 +243,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
 
         step_keys = jax.random.split(key, config.rollout_length)
         (env_state, env_steps), (experience, states) = jax.lax.scan(
-            env_step, (state.env_state, state.env_steps), step_keys
+            env_step, (state.env_state, warm_up_steps(state.updates)), step_keys
         )
         if config.n_step > 1:
             experience = n_step_experience(experience, states.done, hparams.gamma, config.n_step)
@@ -337,7 +341,6 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         state = state.replace(
             normalizer=normalizer,
             env_state=env_state,
-            env_steps=env_steps,
             key=key,
             updates=state.updates + 1,
             replay=replay.add(state.replay, experience),
@@ -346,7 +349,6 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
             env_steps >= config.learning_starts, learn, skip_learning, state, learn_key, hparams
         )
         metrics = TD3Metrics(
-            env_steps=env_steps,
             episodes=summarise_episodes(states),
             critic_loss=critic_loss_value,
             actor_loss=actor_loss_value,

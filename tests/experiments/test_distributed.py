@@ -1,0 +1,102 @@
+"""Runs of two processes (`--distributed`, JAX's CPU collectives over gloo) compute what one process computes, and
+a run checkpointed by two processes resumes on one and the reverse."""
+
+import socket
+import subprocess
+import sys
+
+import jax
+import numpy as np
+import pytest
+
+from jaxarm.runner import load_run, read_metrics
+
+OVERRIDES = [
+    "num_envs=16",
+    "rollout_length=8",
+    "num_minibatches=2",
+    "num_epochs=2",
+    "total_env_steps=1024",
+    "updates_per_chunk=2",
+    "eval_episodes=16",
+    "policy_hidden_sizes=16",
+    "value_hidden_sizes=16",
+]
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def run_processes(count: int, args: list[str], first_only: list[str] = ()) -> list[subprocess.CompletedProcess]:
+    """Runs `experiments.run ARGS` as `count` processes of one run (each with one CPU device); `first_only`
+    arguments go to process 0 alone."""
+    command = [sys.executable, "-m", "experiments.run", *args]
+    if count == 1:
+        return [subprocess.run(command, capture_output=True, text=True, timeout=600)]
+    joining = ["--distributed", "--coordinator", f"127.0.0.1:{free_port()}", "--num-processes", str(count)]
+    children = [
+        subprocess.Popen(
+            [*command, *joining, "--process-id", str(index), *(first_only if index == 0 else [])],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for index in range(count)
+    ]
+    results = []
+    for child in children:
+        out, err = child.communicate(timeout=600)
+        results.append(subprocess.CompletedProcess(child.args, child.returncode, out, err))
+    return results
+
+
+def assert_codes(results: list[subprocess.CompletedProcess], code: int) -> None:
+    for result in results:
+        assert result.returncode == code, result.stderr[-3000:]
+
+
+def params_gap(run_a, run_b) -> float:
+    (_, a), (_, b) = load_run(run_a), load_run(run_b)
+    return max(
+        float(np.max(np.abs(np.asarray(x) - np.asarray(y))))
+        for x, y in zip(jax.tree.leaves(a.params), jax.tree.leaves(b.params), strict=True)
+    )
+
+
+@pytest.mark.slow
+def test_two_processes_compute_one_process_run_and_resume_across(tmp_path):
+    one = tmp_path / "one"
+    assert_codes(run_processes(1, ["--config", "ppo_arm2d", "--out", str(one), *OVERRIDES]), 0)
+
+    # Two processes, stopped after their first chunk by process 0's time limit alone: both stop there together.
+    two_then_one = tmp_path / "two_then_one"
+    stop_first = ["--stop-after-minutes", "0"]
+    results = run_processes(2, ["--config", "ppo_arm2d", "--out", str(two_then_one), *OVERRIDES], stop_first)
+    assert_codes(results, 0)
+    assert "success_rate" in results[0].stdout and "success_rate" not in results[1].stdout  # process 0 reports
+    assert [row["updates"] for row in read_metrics(two_then_one)] == [1, 2]  # written once, by process 0
+    assert_codes(run_processes(1, ["--resume", str(two_then_one)]), 0)
+
+    one_then_two = tmp_path / "one_then_two"
+    assert_codes(run_processes(1, ["--config", "ppo_arm2d", "--out", str(one_then_two), *OVERRIDES, *stop_first]), 0)
+    assert_codes(run_processes(2, ["--resume", str(one_then_two)]), 0)
+
+    updates = [row["updates"] for row in read_metrics(one)]
+    for run in (two_then_one, one_then_two):
+        assert [row["updates"] for row in read_metrics(run)] == updates
+        # Identical up to the order in which the devices' gradients are summed.
+        assert params_gap(one, run) < 1e-4
+
+
+def test_distributed_without_its_processes_is_one_line(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "experiments.run", "--config", "ppo_arm2d", "--distributed", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines()[-1].startswith("error: --distributed could not join")
