@@ -136,11 +136,13 @@ class Options:
       stop_after_s: checkpoint and stop after the first chunk that ends past this many seconds (resume later).
       wandb: also log to this wandb project; None for no wandb.
       on_chunk: called with the update count after each chunk's rows are logged (e.g. to watch a run).
+      devices: the devices to split the env batch over; None for every device of every process.
     """
 
     stop_after_s: float | None = None
     wandb: WandbOptions | None = None
     on_chunk: Callable[[int], None] | None = None
+    devices: Sequence[jax.Device] | None = None
 
 
 def train(
@@ -200,7 +202,7 @@ def _train_locked(
             f"updates in whole chunks of {config.chunk_updates:,}",
             file=sys.stderr,
         )
-    mesh = data_mesh()
+    mesh = data_mesh(options.devices)
     # Under the mesh, VmapEnv steps each device's envs on that device (jaxarm.envs.wrappers.over_env_batch).
     with jax.set_mesh(mesh):
         start = _start(trainer, config, preset, run_dir, resume, overrides, mesh)
