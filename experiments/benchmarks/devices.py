@@ -25,7 +25,7 @@ from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import timed
 from jaxarm import runner
 from jaxarm.agents.common.config import RunConfig
-from jaxarm.agents.common.sharding import data_mesh, state_shardings
+from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
 from jaxarm.agents.common.trainer import run_updates
 
 
@@ -49,7 +49,7 @@ def steady_rate(config: RunConfig, devices: Sequence[jax.Device], updates: int) 
     trainer = configs.make_trainer(config)
     hparams = config.hparams()
     mesh = data_mesh(devices)
-    with jax.set_mesh(mesh):
+    with envs_split_over(mesh):
         like = jax.eval_shape(trainer.init, jax.random.PRNGKey(config.seed), hparams)
         shardings = state_shardings(like, mesh)
         state = jax.jit(trainer.init, out_shardings=shardings)(jax.random.PRNGKey(config.seed), hparams)

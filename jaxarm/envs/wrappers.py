@@ -4,19 +4,22 @@ Episode statistics are kept by `Env.step` itself (`state.episode`, `state.last_e
 wrapped or not, reports the same numbers.
 """
 
+import contextlib
+import contextvars
 import functools
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 import jax
 import jax.numpy as jnp
-from jax.sharding import PartitionSpec
+from jax.sharding import Mesh, PartitionSpec
 
 from jaxarm.envs.base import Env, EnvSpec, EnvState
 from jaxarm.envs.observation import IMAGE, with_image
 
 ENV_AXIS = "data"
 """The mesh axis an env batch is split along (jaxarm.agents.common.sharding builds the mesh)."""
+_SPLIT_OVER: contextvars.ContextVar[Mesh | None] = contextvars.ContextVar("envs_split_over", default=None)
 STARTS_DRAWN_SHARE = 8
 """A batch of B auto-resetting envs draws its new episodes' first images in groups of B / this many envs,
 gathered: as many groups as a step needs, none on a step where no episode starts."""
@@ -121,18 +124,33 @@ class AutoReset(Wrapper):
         return state.replace(obs=with_image(state.obs, self.env.images(state.sim, params)))
 
 
+@contextlib.contextmanager
+def envs_split_over(mesh: Mesh) -> Iterator[None]:
+    """While active, batches of envs traced in this thread step each device's share on that device, over `mesh`'s
+    ENV_AXIS (`over_env_batch`). Only tracing reads it: trace (first call) a jitted function inside it.
+
+    jaxarm's own context rather than `jax.set_mesh`, which also places every array made under it on the whole
+    mesh: with several processes, a constant MJX makes eagerly then spans devices of other processes, and no
+    program may close over it."""
+    token = _SPLIT_OVER.set(mesh)
+    try:
+        yield
+    finally:
+        _SPLIT_OVER.reset(token)
+
+
 def over_env_batch(batched_fn: Callable, num_envs: int, batched_args: Sequence[bool]) -> Callable:
     """`batched_fn` (whose outputs all have a leading [num_envs] axis), run on each device's share of the batch
-    when traced under a mesh (`jax.set_mesh`) whose ENV_AXIS spans several devices and divides `num_envs`;
-    `batched_fn` itself otherwise. `batched_args[i]` says whether argument i has the leading [num_envs] axis
-    (split) or is shared (replicated).
+    when traced under `envs_split_over(mesh)` with several devices dividing `num_envs`; `batched_fn` itself
+    otherwise. `batched_args[i]` says whether argument i has the leading [num_envs] axis (split) or is shared
+    (replicated).
 
     Envs of a batch are independent, so each device steps its own without any communication. Left to XLA's
     partitioner, a foreign call inside the step (MJX Warp's FFI) cannot be split: it gathers the whole batch onto
     every device and runs it there (ppo_sorter_warp scaled 1.29x on 2 GPUs and 1.49x on 4).
     """
-    mesh = jax.sharding.get_abstract_mesh()
-    if mesh.empty or ENV_AXIS not in mesh.axis_names:
+    mesh = _SPLIT_OVER.get()
+    if mesh is None:
         return batched_fn
     devices = mesh.shape[ENV_AXIS]
     if devices == 1 or num_envs % devices:
@@ -146,8 +164,8 @@ def over_env_batch(batched_fn: Callable, num_envs: int, batched_args: Sequence[b
 class VmapEnv(Wrapper):
     """A batch of `num_envs` independent envs; states and actions gain a leading [num_envs] axis.
 
-    Traced under a mesh with an ENV_AXIS (`jax.set_mesh`), each device steps and resets its share of the batch
-    (`over_env_batch`); the results are those of one device.
+    Traced under `envs_split_over(mesh)`, each device steps and resets its share of the batch (`over_env_batch`);
+    the results are those of one device.
 
     Args:
       env: the env (or wrapped env) to batch.

@@ -29,7 +29,7 @@ from jax.sharding import Mesh
 from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
-from jaxarm.agents.common.sharding import data_mesh, state_shardings
+from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
 from jaxarm.agents.common.trainer import Trainer, make_chunk_runner
 from jaxarm.runner import plots, processes, progress, rundir
 from jaxarm.runner.sinks import Sink, TensorBoardSink, WandbOptions, WandbSink
@@ -204,7 +204,7 @@ def _train_locked(
         )
     mesh = data_mesh(options.devices)
     # Under the mesh, VmapEnv steps each device's envs on that device (jaxarm.envs.wrappers.over_env_batch).
-    with jax.set_mesh(mesh):
+    with envs_split_over(mesh):
         start = _start(trainer, config, preset, run_dir, resume, overrides, mesh)
         state, done_updates, train_time = _train_chunks(trainer, config, run_dir, options, start, mesh)
         return _final_evaluation(trainer, config, preset, run_dir, state, done_updates, train_time)
