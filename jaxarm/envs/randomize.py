@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from jaxarm import ranges as allowed_values
 from jaxarm.envs.base import Env, EnvState, Transition
 
 Sim = TypeVar("Sim")
@@ -45,6 +46,26 @@ class ParamRange:
         if found.log and low <= 0:
             raise ValueError(f"a log range needs LOW > 0, got {text!r}")
         return found
+
+    def check_within(self, name: str, field: dataclasses.Field, like: np.ndarray) -> None:
+        """ValueError, naming `randomize.NAME`, unless every value this range draws for the param `field` (with
+        `like`'s dtype) lies in the param's declared range and, for integers, in int32 and at least one exists."""
+        text = f"randomize.{name}={'log:' if self.log else ''}{self.low:g}..{self.high:g}"
+        low, high = self.low, self.high
+        if np.issubdtype(like.dtype, np.integer):
+            low, high = float(np.ceil(low)), float(np.floor(high))
+            if low > high:
+                raise ValueError(f"{text} holds no whole number, and {name} is an integer")
+            allowed_values.param_array(text, [low, high], like)  # int32 overflow
+        declared = allowed_values.declared_range(field)
+        if declared is None:
+            return
+        if declared.choices:
+            drawn = np.arange(low, high + 1) if high - low < 1_000 else np.array([low, high])
+        else:
+            drawn = np.array([low, high])  # a declared range is an interval: its ends decide
+        if not declared.admits(drawn):
+            raise ValueError(f"{text} draws values {name} may not take: it must be {declared.describe()}")
 
     def sample(self, key: jax.Array, like: jax.Array) -> jax.Array:
         """A value of `like`'s shape and dtype from the range (integers: each whole number in it equally likely)."""
@@ -77,16 +98,20 @@ class RandomizedSim(struct.PyTreeNode, Generic[Sim]):
 class Randomized(Env):
     """`env` with the params in `ranges` drawn afresh at every reset (see the module docstring).
 
-    Raises ValueError for a name that is not one of the env's params.
+    Raises ValueError for a name that is not one of the env's params, or a range that draws values the param
+    may not take (outside its declared range, beyond int32, or no whole number for an integer param).
     """
 
     def __init__(self, env: Env, ranges: Mapping[str, ParamRange]):
-        fields = {field.name for field in dataclasses.fields(env.default_params())}
-        unknown = sorted(set(ranges) - fields)
+        defaults = env.default_params()
+        fields = {field.name: field for field in dataclasses.fields(defaults)}
+        unknown = sorted(set(ranges) - set(fields))
         if unknown:
             raise ValueError(
                 f"randomize: {', '.join(unknown)} not among the env's params ({', '.join(sorted(fields))})"
             )
+        for name, drawn in ranges.items():
+            drawn.check_within(name, fields[name], np.asarray(getattr(defaults, name)))
         self.env = env
         self.ranges = dict(ranges)
         self.spec = env.spec

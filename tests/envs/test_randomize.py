@@ -2,6 +2,7 @@
 reset and keeps them for its episode, and configs carry, check and report them."""
 
 import copy
+import re
 
 import jax
 import jax.numpy as jnp
@@ -83,6 +84,23 @@ def test_configs_take_ranges_from_overrides_and_check_them():
         apply_overrides(PPOConfig(env="arm2d"), ["randomize.goal_size=0.2..0.05"]).validate()
     with pytest.raises(ValueError, match="goal_sise"):
         apply_overrides(PPOConfig(env="arm2d"), ["randomize.goal_sise=0.05..0.2"]).validate()
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("goal_size=-40..-10", "goal_size=-40..-10 draws values goal_size may not take: it must be > 0"),
+        ("world_size=0..400", "must be > 0"),
+        ("max_episode_steps=0..5", "must be >= 1"),
+        ("goal_mode=0..7", "must be one of 0, 1, 2"),
+        ("max_episode_steps=1..1e10", "must fit in int32"),
+        ("max_episode_steps=2.2..2.7", "holds no whole number"),
+    ],
+)
+def test_ranges_that_draw_values_a_param_may_not_take_are_refused(text, message):
+    with pytest.raises(ValueError, match=f"randomize.*{re.escape(message)}"):
+        apply_overrides(PPOConfig(env="arm2d"), [f"randomize.{text}"])
+    apply_overrides(PPOConfig(env="arm2d"), ["randomize.goal_mode=0..2", "randomize.max_episode_steps=50..200"])
 
 
 def test_a_randomised_env_forwards_attributes_and_copies():
