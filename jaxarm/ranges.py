@@ -75,6 +75,8 @@ HOST_COUNT = Range(ge=1, host_count=True)
 """A count of at least one kept on the host alone (env steps of a budget), up to int64's maximum."""
 UNIT_INTERVAL = Range(ge=0, le=1)
 DISCOUNT = Range(gt=0, le=1)
+LEARNING_RATE = Range(gt=0, le=1)
+"""An optimiser's step size: past 1 an Adam update moves every weight by about that much, and learning fails."""
 
 
 def ranged(allowed: Range | None = None) -> Any:

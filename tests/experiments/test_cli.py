@@ -46,7 +46,7 @@ def test_bench_lists_its_suites_and_refuses_an_unknown_one(capsys):
 def test_show_lists_config_fields_and_env_params_with_defaults_and_docs(capsys):
     assert run.main(["--config", "ppo_arm2d", "--show", "learning_rate=1e-3"]) == 0
     out = capsys.readouterr().out
-    assert "learning_rate (float [dynamic], > 0) = 0.001  (default 0.0003)" in out
+    assert "learning_rate (float [dynamic], in (0, 1]) = 0.001  (default 0.0003)" in out
     assert "Adam step size (linearly annealed to 0 when `anneal_learning_rate`)." in out
     assert "policy_hidden_sizes (tuple[int, ...], >= 1) = (64, 64)" in out
     assert "eval_every_updates (int, >= 0) = 0" in out and 'logging "eval/..." in metrics' in out
@@ -173,6 +173,8 @@ def test_a_missing_gl_platform_gets_a_one_line_hint():
     [
         "gamma=2",
         "learning_rate=-1",
+        "learning_rate=1e9",
+        "clip_epsilon=5",
         "gae_lambda=5",
         "max_grad_norm=0",
         "num_minibatches=0",
@@ -182,6 +184,8 @@ def test_a_missing_gl_platform_gets_a_one_line_hint():
         "env_params.success_bonus=nan",
         "env_params.max_episode_steps=0",
         "env_params.max_episode_steps=1e10",
+        "randomize.goal_size=-40..-10",
+        "randomize.max_episode_steps=1..1e10",
     ],
 )
 def test_a_bad_value_is_refused_before_any_directory_is_written(bad, tmp_path, capsys):

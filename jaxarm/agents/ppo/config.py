@@ -5,7 +5,7 @@ import dataclasses
 from jaxarm.agents.common.config import RunConfig, dynamic, static
 from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
-from jaxarm.ranges import COUNT, DISCOUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL
+from jaxarm.ranges import COUNT, DISCOUNT, LEARNING_RATE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, Range
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,10 +51,10 @@ class PPOConfig(RunConfig):
     normalize_advantages: bool = True
     anneal_learning_rate: bool = True
     initial_log_std: float = static(0.0)
-    learning_rate: float = dynamic(3e-4, POSITIVE)
+    learning_rate: float = dynamic(3e-4, LEARNING_RATE)
     gamma: float = dynamic(0.99, DISCOUNT)
     gae_lambda: float = dynamic(0.95, UNIT_INTERVAL)
-    clip_epsilon: float = dynamic(0.2, POSITIVE)
+    clip_epsilon: float = dynamic(0.2, Range(gt=0, le=1))
     entropy_coef: float = dynamic(0.01, NON_NEGATIVE)
     value_coef: float = dynamic(0.5, POSITIVE)
     max_grad_norm: float = dynamic(0.5, POSITIVE)

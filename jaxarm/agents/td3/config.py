@@ -10,7 +10,7 @@ from jaxarm import ranges
 from jaxarm.agents.common.config import RunConfig, dynamic, inherit, static
 from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
-from jaxarm.ranges import COUNT, DISCOUNT, NON_NEGATIVE, POSITIVE, Range
+from jaxarm.ranges import COUNT, DISCOUNT, LEARNING_RATE, NON_NEGATIVE, POSITIVE, Range
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,8 +65,8 @@ class TD3Config(RunConfig):
     updates_per_chunk: int = inherit(RunConfig, "updates_per_chunk", 500)
     checkpoint_every_updates: int = inherit(RunConfig, "checkpoint_every_updates", 2_500)
 
-    actor_learning_rate: float = dynamic(1e-3, POSITIVE)
-    critic_learning_rate: float = dynamic(1e-3, POSITIVE)
+    actor_learning_rate: float = dynamic(1e-3, LEARNING_RATE)
+    critic_learning_rate: float = dynamic(1e-3, LEARNING_RATE)
     gamma: float = dynamic(0.99, DISCOUNT)
     tau: float = dynamic(0.005, Range(gt=0, le=1))
     exploration_noise: float = dynamic(0.1, NON_NEGATIVE)
