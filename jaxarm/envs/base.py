@@ -25,6 +25,10 @@ images only for the envs of a batch that start one, instead of drawing a start f
 
 Stepping a plain (not auto-reset) env past the end of its episode changes nothing the episode reported:
 `last_episode` keeps the statistics of the step that ended it.
+
+Params out of their declared ranges (made with `params.replace(...)`, which checks nothing) are refused with a
+ValueError by a `reset` called outside jit, and by the adapters that step an env from outside (jaxarm.interop);
+inside a compiled program there is no way to raise.
 """
 
 import abc
@@ -37,6 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from jaxarm import ranges
 from jaxarm.envs.observation import IMAGE, with_image
 
 DIVERGENCE_LIMIT = 1e6
@@ -203,6 +208,13 @@ def zeroed_unless(healthy: jax.Array, obs: Observation) -> Observation:
     return jax.tree.map(lambda part: jnp.where(healthy, part, jnp.zeros_like(part)), obs)
 
 
+def check_concrete_params(params) -> None:
+    """ValueError naming the first env param out of its declared range, for params known outside jit; nothing
+    for params being traced (inside jit or vmap), whose values are not known yet."""
+    if not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree.leaves(params)):
+        ranges.check_params(params)
+
+
 def check_action(action: np.ndarray, spec: EnvSpec) -> np.ndarray:
     """Outside-jit validation: raises ValueError on a wrong shape or a NaN; returns a float32 array."""
     array = np.asarray(action, dtype=np.float32)
@@ -269,7 +281,9 @@ class Env(abc.ABC, Generic[Params, Sim]):
         return jnp.zeros(self.spec.observation[IMAGE].shape, jnp.uint8)
 
     def reset(self, key: jax.Array, params: Params) -> EnvState[Sim]:
-        """Starts an episode. `key` is a PRNG key; the returned state holds a descendant for auto-resets."""
+        """Starts an episode. `key` is a PRNG key; the returned state holds a descendant for auto-resets.
+        Called outside jit, it first checks `params` against their declared ranges (ValueError)."""
+        check_concrete_params(params)
         state = self.reset_without_images(key, params)
         if not self.draws_images:
             return state

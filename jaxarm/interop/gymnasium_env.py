@@ -4,8 +4,10 @@ Both hold the jaxarm state on the JAX device and call jit-compiled `reset`/`step
 params are an argument, not a constant). Actions arrive from outside jit, so they are validated with
 `jaxarm.envs.check_action` (a ValueError names a wrong shape or a NaN/inf) before anything is stepped.
 
-Seeding follows Gymnasium: `reset(seed=s)` seeds the adapter's `np_random`, and every reset (seeded or
-not) draws its JAX key from it, so the same seed gives the same episodes. Observation spaces are unbounded
+Seeding follows Gymnasium: `reset(seed=s)` seeds the adapter's `np_random`, and every reset (seeded or not) draws
+its JAX key from it, so the same seed gives the same episodes; the vector env's `reset(seed=[s0, s1, ...])` gives
+env i the key of its own seed (None: one drawn from `np_random`). Params are checked against their declared ranges
+when an adapter is made and at every reset (`params` may be replaced in between). Observation spaces are unbounded
 Boxes (jaxarm envs do not declare observation bounds; `check_env` warns about that and nothing else); a dict
 observation (camera images) is a Dict space of such Boxes, its uint8 parts bounded by 0 and 255.
 
@@ -20,6 +22,7 @@ where `infos["_episode"]` is True (the RecordEpisodeStatistics convention).
 """
 
 import dataclasses
+from collections.abc import Sequence
 
 import gymnasium as gym
 import jax
@@ -29,6 +32,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from jaxarm.envs import AutoReset, Env, EnvState, VmapEnv, check_action
+from jaxarm.envs.base import check_concrete_params
 
 
 def _observation_space(env) -> gym.spaces.Space:
@@ -93,6 +97,7 @@ class GymnasiumEnv(gym.Env):
     def __init__(self, env, params=None, render_mode: str | None = None):
         self.jax_env = env
         self.params = env.default_params() if params is None else params
+        check_concrete_params(self.params)
         self.metadata = {"render_modes": _render_modes(env, render_mode), "render_fps": 30}
         self.render_mode = render_mode
         self.observation_space = _observation_space(env)
@@ -103,6 +108,7 @@ class GymnasiumEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
+        check_concrete_params(self.params)
         self.state = self._reset(_draw_key(self.np_random), self.params)
         return _numpy(self.state.obs), _env_info(self.state)
 
@@ -138,6 +144,7 @@ class GymnasiumVectorEnv(VectorEnv):
         self.jax_env = env
         self.num_envs = num_envs
         self.params = env.default_params() if params is None else params
+        check_concrete_params(self.params)
         self.metadata = {
             "render_modes": _render_modes(env, render_mode),
             "render_fps": 30,
@@ -151,12 +158,21 @@ class GymnasiumVectorEnv(VectorEnv):
         batch = VmapEnv(AutoReset(env), num_envs)
         self._batch_action_spec = dataclasses.replace(env.spec, action_shape=(num_envs,) + env.spec.action_shape)
         self._reset = jax.jit(batch.reset)
+        self._reset_each = jax.jit(jax.vmap(batch.env.reset, in_axes=(0, None)))  # keys [B, 2]
         self._step = jax.jit(batch.step)
         self.state: EnvState | None = None
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
-        super().reset(seed=seed)
-        self.state = self._reset(_draw_key(self.np_random), self.params)
+    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
+        check_concrete_params(self.params)
+        if seed is None or isinstance(seed, (int, np.integer)):
+            super().reset(seed=seed)
+            self.state = self._reset(_draw_key(self.np_random), self.params)
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"reset(seed=...) got {len(seeds)} seeds for {self.num_envs} envs")
+            keys = [_draw_key(self.np_random) if each is None else jax.random.PRNGKey(each) for each in seeds]
+            self.state = self._reset_each(jnp.stack(keys), self.params)
         return _numpy(self.state.obs), {}
 
     def step(self, actions):

@@ -116,3 +116,29 @@ def test_camera_observations_are_a_dict_space_that_passes_the_checker():
     assert obs["image"].shape == (NUM_ENVS, 16, 16, 1) and obs in vector.observation_space
     obs, _, _, truncated, infos = vector.step(np.zeros((NUM_ENVS, 2), np.float32))
     assert truncated.all() and infos["final_obs"] in vector.observation_space
+
+
+def test_vector_reset_takes_a_seed_per_env():
+    env, params = arm2d_params(goal_mode=1)
+    vector = GymnasiumVectorEnv(env, NUM_ENVS, params)
+    obs, _ = vector.reset(seed=[5, 6, 5])
+    np.testing.assert_array_equal(obs[0], obs[2])
+    assert not np.array_equal(obs[0], obs[1])
+    np.testing.assert_array_equal(vector.reset(seed=[5, 9, 9])[0][0], obs[0])
+    with pytest.raises(ValueError, match="got 2 seeds for 3 envs"):
+        vector.reset(seed=[1, 2])
+
+
+def test_params_made_with_replace_are_checked_outside_jit():
+    import jax
+
+    env, params = arm2d_params()
+    bad = params.replace(hold_steps=np.int32(-1))
+    with pytest.raises(ValueError, match="hold_steps must be >= 0, got -1"):
+        GymnasiumEnv(env, bad)
+    with pytest.raises(ValueError, match="hold_steps"):
+        env.reset(jax.random.PRNGKey(0), bad)
+    adapter = GymnasiumVectorEnv(env, NUM_ENVS, params)
+    adapter.params = bad
+    with pytest.raises(ValueError, match="hold_steps"):
+        adapter.reset(seed=0)
