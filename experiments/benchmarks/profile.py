@@ -124,7 +124,10 @@ def main(argv: Sequence[str]) -> None:
     args = parser.parse_args(argv)
     if args.updates < 1:
         parser.error(f"--updates must be at least 1, not {args.updates}")
-    config = apply_overrides(configs.get(args.config), args.overrides)
+    try:
+        config = apply_overrides(configs.get(args.config), args.overrides)
+    except ValueError as error:
+        parser.error(str(error))
     phases = tuple(phase for phase in args.phases.split(",") if phase)
     print(
         f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; {args.config} {' '.join(args.overrides)}; "

@@ -60,7 +60,7 @@ def test_an_unknown_impl_is_refused_by_name():
 
 @pytest.mark.skipif(warp_available(), reason="warp-lang is installed here")
 def test_warp_without_warp_lang_says_what_is_missing():
-    with pytest.raises(RuntimeError, match="warp-lang"):
+    with pytest.raises(ValueError, match="warp-lang"):
         PegInsert(impl="warp")
 
 

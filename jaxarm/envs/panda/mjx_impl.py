@@ -81,9 +81,9 @@ def resolve_impl(impl: str) -> Impl:
         return Impl.WARP if warp_available() and on_nvidia_gpu else Impl.JAX
     if chosen == Impl.WARP:
         if not warp_available():
-            raise RuntimeError("impl='warp' needs warp-lang (pip install warp-lang); use impl='jax' without it")
+            raise ValueError("impl='warp' needs warp-lang (pip install warp-lang); use impl='jax' without it")
         if not (on_nvidia_gpu or device.platform == "cpu"):
-            raise RuntimeError(f"impl='warp' runs on a CUDA GPU or the CPU, but JAX's default device is {device}")
+            raise ValueError(f"impl='warp' runs on a CUDA GPU or the CPU, but JAX's default device is {device}")
     return chosen
 
 
