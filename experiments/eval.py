@@ -1,13 +1,13 @@
 """Evaluate a saved run: `python -m experiments.eval RUN_DIR [--episodes N] [--seed S] [--video gif|mp4]
 [--perturb NAME=V1,V2 ...]`.
 
-Loads the run's config and latest checkpoint (or the best one from evaluation during training, `--best`),
-runs the deterministic policy on N fresh episodes, prints the result and writes it to its own file,
-eval-<episodes>-<seed>.json (training's eval.json is kept). With --video it writes video.gif or video.mp4 of a
-few episodes drawn without a window. With --perturb it evaluates the policy under single changes of the eval
-env's params instead (each param's values in one compiled program, beside the nominal params) and writes a
-robustness table and plot (robustness-<episodes>-<seed>.json, .md and .png). The run directory is locked while
-this writes.
+Loads the run's config and latest checkpoint (or the best one from evaluation during training, `--best`), runs the
+deterministic policy on N fresh episodes, prints the result and writes it to its own file,
+eval-<episodes>-<seed>-<update>.json (eval-<episodes>-<seed>-best.json with --best; training's eval.json is kept).
+With --video it writes video.gif or video.mp4 of a few episodes drawn without a window. With --perturb it evaluates
+the policy under single changes of the eval env's params instead (each param's values in one compiled program,
+beside the nominal params) and writes a robustness table and plot (robustness-<episodes>-<seed>.json, .md and .png).
+The run directory is locked while this writes.
 """
 
 import argparse
@@ -71,7 +71,7 @@ def main(argv=None) -> int:
                 "env and checkpoint)",
                 flush=True,
             )
-            path = rundir.eval_path(run_dir, args.episodes, args.seed)
+            path = rundir.eval_path(run_dir, args.episodes, args.seed, "best" if args.best else str(int(state.updates)))
             rundir.write_json(path, result)
             print(f"wrote {path}")
             if args.video:

@@ -13,6 +13,7 @@ and with several processes (`jax.distributed`) process 0 alone writes the run di
 import contextlib
 import dataclasses
 import json
+import os
 import pathlib
 import signal
 import sys
@@ -99,14 +100,19 @@ def better(result: dict, best: dict | None) -> bool:
 
 class StopRequests:
     """Ctrl-C (SIGINT) and SIGTERM, while installed, ask the loop to stop at the next chunk end; a second Ctrl-C
-    aborts at once (KeyboardInterrupt). Installed only in the main thread (signals cannot be caught elsewhere)."""
+    ends the process at once with status 130, keeping the checkpoints saved so far. Installed only in the main
+    thread (signals cannot be caught elsewhere)."""
 
     def __init__(self):
         self.requested = False
 
     def _handle(self, signum, frame):
         if self.requested and signum == signal.SIGINT:
-            raise KeyboardInterrupt
+            print("\nSIGINT again: aborted; the checkpoints saved before are kept", file=sys.stderr, flush=True)
+            # Not KeyboardInterrupt: unwinding while XLA compiles or runs on other threads ends in a segfault at
+            # interpreter exit (rc -11 in 1 of 1 tries during compilation), and nothing is left to clean up that a
+            # resume does not (rows past the last checkpoint are dropped, TensorBoard's purged).
+            os._exit(130)
         self.requested = True
         print(
             f"\n{signal.Signals(signum).name}: stopping at the next chunk end with a checkpoint "
@@ -169,6 +175,7 @@ def resume(run_dir: pathlib.Path, overrides: Sequence[str] = (), options=Options
     run_dir = pathlib.Path(run_dir)
     # Checked before the lock writes anything: a directory that is no run, or overrides it may not take.
     config, preset = rundir.read_config(run_dir)
+    rundir.check_config_unedited(run_dir, config)
     config = rundir.apply_resume_overrides(config, list(overrides))
     with _locked_by_primary(run_dir):
         return _train_locked(config, preset, run_dir, True, options, list(overrides)), config
@@ -227,9 +234,12 @@ def _start(
     # Every process has looked before the primary clears anything.
     processes.wait_for_all("run directory read")
     if restart:
-        # Died before its first checkpoint (Ctrl-C while compiling, NaN at once, a full disk): nothing to keep.
+        # Died before its first checkpoint (Ctrl-C while compiling, NaN at once, a full disk), or while writing it
+        # (a kill, a full disk): nothing to keep.
         if primary:
-            print(f"{run_dir} has no checkpoint yet: starting it afresh", file=sys.stderr)
+            unfinished = checkpoint.half_written(run_dir / "checkpoints")
+            why = f"only a half-written one, {', '.join(unfinished)}" if unfinished else "none"
+            print(f"{run_dir} has no complete checkpoint ({why}): starting it afresh", file=sys.stderr)
             rundir.clear_run(run_dir)
         has_run, resume = False, False
     elif has_run and not resume:
@@ -241,6 +251,7 @@ def _start(
     if resume:
         state = rundir.restore_state(run_dir, trainer, config, shardings=shardings)
         done_updates = int(state.updates)
+        rundir.check_budget(config, done_updates)
         if primary:
             if overrides:
                 rundir.record_resume(run_dir, config, preset, overrides, done_updates)
@@ -278,7 +289,7 @@ def _train_chunks(
     steps_per_update = trainer.env_steps_per_update
     with contextlib.ExitStack() as stack:
         stack.enter_context(stop.installed())
-        log = _RunLog(stack, run_dir, trainer, options) if primary else None
+        log = _RunLog(stack, run_dir, trainer, options, done_updates) if primary else None
         if log:
             log.bar.advance_to(done_updates * steps_per_update)
         while done_updates < trainer.num_updates:
@@ -305,7 +316,7 @@ def _train_chunks(
                 rows[-1].update({f"eval/{name}": value for name, value in result.items() if isinstance(value, float)})
                 if better(result, best):
                     best = {"updates": done_updates + count, **result}
-                    checkpoint.save(run_dir / "best", done_updates + count, state)
+                    save(run_dir / "best", done_updates + count, state, run_dir)
                     if primary:
                         rundir.write_json(run_dir / "best.json", best)
             done_updates += count
@@ -320,7 +331,9 @@ def _train_chunks(
                 or out_of_time
                 or stopping
             ):
-                checkpoint.save(checkpoints, done_updates, state)
+                save(checkpoints, done_updates, state, run_dir)
+                if primary:
+                    rundir.record_checkpoint_config(run_dir)
                 last_saved = done_updates
             if options.on_chunk:
                 options.on_chunk(done_updates)
@@ -338,12 +351,16 @@ class _RunLog:
     """The primary process's outputs between chunks: metrics.jsonl, the sinks (TensorBoard, wandb) and the
     progress bar, each closed with `stack`."""
 
-    def __init__(self, stack: contextlib.ExitStack, run_dir: pathlib.Path, trainer: Trainer, options: Options):
-        self.sinks: list[Sink] = [TensorBoardSink(run_dir / "tensorboard")]
+    def __init__(
+        self, stack: contextlib.ExitStack, run_dir: pathlib.Path, trainer: Trainer, options: Options, done_updates: int
+    ):
+        # TensorBoard hides the events a killed run logged past the checkpoint this one resumes from.
+        resumed_at = done_updates * trainer.env_steps_per_update
+        purge_step = resumed_at + 1 if done_updates else None
+        self.sinks: list[Sink] = [TensorBoardSink(run_dir / "tensorboard", purge_step=purge_step)]
         if options.wandb:
             self.sinks.append(WandbSink(options.wandb, run_dir, json.loads((run_dir / "config.json").read_text())))
-        for sink in self.sinks:
-            stack.callback(sink.close)
+        stack.enter_context(closing(self.sinks))
         self.bar = stack.enter_context(progress.Progress(trainer.num_updates * trainer.env_steps_per_update))
         self.file = stack.enter_context((run_dir / "metrics.jsonl").open("a"))
 
@@ -379,6 +396,33 @@ def _final_evaluation(
         rundir.write_json(run_dir / "eval.json", result)
         plots.learning_curve(rundir.read_metrics(run_dir), run_dir / "curve.png", title=preset)
     return result
+
+
+@contextlib.contextmanager
+def closing(sinks: Sequence[Sink]) -> Iterator[None]:
+    """Closes `sinks` after the `with` block. While an error propagates, a sink that fails to close (its last
+    events cannot be written on a full disk) is reported in one line, so that it does not hide that error."""
+    try:
+        yield
+    except BaseException:
+        for sink in sinks:
+            try:
+                sink.close()
+            except Exception as error:
+                print(f"also: {type(sink).__name__} could not be closed ({error})", file=sys.stderr)
+        raise
+    for sink in sinks:
+        sink.close()
+
+
+def save(directory: pathlib.Path, step: int, state, run_dir: pathlib.Path) -> None:
+    """`checkpoint.save`, with what to do next added to its error (free space, then resume)."""
+    try:
+        checkpoint.save(directory, step, state)
+    except checkpoint.CheckpointError as error:
+        raise checkpoint.CheckpointError(
+            f"{error}; fix that, then continue with: python -m experiments.run --resume {run_dir}"
+        ) from error
 
 
 def diverged_message(bad: tuple[int, str] | None, done_updates: int, count: int, checkpoints: pathlib.Path) -> str:

@@ -5,11 +5,12 @@ Layout of `runs/<config>-<timestamp>/`:
   resumes.jsonl    one JSON row per `--resume` that changed settings: the overrides and the update it resumed at
   metrics.jsonl    one JSON row per update (evaluation during training adds "eval/..." to its update's row)
   tensorboard/     TensorBoard event files, against env steps
-  checkpoints/     orbax checkpoints of the whole learner state, named by update count
+  checkpoints/     orbax checkpoints of the whole learner state, named by update count, and config.json: the
+                   config of the latest one (an edited config.json is checked against it on resume)
   best/            the checkpoint that scored best in evaluation during training; best.json says which
   curve.png        learning curve
   eval.json        deterministic evaluation at the end of training
-  eval-<episodes>-<seed>.json, video.gif, video.mp4   written by `experiments.eval`
+  eval-<episodes>-<seed>-<update|best>.json, video.gif, video.mp4   written by `experiments.eval`
   robustness-<episodes>-<seed>.json, .md, .png   written by `experiments.eval --perturb`
   export/          the policy exported by `experiments.export`
   .lock            held (flock) by the one process writing to the directory
@@ -47,6 +48,44 @@ OUTPUT_PATTERNS = ("eval-*.json", "robustness-*.json", "robustness-*.md", "robus
 
 class RunDirError(ValueError):
     """A run directory cannot be used as asked (foreign files, in use, damaged); the message says what to do."""
+
+
+FILE_SUFFIXES = (".txt", ".json", ".jsonl", ".csv", ".md", ".png", ".pdf", ".svg", ".gif", ".mp4", ".npz", ".onnx")
+"""Name endings of files: a directory to be made with one of these names is more likely a mistake."""
+
+
+def check_output_dir(path: pathlib.Path, flag: str = "--out") -> None:
+    """RunDirError, naming `path`, unless it can be (or is) a directory: not a file, under no file, and, when it
+    does not exist yet, with no file's name ending (`.txt`, ...). Missing parent folders are made later."""
+    if path.exists() and not path.is_dir():
+        raise RunDirError(f"{flag} {path} is a file; give a directory")
+    check_not_under_a_file(path, flag)
+    if not path.exists() and path.suffix.lower() in FILE_SUFFIXES:
+        raise RunDirError(f"{flag} {path} is the name of a {path.suffix} file; give a directory")
+
+
+def check_not_under_a_file(path: pathlib.Path, flag: str = "--out") -> None:
+    """RunDirError, naming `path`, when a file stands where one of its parent folders should be."""
+    for parent in path.parents:
+        if parent.exists() and not parent.is_dir():
+            raise RunDirError(f"{flag} {path} lies under {parent}, which is a file; give a directory")
+
+
+def os_error_message(error: OSError) -> str:
+    """An OS error (permission, read-only, full disk, a file in a directory's place) in one line, naming its path
+    and what to do."""
+    advice = {
+        errno.ENOSPC: "the disk is full; free space and retry (a run goes on with --resume)",
+        errno.EDQUOT: "the disk quota is used up; free space and retry (a run goes on with --resume)",
+        errno.EACCES: "not writable here; choose another place or fix its permissions",
+        errno.EPERM: "not writable here; choose another place or fix its permissions",
+        errno.EROFS: "choose a writable place (copy a run there to go on with it)",
+        errno.ENOTDIR: "a file stands where a directory is needed; choose another path",
+        errno.EEXIST: "a file of that name is in the way; choose another path",
+        errno.EISDIR: "a directory stands where a file is needed; choose another path",
+    }.get(error.errno or 0, "")
+    where = f"{error.filename}: " if error.filename else ""
+    return f"{where}{error.strerror or error}" + (f"; {advice}" if advice else "")
 
 
 def new_run_dir(preset: str, root: str = "runs") -> pathlib.Path:
@@ -87,25 +126,46 @@ def check_holds_a_run_or_nothing(run_dir: pathlib.Path) -> None:
 
 
 def any_checkpoint_files(run_dir: pathlib.Path) -> bool:
-    """Whether `run_dir/checkpoints` holds anything (complete or not: what is there is never deleted)."""
+    """Whether `run_dir/checkpoints` holds a checkpoint folder (a step number), complete or damaged: a run with
+    one is never started afresh, so nothing is lost. Half-written ones (orbax's temporary folders, left by a kill
+    or a full disk during the save) do not count."""
     directory = run_dir / "checkpoints"
-    return directory.is_dir() and any(directory.iterdir())
+    return directory.is_dir() and any(path.name.isdigit() for path in directory.iterdir())
+
+
+def _shown(names: list[str]) -> str:
+    return ", ".join(names[:5]) + (", ..." if len(names) > 5 else "")
+
+
+def check_no_foreign_files(run_dir: pathlib.Path) -> None:
+    """RunDirError when `run_dir` holds files no jaxarm run writes."""
+    foreign = foreign_files(run_dir)
+    if foreign:
+        raise RunDirError(
+            f"{run_dir} holds files that are not part of a jaxarm run ({_shown(foreign)}); move them out or use "
+            "another directory (nothing was written)"
+        )
+
+
+def check_empty(directory: pathlib.Path) -> None:
+    """RunDirError when `directory` holds anything but its lock: what writes there (a sweep) would replace it."""
+    held = sorted(path.name for path in directory.iterdir() if path.name != ".lock") if directory.is_dir() else []
+    if held:
+        raise RunDirError(
+            f"{directory} already holds {_shown(held)}; choose a new or empty --out (nothing was written)"
+        )
 
 
 @contextlib.contextmanager
-def locked(run_dir: pathlib.Path) -> Iterator[pathlib.Path]:
+def locked(
+    run_dir: pathlib.Path, check: Callable[[pathlib.Path], None] = check_no_foreign_files
+) -> Iterator[pathlib.Path]:
     """Holds `run_dir`'s lock for the `with` block (creating the directory if need be); RunDirError, with nothing
-    written, when the directory holds foreign files or another process holds the lock. A directory that was
-    missing or empty and holds only the lock afterwards is removed again."""
+    written, when `check` refuses the directory (default: it holds foreign files) or another process holds the
+    lock. A directory that was missing or empty and holds only the lock afterwards is removed again."""
     if run_dir.exists() and not run_dir.is_dir():
         raise RunDirError(f"{run_dir} is a file, not a run directory; choose another --out")
-    foreign = foreign_files(run_dir)
-    if foreign:
-        shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
-        raise RunDirError(
-            f"{run_dir} holds files that are not part of a jaxarm run ({shown}); move them out or use another "
-            "directory (nothing was written)"
-        )
+    check(run_dir)
     created = not run_dir.exists() or not any(run_dir.iterdir())
     run_dir.mkdir(parents=True, exist_ok=True)
     path = run_dir / ".lock"
@@ -157,9 +217,33 @@ def write_config(run_dir: pathlib.Path, config: RunConfig, preset: str) -> None:
     write_json(run_dir / "config.json", data)
 
 
-def read_config(run_dir: pathlib.Path) -> tuple[RunConfig, str]:
-    """The config saved in `run_dir` (validated) and its preset name; ValueError if missing, unreadable or invalid."""
-    path = run_dir / "config.json"
+def record_checkpoint_config(run_dir: pathlib.Path) -> None:
+    """Copies config.json into checkpoints/, after a checkpoint is saved: the config its state was trained with."""
+    write_json(run_dir / "checkpoints" / "config.json", json.loads((run_dir / "config.json").read_text()))
+
+
+def check_config_unedited(run_dir: pathlib.Path, config: RunConfig) -> None:
+    """RunDirError when `config` (run_dir's config.json) differs from the config of the latest checkpoint in a
+    field a resume may not change (`check_resumable`); nothing to check where that record is missing or
+    unreadable."""
+    try:
+        saved, _ = read_config(run_dir, run_dir / "checkpoints" / "config.json")
+    except ValueError:
+        # None (a run saved before this record) or damaged with its checkpoints: restoring them says what is wrong.
+        return
+    changed = [
+        field.name for field in dataclasses.fields(config) if getattr(config, field.name) != getattr(saved, field.name)
+    ]
+    for name in changed:
+        check_resumable(
+            config, name, f"editing {run_dir / 'config.json'} ({name} was {getattr(saved, name)!r} at the checkpoint)"
+        )
+
+
+def read_config(run_dir: pathlib.Path, path: pathlib.Path | None = None) -> tuple[RunConfig, str]:
+    """The config saved in `run_dir` (or at `path`) (validated) and its preset name; ValueError if missing,
+    unreadable or invalid."""
+    path = run_dir / "config.json" if path is None else path
     if not path.exists():
         raise RunDirError(f"{run_dir} is not a run directory: no config.json")
     try:
@@ -231,9 +315,11 @@ def write_json(path: pathlib.Path, data: dict) -> None:
     temporary.replace(path)
 
 
-def eval_path(run_dir: pathlib.Path, episodes: int, seed: int) -> pathlib.Path:
-    """Where `experiments.eval` writes an evaluation of `episodes` episodes from `seed` (eval.json stays training's)."""
-    return run_dir / f"eval-{episodes}-{seed}.json"
+def eval_path(run_dir: pathlib.Path, episodes: int, seed: int, checkpoint_name: str) -> pathlib.Path:
+    """Where `experiments.eval` writes an evaluation of `episodes` episodes from `seed` of a checkpoint (its update
+    count, or "best"), so evaluations of different checkpoints never replace each other (eval.json stays
+    training's)."""
+    return run_dir / f"eval-{episodes}-{seed}-{checkpoint_name}.json"
 
 
 def read_metrics(run_dir: pathlib.Path, drop_partial_last: bool = False) -> list[dict]:
@@ -280,24 +366,39 @@ and evaluated, and how, but neither the compiled update nor what it computes. `e
 too. `total_env_steps` only where the learner's schedule does not depend on it (`RunConfig.budget_shapes_updates`)."""
 
 
+def check_resumable(config: RunConfig, key: str, changer: str = "--resume") -> None:
+    """RunDirError, saying that `changer` cannot change it and what a resume may change, unless a resumed run of
+    `config` may change the config key `key` (a field, or `eval_env_params.NAME`)."""
+    allowed = [*RESUMABLE_KEYS, "eval_env_params.NAME"]
+    if key == "eval_env_params" or key.startswith("eval_env_params."):
+        return
+    if key not in RESUMABLE_KEYS:
+        raise RunDirError(
+            f"{changer} cannot change {key!r}: it would change the compiled learner or what it computes; "
+            f"a resumed run may change {', '.join(allowed)}"
+        )
+    if key == "total_env_steps" and config.budget_shapes_updates:
+        raise RunDirError(
+            f"{changer} cannot change total_env_steps of this run: its {config.budget_shapes_updates} follows "
+            "the budget set at the start; start a new run (init_from=RUN warm-starts it)"
+        )
+
+
 def apply_resume_overrides(config: RunConfig, overrides: Sequence[str]) -> RunConfig:
     """`config` with the `key=value` overrides a resumed run may take; RunDirError listing those for any other."""
-    allowed = [*RESUMABLE_KEYS, "eval_env_params.NAME"]
     for item in overrides:
-        key = item.partition("=")[0]
-        if key.startswith("eval_env_params."):
-            continue
-        if key not in RESUMABLE_KEYS:
-            raise RunDirError(
-                f"--resume cannot change {key!r}: it would change the compiled learner or what it computes; "
-                f"a resumed run may change {', '.join(allowed)}"
-            )
-        if key == "total_env_steps" and config.budget_shapes_updates:
-            raise RunDirError(
-                f"--resume cannot change total_env_steps of this run: its {config.budget_shapes_updates} follows "
-                "the budget set at the start; start a new run (init_from=RUN warm-starts it)"
-            )
+        check_resumable(config, item.partition("=")[0])
     return apply_overrides(config, overrides)
+
+
+def check_budget(config: RunConfig, done_updates: int) -> None:
+    """RunDirError when `config`'s budget is below the `done_updates` a resumed run has already done."""
+    if config.num_updates < done_updates:
+        done = done_updates * config.env_steps_per_update
+        raise RunDirError(
+            f"total_env_steps={config.total_env_steps:,} is below the {done:,} env steps this run has done "
+            f"({done_updates:,} updates); give at least {done:,}, or start a new run"
+        )
 
 
 def record_resume(run_dir: pathlib.Path, config: RunConfig, preset: str, overrides: Sequence[str], update: int) -> None:

@@ -18,12 +18,13 @@ class Sink(Protocol):
 
 
 class TensorBoardSink:
-    """Event files under `directory`, each metric against env steps."""
+    """Event files under `directory`, each metric against env steps; with `purge_step`, TensorBoard hides the
+    events of earlier writers at that env step and beyond (those a killed run logged past its last checkpoint)."""
 
-    def __init__(self, directory: pathlib.Path):
+    def __init__(self, directory: pathlib.Path, purge_step: int | None = None):
         from tensorboardX import SummaryWriter
 
-        self.writer = SummaryWriter(str(directory))
+        self.writer = SummaryWriter(str(directory), purge_step=purge_step)
 
     def write(self, row: dict[str, float]) -> None:
         for name, value in row.items():

@@ -1,12 +1,15 @@
 """Whole-learner-state checkpoints with orbax, and clear errors for missing, corrupt or mismatched ones.
 
-Saves are synchronous so that a checkpoint on disk is complete (orbax writes to a temporary folder and
-renames it), and a process killed at any moment leaves the last finished checkpoint intact. Restoring
-never writes.
+Saves are synchronous so that a checkpoint on disk is complete (orbax writes to a temporary folder,
+`<step>.orbax-checkpoint-tmp-<time>`, and renames it), and a process killed at any moment, or a disk that fills
+up, leaves the last finished checkpoint intact; the next save clears such temporary folders. Restoring never
+writes.
 """
 
 import contextlib
+import errno
 import logging
+import os
 import pathlib
 
 import jax
@@ -30,16 +33,52 @@ def _quiet_reads():
         logger.setLevel(level)
 
 
+TEMPORARY_SUFFIX = ".orbax-checkpoint-tmp"
+"""Marks the folder of a checkpoint still being written (or left half-written by a kill or a full disk)."""
+
+
 def _manager(directory: pathlib.Path, create: bool = False) -> ocp.CheckpointManager:
-    # Reading managers are made with create=False (orbax's read_only mode only logs warnings here).
-    options = ocp.CheckpointManagerOptions(max_to_keep=2, enable_async_checkpointing=False, create=create)
+    # Reading managers are made with create=False (orbax's read_only mode only logs warnings here); writing ones
+    # clear the temporary folders of saves that never finished.
+    options = ocp.CheckpointManagerOptions(
+        max_to_keep=2, enable_async_checkpointing=False, create=create, cleanup_tmp_directories=create
+    )
     return ocp.CheckpointManager(directory.absolute(), options=options)
 
 
+def half_written(directory: pathlib.Path) -> list[str]:
+    """Names of the unfinished checkpoints (temporary folders) in `directory`, sorted."""
+    if not directory.is_dir():
+        return []
+    return sorted(path.name for path in directory.iterdir() if TEMPORARY_SUFFIX in path.name)
+
+
 def save(directory: pathlib.Path, step: int, state) -> None:
-    """Saves the learner state pytree as checkpoint `step` (the update count) under `directory`."""
-    with _manager(directory, create=True) as manager:
-        manager.save(step, args=ocp.args.StandardSave(state), force=True)
+    """Saves the learner state pytree as checkpoint `step` (the update count) under `directory`.
+
+    Raises CheckpointError, in one line that names the cause (a full disk, no permission), when it cannot be
+    written; the checkpoints saved before are intact.
+    """
+    try:
+        with _manager(directory, create=True) as manager:
+            manager.save(step, args=ocp.args.StandardSave(state), force=True)
+    except Exception as error:  # orbax and tensorstore wrap OS errors in many types
+        raise CheckpointError(
+            f"cannot write checkpoint {step} in {directory}: {_cause(error)} (checkpoints saved before are intact)"
+        ) from error
+
+
+def _cause(error: BaseException) -> str:
+    """The OS error behind `error` in words (e.g. "No space left on device"), else its first line."""
+    seen: BaseException | None = error
+    while seen is not None:
+        if isinstance(seen, OSError) and seen.errno is not None:
+            return os.strerror(seen.errno)
+        for code in (errno.ENOSPC, errno.EACCES, errno.EROFS, errno.EDQUOT):
+            if os.strerror(code) in str(seen):
+                return os.strerror(code)
+        seen = seen.__cause__ or seen.__context__
+    return f"{type(error).__name__}: {str(error).splitlines()[0][:200] if str(error) else ''}"
 
 
 _LISTING_ATTEMPTS = 3
