@@ -128,6 +128,23 @@ def device_name(runs: list[RunCurves], given: str | None) -> str:
     return named.pop()
 
 
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+def figure_path(out: pathlib.Path) -> pathlib.Path:
+    """Where `--out` puts the figure: `out` itself for a .png, .pdf or .svg name, `out/compare.png` for a
+    directory, `out.png` for a name without a suffix. ValueError naming `out` for another suffix or a file in the
+    way of its folder; missing folders are made."""
+    rundir.check_not_under_a_file(out)
+    if out.is_dir():
+        out = out / "compare.png"
+    elif not out.suffix:
+        out = out.with_suffix(".png")
+    if out.suffix.lower() not in FIGURE_SUFFIXES:
+        raise ValueError(f"--out {out}: the figure is written as {', '.join(FIGURE_SUFFIXES)}; name one of those")
+    return out
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m experiments.compare", description=__doc__.splitlines()[0])
     parser.add_argument("run_dirs", nargs="+")
@@ -139,7 +156,9 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--title", default="runs compared")
     parser.add_argument("--device", help="device named in the figure (default: the runs' eval.json)")
-    parser.add_argument("--out", default="compare.png", help="where the PNG goes")
+    parser.add_argument(
+        "--out", default="compare.png", help="the figure (.png, .pdf or .svg; a directory gets compare.png)"
+    )
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     labels = args.labels or [None] * len(args.run_dirs)
     try:
@@ -147,6 +166,7 @@ def main(argv=None) -> int:
             raise ValueError(f"{len(labels)} --label for {len(args.run_dirs)} runs")
         runs = [load_run(pathlib.Path(path), label) for path, label in zip(args.run_dirs, labels, strict=True)]
         device = device_name(runs, args.device)
+        out = figure_path(pathlib.Path(args.out))
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -158,8 +178,13 @@ def main(argv=None) -> int:
         )
         for run in runs
     }
-    plots.run_comparison(curves, pathlib.Path(args.out), f"{args.title} ({device})")
-    print(f"wrote {args.out}")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        plots.run_comparison(curves, out, f"{args.title} ({device})")
+    except OSError as error:
+        print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
+        return 2
+    print(f"wrote {out}")
     return 0
 
 

@@ -53,9 +53,13 @@ def main(argv=None) -> int:
     run_dir = pathlib.Path(args.run_dir)
     out_dir = pathlib.Path(args.out) if args.out else run_dir / "export"
     try:
+        rundir.check_output_dir(out_dir)
         written = export_run(run_dir, out_dir)
     except (ValueError, checkpoint.CheckpointError) as error:
         print(f"error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:
+        print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
         return 2
     for path in written:
         print(f"wrote {path}")

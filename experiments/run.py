@@ -7,19 +7,45 @@ evaluation and checkpoint cadence. Ctrl-C or SIGTERM checkpoints at the next chu
 config field and env param with its default and meaning.
 """
 
-import argparse
-import logging
-import pathlib
+import os
+import signal
 import sys
 
-import jax
 
-from experiments import configs
-from jaxarm.agents.common import checkpoint
-from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import loop, processes, rundir, show
-from jaxarm.runner.cache import enable_compilation_cache
-from jaxarm.runner.sinks import WandbOptions
+def _exit_during_start_up(signum, frame):
+    print("\ninterrupted while starting: nothing was written", file=sys.stderr, flush=True)
+    os._exit(130)
+
+
+if __name__ == "__main__":
+    # First: a KeyboardInterrupt raised inside the imports below can be swallowed by a library's broad `except`
+    # (the run then trained to the end in 4 of 15 Ctrl-C during start-up), and nothing is written before main().
+    signal.signal(signal.SIGINT, _exit_during_start_up)
+
+import argparse  # noqa: E402
+import logging  # noqa: E402
+import math  # noqa: E402
+import pathlib  # noqa: E402
+
+import jax  # noqa: E402
+
+from experiments import configs  # noqa: E402
+from jaxarm.agents.common import checkpoint  # noqa: E402
+from jaxarm.agents.common.config import apply_overrides  # noqa: E402
+from jaxarm.runner import loop, processes, rundir, show  # noqa: E402
+from jaxarm.runner.cache import enable_compilation_cache  # noqa: E402
+from jaxarm.runner.sinks import WandbOptions  # noqa: E402
+
+
+def positive_minutes(text: str) -> float:
+    """`--stop-after-minutes`: a finite number of minutes above zero."""
+    try:
+        minutes = float(text)
+    except ValueError:
+        minutes = math.nan
+    if not (math.isfinite(minutes) and minutes > 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number of minutes above 0, got {text!r}")
+    return minutes
 
 
 def parse_args(argv):
@@ -46,7 +72,7 @@ def parse_args(argv):
     )
     parser.add_argument(
         "--stop-after-minutes",
-        type=float,
+        type=positive_minutes,
         help="checkpoint and stop after the chunk that passes this wall time (resume later)",
     )
     parser.add_argument("--wandb", metavar="PROJECT", help="also log to this Weights & Biases project")
@@ -98,7 +124,18 @@ def quiet_libraries() -> None:
 
 
 def main(argv=None) -> int:
-    args = parse_args(sys.argv[1:] if argv is None else argv)
+    # Start-up is over: from here Ctrl-C raises KeyboardInterrupt (caught below), and the loop checkpoints on it.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return _main(sys.argv[1:] if argv is None else argv)
+    except KeyboardInterrupt:
+        print("\ninterrupted: checkpoints saved so far are kept", file=sys.stderr)
+        quiet_libraries()
+        return 130
+
+
+def _main(argv) -> int:
+    args = parse_args(argv)
     if args.distributed:
         try:
             join_processes(args)
@@ -117,6 +154,7 @@ def main(argv=None) -> int:
         if args.show:
             if args.resume:
                 config, preset = rundir.read_config(pathlib.Path(args.resume))
+                config = rundir.apply_resume_overrides(config, args.overrides)
             else:
                 preset = args.config
                 config = apply_overrides(configs.get(preset), args.overrides)
@@ -129,10 +167,16 @@ def main(argv=None) -> int:
         else:
             preset = args.config
             config = apply_overrides(configs.get(preset), args.overrides)
+            if args.out:
+                rundir.check_output_dir(pathlib.Path(args.out))
             run_dir = pathlib.Path(args.out) if args.out else rundir.new_run_dir(preset)
             result = loop.train(config, run_dir, preset=preset, options=options)
     except (ValueError, checkpoint.CheckpointError, loop.TrainingDiverged) as error:
         print(f"error: {error}", file=sys.stderr)
+        quiet_libraries()
+        return 2
+    except OSError as error:
+        print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
         quiet_libraries()
         return 2
     except loop.TrainingInterrupted as error:

@@ -3,7 +3,8 @@
 Dynamic hyper-parameters (the config's fields declared `dynamic`) of every seed and value are vmapped into one
 compiled call; static choices (num_envs, sizes, ...) form separate groups, each compiled once. Writes
 results.csv and results.md (mean, std and 95% CI over seeds of final return and success, wall time) and
-curves.png (mean success rate and return over env steps with 95% CI bands) into the sweep directory.
+curves.png (mean success rate and return over env steps with 95% CI bands) into the sweep directory, a new or
+empty one, locked while the sweep runs: a sweep never replaces another's results.
 """
 
 import argparse
@@ -185,24 +186,34 @@ def main(argv=None) -> int:
             raise ValueError(f"--seeds must be positive, got {args.seeds}")
         base = configs.get(args.config)
         grid = parse_grid(base, args.assignments)
+        if args.out:
+            rundir.check_output_dir(pathlib.Path(args.out))
+        enable_compilation_cache()
+        out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"sweep-{args.config}")
+        with rundir.locked(out, check=rundir.check_empty):
+            sweep(base, grid, args.seeds, out, title=f"{args.config}, {args.seeds} seeds")
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    enable_compilation_cache()
-    out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"sweep-{args.config}")
-    out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def sweep(base: RunConfig, grid: Grid, seeds: int, out: pathlib.Path, title: str) -> None:
+    """Trains every group of `grid` and writes the tables and curves into `out`."""
     rows, curves = [], {}
     for config in grid.groups:
-        print(f"group {describe(config, base, {})}: {len(grid.dynamic)} settings × {args.seeds} seeds", flush=True)
-        metrics, results, wall = run_group(config, grid.dynamic, args.seeds)
-        group_rows, group_curves = collect(config, base, grid.dynamic, args.seeds, metrics, results, wall)
+        print(f"group {describe(config, base, {})}: {len(grid.dynamic)} settings × {seeds} seeds", flush=True)
+        metrics, results, wall = run_group(config, grid.dynamic, seeds)
+        group_rows, group_curves = collect(config, base, grid.dynamic, seeds, metrics, results, wall)
         rows += group_rows
         curves.update(group_curves)
     write_tables(rows, out)
-    plots.sweep_curves(curves, out / "curves.png", title=f"{args.config}, {args.seeds} seeds")
+    plots.sweep_curves(curves, out / "curves.png", title=title)
     print((out / "results.md").read_text())
     print(f"wrote {out}/results.csv, results.md, curves.png")
-    return 0
 
 
 if __name__ == "__main__":

@@ -1,0 +1,290 @@
+"""Faults a user meets: a kill while the first checkpoint is written, a full disk, read-only places, bad paths,
+parallel sweeps, edited configs, Ctrl-C at the edges. Each ends in one line naming what to do, and nothing is lost
+or stuck. All on arm2d with budgets of a few seconds (the chunk compiled in test_run.py)."""
+
+import dataclasses
+import errno
+import json
+import os
+import pathlib
+import shutil
+import signal
+import struct
+import subprocess
+import sys
+import time
+
+import orbax.checkpoint as ocp
+import pytest
+from tensorboardX.proto import event_pb2
+
+from experiments import compare, configs, export, run, sweep
+from experiments import eval as eval_cli
+from jaxarm.agents.common import checkpoint
+from jaxarm.agents.common.config import apply_overrides
+from jaxarm.runner import loop, rundir, sinks
+from tests.experiments.test_run import SMALL
+from tests.experiments.test_rundir import assert_same_learner, run_cli, snapshot
+
+SWEEP = ["num_envs=64", "rollout_length=16", "num_minibatches=2", "total_env_steps=4096", "eval_episodes=4"]
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """A finished run that evaluated during training, so it has a best checkpoint too."""
+    run_dir = tmp_path_factory.mktemp("runs") / "reference"
+    assert run_cli("eval_every_updates=8", "--out", str(run_dir)) == 0
+    return run_dir
+
+
+def error_lines(capsys) -> list[str]:
+    return [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+
+
+def a_run_that_died_in_its_first_checkpoint(reference: pathlib.Path, run_dir: pathlib.Path) -> None:
+    """What a kill (or a full disk) during the first save leaves: config.json and orbax's temporary folder."""
+    run_dir.mkdir()
+    shutil.copy(reference / "config.json", run_dir / "config.json")
+    unfinished = run_dir / "checkpoints" / f"4{checkpoint.TEMPORARY_SUFFIX}-1764000000"
+    unfinished.mkdir(parents=True)
+    (unfinished / "_CHECKPOINT_METADATA").write_text("{")
+    (run_dir / "metrics.jsonl").write_text('{"updates": 1}\n')
+
+
+@pytest.mark.parametrize("again", ["--resume", "--out"])
+def test_a_kill_during_the_first_checkpoint_restarts_the_run_saying_so(reference, tmp_path, capsys, again):
+    run_dir = tmp_path / "died"
+    a_run_that_died_in_its_first_checkpoint(reference, run_dir)
+    if again == "--resume":
+        assert run.main(["--resume", str(run_dir)]) == 0
+    else:
+        assert run_cli("eval_every_updates=8", "--out", str(run_dir)) == 0
+    assert "no complete checkpoint (only a half-written one, 4.orbax-checkpoint-tmp" in capsys.readouterr().err
+    assert checkpoint.half_written(run_dir / "checkpoints") == []
+    assert_same_learner(run_dir, reference)
+
+
+def test_a_full_disk_at_a_later_checkpoint_is_one_line_and_the_run_resumes(reference, tmp_path, capsys, monkeypatch):
+    run_dir = tmp_path / "full"
+    save = ocp.CheckpointManager.save
+
+    def save_until_the_disk_fills(manager, step, *args, **kwargs):
+        if step == 8 and pathlib.Path(manager.directory).name == "checkpoints":
+            (pathlib.Path(manager.directory) / f"8{checkpoint.TEMPORARY_SUFFIX}-1").mkdir()
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return save(manager, step, *args, **kwargs)
+
+    def close_on_a_full_disk(sink):
+        sink.writer.close()
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(ocp.CheckpointManager, "save", save_until_the_disk_fills)
+    monkeypatch.setattr(sinks.TensorBoardSink, "close", close_on_a_full_disk)
+    assert run_cli("eval_every_updates=8", "--out", str(run_dir)) == 2
+    (line,) = error_lines(capsys)
+    assert f"cannot write checkpoint 8 in {run_dir / 'checkpoints'}: No space left on device" in line
+    assert f"continue with: python -m experiments.run --resume {run_dir}" in line
+    assert checkpoint.latest_step(run_dir / "checkpoints") == 4
+    monkeypatch.undo()
+    assert run.main(["--resume", str(run_dir)]) == 0, "space freed: the run goes on from checkpoint 4"
+    assert checkpoint.half_written(run_dir / "checkpoints") == []
+    assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 25))
+    assert_same_learner(run_dir, reference)
+
+
+def refuse_writes_under(monkeypatch, read_only: pathlib.Path) -> None:
+    """Writes under `read_only` fail as on a read-only mount (chmod would not stop root, who runs CI)."""
+    mkdir, open_ = pathlib.Path.mkdir, pathlib.Path.open
+
+    def refused(path: pathlib.Path) -> bool:
+        return path == read_only or read_only in path.parents
+
+    def guarded_mkdir(path, *args, **kwargs):
+        if refused(path):
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        return mkdir(path, *args, **kwargs)
+
+    def guarded_open(path, mode="r", *args, **kwargs):
+        if refused(path) and any(flag in mode for flag in "wax+"):
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        return open_(path, mode, *args, **kwargs)
+
+    monkeypatch.setattr(pathlib.Path, "mkdir", guarded_mkdir)
+    monkeypatch.setattr(pathlib.Path, "open", guarded_open)
+
+
+def test_read_only_targets_get_one_line_naming_the_path(reference, tmp_path, capsys, monkeypatch):
+    read_only = tmp_path / "mounted"
+    read_only.mkdir()
+    copy = read_only / "run"
+    shutil.copytree(reference, copy)
+    before = snapshot(copy)
+    refuse_writes_under(monkeypatch, read_only)
+    for code, argv in [
+        (run.main, ["--config", "ppo_arm2d_fixed", "--out", str(read_only / "new")]),
+        (run.main, ["--resume", str(copy)]),
+        (export.main, [str(reference), "--out", str(read_only / "export")]),
+        (export.main, [str(copy)]),
+    ]:
+        assert code(argv) == 2, argv
+        (line,) = error_lines(capsys)
+        assert str(read_only) in line and ("read-only" in line or "not writable" in line), line
+    assert snapshot(copy) == before
+
+
+@pytest.mark.parametrize("tool", ["run", "sweep", "export", "compare"])
+def test_bad_out_paths_are_refused_in_one_line_or_made(reference, tmp_path, capsys, tool):
+    a_file = tmp_path / "notes.md"
+    a_file.write_text("mine")
+    entry = {
+        "run": lambda out: run_cli("--out", out),
+        "sweep": lambda out: sweep.main(["--config", "ppo_arm2d_fixed", "--seeds", "1", *SWEEP, "--out", out]),
+        "export": lambda out: export.main([str(reference), "--out", out]),
+        "compare": lambda out: compare.main([str(reference), "--out", out]),
+    }[tool]
+    bad = [(a_file, "is a file" if tool != "compare" else "name one of"), (a_file / "out", "which is a file")]
+    if tool != "compare":
+        bad.append((tmp_path / "results.txt", "the name of a .txt file"))
+    else:
+        bad.append((tmp_path / "results.txt", "name one of"))
+    for out, message in bad:
+        assert entry(str(out)) == 2, out
+        (line,) = error_lines(capsys)
+        assert str(out) in line and message in line, line
+    assert a_file.read_text() == "mine" and not (tmp_path / "results.txt").exists()
+    if tool in ("export", "compare"):  # quick ones: missing parents are made, and the message says what was written
+        assert entry(str(tmp_path / "new" / "deeper")) == 0
+        written = tmp_path / "new" / ("deeper.png" if tool == "compare" else "deeper/policy.npz")
+        assert f"wrote {written}" in capsys.readouterr().out
+
+
+def test_compare_into_a_directory_says_what_it_wrote(reference, tmp_path, capsys):
+    assert compare.main([str(reference), "--out", str(tmp_path)]) == 0
+    assert f"wrote {tmp_path / 'compare.png'}" in capsys.readouterr().out
+    assert (tmp_path / "compare.png").stat().st_size > 1000
+    assert compare.main([str(reference), "--out", str(tmp_path / "figure")]) == 0
+    assert f"wrote {tmp_path / 'figure.png'}" in capsys.readouterr().out
+
+
+def test_a_sweep_never_replaces_another_sweeps_results(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    argv = ["--config", "ppo_arm2d_fixed", "--seeds", "1", *SWEEP, "--out", str(out)]
+    with rundir.locked(out, check=rundir.check_empty):  # a sweep running there (flock refuses a second holder)
+        assert sweep.main(argv) == 2
+        assert "in use by another process" in capsys.readouterr().err
+    assert not out.exists(), "the refused sweep left nothing behind"
+    assert sweep.main(argv) == 0
+    before = snapshot(out)
+    assert sorted(before) == [".lock", "curves.png", "results.csv", "results.md"]
+    assert sweep.main(argv) == 2
+    (line,) = error_lines(capsys)
+    assert f"{out} already holds curves.png, results.csv, results.md; choose a new or empty --out" in line
+    assert snapshot(out) == before
+
+
+def test_eval_of_the_best_and_of_the_latest_checkpoint_write_different_files(reference, capsys):
+    assert eval_cli.main([str(reference), "--episodes", "4"]) == 0
+    assert eval_cli.main([str(reference), "--episodes", "4", "--best"]) == 0
+    latest = json.loads((reference / "eval-4-12345-24.json").read_text())
+    best = json.loads((reference / "eval-4-12345-best.json").read_text())
+    assert (
+        latest["checkpoint_update"] == 24
+        and best["checkpoint_update"] == json.loads((reference / "best.json").read_text())["updates"]
+    )
+
+
+def test_an_edited_config_is_held_to_what_a_resume_may_change(reference, tmp_path, capsys):
+    edited = tmp_path / "edited"
+    shutil.copytree(reference, edited)
+    config = json.loads((edited / "config.json").read_text())
+    (edited / "config.json").write_text(json.dumps({**config, "learning_rate": 0.01}))
+    before = snapshot(edited)
+    assert run.main(["--resume", str(edited)]) == 2
+    (line,) = error_lines(capsys)
+    assert f"editing {edited / 'config.json'} (learning_rate was {config['learning_rate']!r} at the checkpoint)" in line
+    assert "cannot change 'learning_rate'" in line and "may change total_env_steps" in line
+    assert snapshot(edited) == before
+    (edited / "config.json").write_text(json.dumps({**config, "eval_episodes": 7}))
+    assert run.main(["--resume", str(edited)]) == 0, "what the CLI may change, an edit may change too"
+
+
+def test_a_budget_below_the_work_done_is_refused(reference):
+    config, preset = rundir.read_config(reference)
+    # What `--resume RUN total_env_steps=4096` asks of a run whose budget may change (no annealed schedule).
+    smaller = dataclasses.replace(config, total_env_steps=4096)
+    before = snapshot(reference)
+    with pytest.raises(rundir.RunDirError, match="total_env_steps=4,096 is below the 24,576 env steps this run"):
+        loop.train(smaller, reference, preset=preset, resume=True)
+    assert snapshot(reference) == before
+
+
+def test_show_with_resume_shows_the_overrides(reference, capsys):
+    assert run.main(["--resume", str(reference), "--show", "eval_episodes=7"]) == 0
+    assert "eval_episodes (int, >= 1) = 7" in capsys.readouterr().out
+    assert run.main(["--resume", str(reference), "--show", "learning_rate=1"]) == 2
+    assert "cannot change 'learning_rate'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("minutes", ["nan", "-1", "inf", "0", "soon"])
+def test_stop_after_minutes_must_be_a_positive_finite_number(minutes, capsys):
+    with pytest.raises(SystemExit) as exited:
+        run.main(["--config", "ppo_arm2d_fixed", "--stop-after-minutes", minutes])
+    assert exited.value.code == 2
+    assert "expected a finite number of minutes above 0" in capsys.readouterr().err
+
+
+def tensorboard_steps(directory: pathlib.Path, tag: str) -> list[int]:
+    """The steps TensorBoard shows for `tag`: events in file order, a restart (SessionLog START at step s)
+    hiding the events before it at step s and beyond."""
+    steps: list[int] = []
+    for path in sorted(directory.iterdir()):
+        data, offset = path.read_bytes(), 0
+        while offset < len(data):
+            (length,) = struct.unpack("<Q", data[offset : offset + 8])
+            event = event_pb2.Event.FromString(data[offset + 12 : offset + 12 + length])
+            offset += 12 + length + 4
+            if event.HasField("session_log") and event.session_log.status == event_pb2.SessionLog.START:
+                steps = [step for step in steps if step < event.step]
+            elif event.HasField("summary") and any(value.tag == tag for value in event.summary.value):
+                steps.append(event.step)
+    return steps
+
+
+def test_tensorboard_shows_each_step_once_after_a_kill_and_resume(tmp_path):
+    run_dir = tmp_path / "killed"
+
+    def die_after_update_12(updates):
+        if updates == 12:  # logged 9-12, checkpointed only at 8: what a SIGKILL leaves
+            raise SystemExit("killed")
+
+    config = apply_overrides(configs.get("ppo_arm2d_fixed"), [*SMALL, "checkpoint_every_updates=8"])
+    with pytest.raises(SystemExit):
+        loop.train(config, run_dir, preset="ppo_arm2d_fixed", options=loop.Options(on_chunk=die_after_update_12))
+    assert checkpoint.latest_step(run_dir / "checkpoints") == 8
+    assert len(tensorboard_steps(run_dir / "tensorboard", "episodes/return_mean")) == 12
+    assert run.main(["--resume", str(run_dir)]) == 0
+    steps = tensorboard_steps(run_dir / "tensorboard", "episodes/return_mean")
+    assert steps == [row["env_steps"] for row in rundir.read_metrics(run_dir)] and len(steps) == 24
+
+
+def test_a_second_ctrl_c_ends_the_process_at_once_with_130():
+    program = (
+        "import os, signal, time\n"
+        "from jaxarm.runner.loop import StopRequests\n"
+        "with StopRequests().installed():\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    time.sleep(30)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 130 and "SIGINT again: aborted" in done.stderr
+
+
+def test_ctrl_c_during_start_up_imports_ends_the_run_at_once(tmp_path):
+    command = [sys.executable, "-m", "experiments.run", "--config", "ppo_arm2d_fixed", "--out", str(tmp_path / "r")]
+    process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
+    time.sleep(1.5)  # inside the imports (about 6 s on a 2-core CPU)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 130 and "interrupted while starting: nothing was written" in err
+    assert not (tmp_path / "r").exists()
