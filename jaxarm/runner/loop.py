@@ -109,9 +109,9 @@ class StopRequests:
     def _handle(self, signum, frame):
         if self.requested and signum == signal.SIGINT:
             print("\nSIGINT again: aborted; the checkpoints saved before are kept", file=sys.stderr, flush=True)
-            # Not KeyboardInterrupt: unwinding while XLA compiles or runs on other threads ends in a segfault at
-            # interpreter exit (rc -11 in 1 of 1 tries during compilation), and nothing is left to clean up that a
-            # resume does not (rows past the last checkpoint are dropped, TensorBoard's purged).
+            # Not KeyboardInterrupt: unwinding while XLA compiles or runs on other threads printed a traceback
+            # (rc -2, 3 of 3 tries during compilation) or segfaulted at interpreter exit (rc -11), and nothing is
+            # left to clean up that a resume does not (rows past the last checkpoint dropped, TensorBoard's purged).
             os._exit(130)
         self.requested = True
         print(
