@@ -83,7 +83,7 @@ def main(argv=None) -> int:
                 video.write_video(video_path, frames)
                 print(f"wrote {video_path} ({len(frames)} frames, {time.perf_counter() - start:.1f} s)")
     except (ValueError, OSError, checkpoint.CheckpointError, video.RenderError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"error: {rundir.os_error_message(error) if isinstance(error, OSError) else error}", file=sys.stderr)
         quiet_libraries()
         return 2
     return 0

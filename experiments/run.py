@@ -176,7 +176,7 @@ def _main(argv) -> int:
         quiet_libraries()
         return 2
     except OSError as error:
-        print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
+        print(f"error: {rundir.os_error_message(error, args.resume or args.out)}", file=sys.stderr)
         quiet_libraries()
         return 2
     except loop.TrainingInterrupted as error:

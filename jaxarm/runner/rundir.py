@@ -71,9 +71,9 @@ def check_not_under_a_file(path: pathlib.Path, flag: str = "--out") -> None:
             raise RunDirError(f"{flag} {path} lies under {parent}, which is a file; give a directory")
 
 
-def os_error_message(error: OSError) -> str:
+def os_error_message(error: OSError, directory: str | pathlib.Path | None = None) -> str:
     """An OS error (permission, read-only, full disk, a file in a directory's place) in one line, naming its path
-    and what to do."""
+    (or, for an error on an open file, which names none, the `directory` written to) and what to do."""
     advice = {
         errno.ENOSPC: "the disk is full; free space and retry (a run goes on with --resume)",
         errno.EDQUOT: "the disk quota is used up; free space and retry (a run goes on with --resume)",
@@ -84,7 +84,7 @@ def os_error_message(error: OSError) -> str:
         errno.EEXIST: "a file of that name is in the way; choose another path",
         errno.EISDIR: "a directory stands where a file is needed; choose another path",
     }.get(error.errno or 0, "")
-    where = f"{error.filename}: " if error.filename else ""
+    where = f"{error.filename}: " if error.filename else f"writing into {directory}: " if directory else ""
     return f"{where}{error.strerror or error}" + (f"; {advice}" if advice else "")
 
 

@@ -128,7 +128,7 @@ def test_read_only_targets_get_one_line_naming_the_path(reference, tmp_path, cap
     ]:
         assert code(argv) == 2, argv
         (line,) = error_lines(capsys)
-        assert str(read_only) in line and ("read-only" in line or "not writable" in line), line
+        assert str(read_only) in line and ("read-only" in line.lower() or "not writable" in line), line
     assert snapshot(copy) == before
 
 
@@ -288,3 +288,13 @@ def test_ctrl_c_during_start_up_imports_ends_the_run_at_once(tmp_path):
     _, err = process.communicate(timeout=120)
     assert process.returncode == 130 and "interrupted while starting: nothing was written" in err
     assert not (tmp_path / "r").exists()
+
+
+def test_os_errors_name_the_path_or_the_directory_written_to():
+    full = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # a write to an open file names no path
+    assert rundir.os_error_message(full, "runs/a") == (
+        "writing into runs/a: No space left on device; the disk is full; free space and retry (a run goes on with "
+        "--resume)"
+    )
+    read_only = OSError(errno.EROFS, os.strerror(errno.EROFS), "/mnt/run/.lock")
+    assert rundir.os_error_message(read_only).startswith("/mnt/run/.lock: Read-only file system; choose a writable")
