@@ -37,15 +37,15 @@ from jaxarm.runner.cache import enable_compilation_cache  # noqa: E402
 from jaxarm.runner.sinks import WandbOptions  # noqa: E402
 
 
-def positive_minutes(text: str) -> float:
-    """`--stop-after-minutes`: a finite number of minutes above zero."""
+def minutes(text: str) -> float:
+    """`--stop-after-minutes`: a finite number of minutes, 0 or more (0: stop after the first chunk)."""
     try:
-        minutes = float(text)
+        value = float(text)
     except ValueError:
-        minutes = math.nan
-    if not (math.isfinite(minutes) and minutes > 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number of minutes above 0, got {text!r}")
-    return minutes
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number of minutes, 0 or more, got {text!r}")
+    return value
 
 
 def parse_args(argv):
@@ -72,7 +72,7 @@ def parse_args(argv):
     )
     parser.add_argument(
         "--stop-after-minutes",
-        type=positive_minutes,
+        type=minutes,
         help="checkpoint and stop after the chunk that passes this wall time (resume later)",
     )
     parser.add_argument("--wandb", metavar="PROJECT", help="also log to this Weights & Biases project")

@@ -225,12 +225,12 @@ def test_show_with_resume_shows_the_overrides(reference, capsys):
     assert "cannot change 'learning_rate'" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("minutes", ["nan", "-1", "inf", "0", "soon"])
-def test_stop_after_minutes_must_be_a_positive_finite_number(minutes, capsys):
+@pytest.mark.parametrize("minutes", ["nan", "-1", "inf", "soon"])
+def test_stop_after_minutes_must_be_a_finite_number_of_minutes(minutes, capsys):
     with pytest.raises(SystemExit) as exited:
         run.main(["--config", "ppo_arm2d_fixed", "--stop-after-minutes", minutes])
     assert exited.value.code == 2
-    assert "expected a finite number of minutes above 0" in capsys.readouterr().err
+    assert "expected a finite number of minutes, 0 or more" in capsys.readouterr().err
 
 
 def tensorboard_steps(directory: pathlib.Path, tag: str) -> list[int]:
