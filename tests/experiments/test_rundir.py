@@ -132,8 +132,8 @@ def test_ctrl_c_checkpoints_at_the_chunk_end_and_resume_is_bit_identical(referen
     run_dir = tmp_path / "interrupted"
     make_runner = loop.make_chunk_runner
 
-    def interrupting_runner(trainer, count):
-        chunk = make_runner(trainer, count)
+    def interrupting_runner(trainer, count, *placement):
+        chunk = make_runner(trainer, count, *placement)
         calls = []
 
         def run_chunk(state, hparams):
