@@ -31,7 +31,17 @@ class TensorBoardSink:
             self.writer.add_scalar(name, value, int(row["env_steps"]))
 
     def close(self) -> None:
-        self.writer.close()
+        try:
+            self.writer.close()
+        except OSError:
+            # A full disk: tensorboardX would try again at exit and print tracebacks (its atexit hook, then its
+            # writing thread) after the run's own one-line error. Its last events are lost either way.
+            for file_writer in (self.writer.all_writers or {}).values():
+                events = file_writer.event_writer
+                if events._worker is not None and events._worker.is_alive():
+                    events._worker.stop()
+                events._closed = True
+            raise
 
 
 @dataclasses.dataclass(frozen=True)

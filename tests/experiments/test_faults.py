@@ -298,3 +298,18 @@ def test_os_errors_name_the_path_or_the_directory_written_to():
     )
     read_only = OSError(errno.EROFS, os.strerror(errno.EROFS), "/mnt/run/.lock")
     assert rundir.os_error_message(read_only).startswith("/mnt/run/.lock: Read-only file system; choose a writable")
+
+
+def test_tensorboard_on_a_full_disk_raises_once_and_is_not_retried_at_exit(tmp_path, monkeypatch):
+    sink = sinks.TensorBoardSink(tmp_path)
+    sink.write({"updates": 1, "env_steps": 64, "loss": 0.5})
+    (file_writer,) = sink.writer.all_writers.values()
+    events = file_writer.event_writer
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(events, "flush", full)
+    with pytest.raises(OSError, match="No space left"):
+        sink.close()
+    assert events._closed and events._worker is not None and not events._worker.is_alive()

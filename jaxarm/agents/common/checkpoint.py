@@ -21,9 +21,10 @@ class CheckpointError(RuntimeError):
 
 
 @contextlib.contextmanager
-def _quiet_reads():
-    """Silences orbax's absl ERROR lines while checkpoints are read: a damaged checkpoint logs one per file per
-    look, and the CheckpointError raised here already says which checkpoint is at fault."""
+def _quiet_orbax():
+    """Silences orbax's absl ERROR lines while checkpoints are read or written: a damaged checkpoint logs one per
+    file per look, a full disk a 40-line traceback from orbax's writing thread, and the CheckpointError raised
+    here already says which checkpoint is at fault and why."""
     logger = logging.getLogger("absl")
     level = logger.level
     logger.setLevel(logging.CRITICAL)
@@ -60,7 +61,7 @@ def save(directory: pathlib.Path, step: int, state) -> None:
     written; the checkpoints saved before are intact.
     """
     try:
-        with _manager(directory, create=True) as manager:
+        with _quiet_orbax(), _manager(directory, create=True) as manager:
             manager.save(step, args=ocp.args.StandardSave(state), force=True)
     except Exception as error:  # orbax and tensorstore wrap OS errors in many types
         raise CheckpointError(
@@ -100,7 +101,7 @@ def latest_step(directory: pathlib.Path) -> int | None:
 
 
 def _listed_latest_step(directory: pathlib.Path) -> int | None:
-    with _quiet_reads(), _manager(directory) as manager:
+    with _quiet_orbax(), _manager(directory) as manager:
         return manager.latest_step()
 
 
@@ -122,7 +123,7 @@ def restore(directory: pathlib.Path, like, step: int | None = None, shardings=No
         lambda leaf, sharding: jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=sharding), like, shardings
     )
     try:
-        with _quiet_reads(), _manager(directory) as manager:
+        with _quiet_orbax(), _manager(directory) as manager:
             restored = manager.restore(step, args=ocp.args.StandardRestore(abstract))
     except Exception as error:  # orbax raises many types for corrupt and mismatched trees
         raise CheckpointError(
