@@ -14,13 +14,14 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+# Declared in the JAX-free deployment package, which reads them too.
+from jaxarm.deploy.kinematics import ARM_JOINTS
+from jaxarm.deploy.limits import ARM_SPEED_LIMITS as ARM_SPEED_LIMITS
+
 PANDA_XML = Path(__file__).parent / "assets" / "panda.xml"
-ARM_JOINTS = tuple(f"joint{k}" for k in range(1, 8))
 FINGER_JOINTS = ("finger_left", "finger_right")
 HOME_QPOS = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], np.float32)
 """Arm posture of the Panda's "ready" pose: tool centre 0.49 m above the table, pointing down."""
-ARM_SPEED_LIMITS = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61], np.float32)
-"""[7] the arm joints' speed limits (rad/s) in Franka's datasheet; panda.xml's servos do not enforce them."""
 FINGER_OPEN = 0.04
 """Finger joint travel when fully open (each finger; the gap is twice this)."""
 PAD_ABOVE_TCP = 0.003

@@ -1,0 +1,10 @@
+"""What runs next to a robot: each control tick, the observation a policy was trained on, formed from what the
+robot reads, the exported numpy policy (`jaxarm.export.numpy_policy`), and the env's own controller (IK, running
+target, joint limits) in numpy, within Franka's joint speed and acceleration limits.
+
+`loop.py` keeps the tick; `sort.py` and `peg.py` are the sorter's and the peg's observation and control;
+`kinematics.py` poses the arm with MuJoCo's C library; `ik.py` is the env's IK maths in numpy; `limits.py` the
+datasheet's limits; `scoring.py` the tasks' scoring. These import numpy and mujoco alone, so a robot's computer
+needs no JAX. `from_env.py` (JAX) reads a task's numbers from a jaxarm env and its params.
+This package's own import must stay free of JAX.
+"""

@@ -1,0 +1,49 @@
+"""Franka's datasheet limits on the arm's joint motion, and the clip that keeps a target path within them.
+
+Imports numpy alone: the deployment loop clips with it, and jaxarm's envs read the same arrays.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+ARM_SPEED_LIMITS = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61], np.float32)
+"""[7] the arm joints' speed limits (rad/s) in Franka's datasheet; panda.xml's servos do not enforce them."""
+ARM_ACCELERATION_LIMITS = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0], np.float32)
+"""[7] the arm joints' acceleration limits (rad/s²) in Franka's datasheet."""
+
+
+class LimitedTargets(NamedTuple):
+    """A tick's joint targets within the limits.
+
+    Attributes:
+      targets: [7] the targets sent.
+      velocity: [7] their rate of change over the tick (rad/s).
+      acceleration_clipped: [7] bool, joints whose asked rate changed faster than the acceleration limit allows.
+      speed_clipped: [7] bool, joints whose rate (after the acceleration limit) was beyond the speed limit.
+    """
+
+    targets: np.ndarray
+    velocity: np.ndarray
+    acceleration_clipped: np.ndarray
+    speed_clipped: np.ndarray
+
+
+def limit_targets(
+    targets: np.ndarray, previous: np.ndarray, previous_velocity: np.ndarray, period: float
+) -> LimitedTargets:
+    """[7] asked `targets` -> the nearest targets whose path from `previous` [7], moving at `previous_velocity` [7],
+    keeps every joint within `ARM_SPEED_LIMITS` and `ARM_ACCELERATION_LIMITS` over one tick of `period` seconds."""
+    asked = (targets - previous) / period
+    reachable = np.clip(
+        asked,
+        previous_velocity - ARM_ACCELERATION_LIMITS * period,
+        previous_velocity + ARM_ACCELERATION_LIMITS * period,
+    )
+    velocity = np.clip(reachable, -ARM_SPEED_LIMITS, ARM_SPEED_LIMITS)
+    return LimitedTargets(
+        targets=previous + velocity * period,
+        velocity=velocity,
+        acceleration_clipped=reachable != asked,
+        speed_clipped=velocity != reachable,
+    )

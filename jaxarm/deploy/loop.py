@@ -1,0 +1,90 @@
+"""The deployment loop: each control tick, a robot's reading -> the env's observation -> the exported policy ->
+the env's controller -> servo targets within Franka's limits, timed. Imports numpy and mujoco alone."""
+
+import dataclasses
+import time
+from collections.abc import Callable
+from typing import Any, Protocol
+
+import numpy as np
+
+from jaxarm.deploy.limits import limit_targets
+from jaxarm.deploy.reading import ArmReading
+
+
+class Controller(Protocol):
+    """A task's observation and control at a robot (`sort.SortController`, `peg.PegController`)."""
+
+    @property
+    def action_size(self) -> int: ...
+
+    def begin(self) -> None: ...
+
+    def observe(self, reading: ArmReading, estimate: Any, ctrl: np.ndarray) -> np.ndarray: ...
+
+    def act(self, reading: ArmReading, ctrl: np.ndarray, action: np.ndarray) -> np.ndarray: ...
+
+
+@dataclasses.dataclass
+class LimitCounts:
+    """How often the loop's commands went beyond Franka's limits, per arm joint, over the ticks so far.
+
+    Attributes:
+      acceleration: [7] ticks at which a joint's asked rate changed faster than its acceleration limit.
+      speed: [7] ticks at which a joint's rate (after the acceleration limit) was beyond its speed limit.
+    """
+
+    acceleration: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(7, np.int64))
+    speed: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(7, np.int64))
+
+
+class DeploymentLoop:
+    """Runs a policy on a robot one control tick at a time.
+
+    Args:
+      policy: flat observation [O] -> action [A] (`jaxarm.export.numpy_policy.load(path)`).
+      controller: the task's observation and control.
+      period: seconds per tick (the env's control step).
+      clip: whether commands beyond Franka's limits are clipped (else only counted).
+
+    Attributes:
+      ctrl: [9] the last servo targets sent (arm, fingers).
+      counts: the limits' clips so far (`LimitCounts`).
+      tick_seconds: wall time of each tick so far (observation, policy, control, limits).
+    """
+
+    def __init__(
+        self, policy: Callable[[np.ndarray], np.ndarray], controller: Controller, period: float, clip: bool = True
+    ):
+        self.policy = policy
+        self.controller = controller
+        self.period = period
+        self.clip = clip
+        self.ctrl = np.zeros(9)
+        self._velocity = np.zeros(7)
+        self.counts = LimitCounts()
+        self.tick_seconds: list[float] = []
+
+    def begin(self, ctrl: np.ndarray) -> None:
+        """A new episode with the servos at `ctrl` [9] and the arm at rest."""
+        self.ctrl = np.array(ctrl, np.float64)
+        self._velocity = np.zeros(7)
+        self.controller.begin()
+
+    def tick(self, reading: ArmReading, estimate: Any) -> np.ndarray:
+        """[9] the servo targets to send for this tick's `reading` and the task's `estimate`."""
+        start = time.perf_counter()
+        obs = self.controller.observe(reading, estimate, self.ctrl)
+        action = np.asarray(self.policy(obs), np.float64)
+        ctrl = self.controller.act(reading, self.ctrl, action)
+        limited = limit_targets(ctrl[:7], self.ctrl[:7], self._velocity, self.period)
+        self.counts.acceleration += limited.acceleration_clipped
+        self.counts.speed += limited.speed_clipped
+        if self.clip:
+            ctrl[:7] = limited.targets
+            self._velocity = limited.velocity
+        else:
+            self._velocity = (ctrl[:7] - self.ctrl[:7]) / self.period
+        self.ctrl = ctrl
+        self.tick_seconds.append(time.perf_counter() - start)
+        return ctrl

@@ -1,0 +1,112 @@
+"""The peg insertion (`peg_insert`, state observations) next to a robot: its observation and controller in numpy,
+the same formulas as `jaxarm.envs.peg_insert.env` (tests/deploy/test_controller.py holds them to 1e-5). Imports
+numpy and mujoco alone."""
+
+import dataclasses
+
+import numpy as np
+
+from jaxarm.deploy import ik
+from jaxarm.deploy.kinematics import ArmKinematics, ArmPose
+from jaxarm.deploy.reading import ArmReading, HoleEstimate
+
+PEG_TIP_SITE = "peg_tip"
+
+
+@dataclasses.dataclass(frozen=True)
+class PegTask:
+    """What the peg's observation and control need to know, as plain numbers (`from_env.peg_task` reads them).
+
+    Attributes:
+      ee_step, max_lead, ik_damping, ik_posture_gain: the env params of those names.
+      start_qpos: [7] the arm's start posture, towards which the IK's null space pulls.
+      home_tcp_rotation: [3, 3] the tool's orientation, pointing down, held throughout.
+      hole_nominal: [2] (x, y) of the hole before its per-episode shift.
+      hole_floor: height of the hole's bottom above the table (m).
+      position_scale: metres per observation unit.
+    """
+
+    ee_step: float
+    max_lead: float
+    ik_damping: float
+    ik_posture_gain: float
+    start_qpos: np.ndarray
+    home_tcp_rotation: np.ndarray
+    hole_nominal: np.ndarray
+    hole_floor: float
+    position_scale: float
+
+    @property
+    def action_size(self) -> int:
+        return 3
+
+
+def observation(
+    task: PegTask, kinematics: ArmKinematics, pose: ArmPose, reading: ArmReading, hole: HoleEstimate, tcp_target
+) -> np.ndarray:
+    """float32 [12]: `PegInsert._observe` of the arm at `pose` (the last one `kinematics` posed), the hole's
+    estimate and the tool-centre target [3]."""
+    tip, tip_jacobian = kinematics.site_position_jacobian(PEG_TIP_SITE)
+    hole_bottom = np.concatenate([hole.centre, [task.hole_floor]])
+    nominal = np.concatenate([task.hole_nominal, [task.hole_floor]])
+    return np.concatenate(
+        [
+            (hole_bottom - tip) / task.position_scale,
+            tip_jacobian @ reading.arm_qvel / task.position_scale,
+            (tcp_target - pose.tcp) / task.max_lead,
+            (tip - nominal) / task.position_scale,
+        ]
+    ).astype(np.float32)
+
+
+def tcp_target_after(task: PegTask, pose: ArmPose, tcp_target: np.ndarray, action: np.ndarray) -> np.ndarray:
+    """[3] the running tool-centre target moved by `action` [3], held within `max_lead` of the measured one."""
+    return ik.advanced_target(tcp_target, action * task.ee_step, pose.tcp, task.max_lead)
+
+
+def arm_targets(task: PegTask, kinematics: ArmKinematics, pose: ArmPose, tcp_target: np.ndarray) -> np.ndarray:
+    """[7] arm joint targets towards `tcp_target` [3], the tool pointing down: `PegInsert._transition`'s IK."""
+    return ik.ik_arm_targets(
+        pose,
+        tcp_target,
+        task.home_tcp_rotation,
+        task.ik_damping,
+        task.ik_posture_gain,
+        task.start_qpos,
+        kinematics.arm_limits,
+    )
+
+
+class PegController:
+    """The peg's observation and control at a robot, with the running tool-centre target it keeps.
+
+    Attributes:
+      task, kinematics: as given.
+      tcp_target: [3] where the tool centre is being driven (the measured tool centre at the episode's start).
+    """
+
+    def __init__(self, task: PegTask, kinematics: ArmKinematics):
+        self.task = task
+        self.kinematics = kinematics
+        self.tcp_target: np.ndarray | None = None
+        self._pose: ArmPose | None = None
+
+    @property
+    def action_size(self) -> int:
+        return self.task.action_size
+
+    def begin(self) -> None:
+        """A new episode: the target is set to the measured tool centre at the first observation."""
+        self.tcp_target = None
+
+    def observe(self, reading: ArmReading, hole: HoleEstimate, ctrl: np.ndarray) -> np.ndarray:
+        self._pose = self.kinematics.pose(reading.arm_q)
+        if self.tcp_target is None:
+            self.tcp_target = self._pose.tcp
+        return observation(self.task, self.kinematics, self._pose, reading, hole, self.tcp_target)
+
+    def act(self, reading: ArmReading, ctrl: np.ndarray, action: np.ndarray) -> np.ndarray:
+        """[9] servo targets: the arm's towards the moved target, the fingers' as they were."""
+        assert self._pose is not None and self.tcp_target is not None, "observe before act"
+        self.tcp_target = tcp_target_after(self.task, self._pose, self.tcp_target, action)
+        return np.concatenate([arm_targets(self.task, self.kinematics, self._pose, self.tcp_target), ctrl[7:]])

@@ -1,0 +1,190 @@
+"""The sorter (`panda_sort`, state observations) next to a robot: its observation and its controller in numpy,
+the same formulas as `jaxarm.envs.panda_sort.env` (tests/deploy/test_controller.py holds them to 1e-5), and
+which objects are still in play. Imports numpy and mujoco alone.
+
+The env parks an object once it is scored and observes it as zeros; here an object leaves play when its
+estimated centre enters a bin or drops off the table (`scoring.next_outcome`), and is observed as zeros after.
+"""
+
+import dataclasses
+
+import numpy as np
+
+from jaxarm.deploy import ik, scoring
+from jaxarm.deploy.kinematics import ArmKinematics, ArmPose
+from jaxarm.deploy.reading import ArmReading, ObjectEstimate
+
+MODE_EE = "ee"
+MODE_JOINT = "joint"
+
+
+@dataclasses.dataclass(frozen=True)
+class SortTask:
+    """What the sorter's observation and control need to know, as plain numbers (`from_env.sort_task` reads them
+    from an env and its params; the env's docstrings say what each means).
+
+    Attributes:
+      objects_count, control_mode, running_target, target_first: the env's constructor arguments.
+      ee_step, ee_yaw_step, joint_step, max_lead, max_yaw_lead, max_joint_lead, ik_damping, ik_posture_gain,
+        carry_height: the env params of those names.
+      start_qpos: [7] the arm's start posture, towards which the IK's null space pulls.
+      home_tcp_rotation: [3, 3] the tool's orientation at yaw 0, pointing down.
+      bins: where the bins are (scoring.Bins).
+      tcp_min_z: lowest tool-centre target (m).
+      finger_open: each finger's travel when fully open (m).
+    """
+
+    objects_count: int
+    control_mode: str
+    running_target: bool
+    target_first: bool
+    ee_step: float
+    ee_yaw_step: float
+    joint_step: float
+    max_lead: float
+    max_yaw_lead: float
+    max_joint_lead: float
+    ik_damping: float
+    ik_posture_gain: float
+    carry_height: float
+    start_qpos: np.ndarray
+    home_tcp_rotation: np.ndarray
+    bins: scoring.Bins
+    tcp_min_z: float
+    finger_open: float
+
+    @property
+    def action_size(self) -> int:
+        return 5 if self.control_mode == MODE_EE else 8
+
+
+def slot_order(task: SortTask, target: int) -> np.ndarray:
+    """[N] the object slots in the order the observation lists them: from the target on with `target_first`."""
+    slots = np.arange(task.objects_count)
+    return (target + slots) % task.objects_count if task.target_first else slots
+
+
+def observation(
+    task: SortTask,
+    pose: ArmPose,
+    reading: ArmReading,
+    objects: ObjectEstimate,
+    outcome: np.ndarray,
+    target: int,
+    ctrl: np.ndarray,
+) -> np.ndarray:
+    """float32 [26 N + 21] ([+7] with `running_target`): the env's state observation (`PandaSort._observe`) of the
+    arm at `pose` (its posture `reading.arm_q`), `objects` with outcomes [N], the `target` slot, and the servos'
+    targets `ctrl` [9]."""
+    in_play = (outcome == scoring.IN_PLAY)[:, None]
+    position = objects.pose[:, :3]
+    relative_yaw = ik.yaw_of_quaternion(objects.pose[:, 3:]) - ik.yaw_of_rotation(pose.tcp_rotation)
+    shapes = len(task.bins.centres)
+    rows = np.concatenate(
+        [
+            objects.pose,
+            objects.velocity,
+            np.eye(shapes)[objects.shape],
+            objects.size[:, None],
+            in_play,
+            position - pose.tcp,
+            scoring.carry_targets(task.bins, objects.shape, task.carry_height) - position,
+            np.cos(4.0 * relative_yaw)[:, None],
+            np.sin(4.0 * relative_yaw)[:, None],
+        ],
+        -1,
+    )
+    tool = [
+        pose.tcp,
+        pose.hand_quat,
+        pose.jacobian @ reading.arm_qvel,
+        [np.sum(reading.finger_q)],
+        reading.arm_q,
+    ]
+    if task.running_target:
+        tool.append(ctrl[:7] - reading.arm_q)
+    rows = rows * in_play
+    return np.concatenate([rows[slot_order(task, target)].ravel(), *tool]).astype(np.float32)
+
+
+def arm_targets(
+    task: SortTask, kinematics: ArmKinematics, pose: ArmPose, ctrl: np.ndarray, action: np.ndarray
+) -> np.ndarray:
+    """[7] arm joint targets for `action` [A] from the arm measured at `pose` and the servos' targets `ctrl` [9]:
+    `PandaSort._arm_targets`."""
+    limits = kinematics.arm_limits
+    if task.control_mode == MODE_JOINT:
+        if task.running_target:
+            joints = ik.advanced_target(ctrl[:7], action[:7] * task.joint_step, pose.arm_q, task.max_joint_lead)
+        else:
+            joints = pose.arm_q + action[:7] * task.joint_step
+        return np.clip(joints, limits[:, 0], limits[:, 1])
+    yaw = ik.yaw_of_rotation(pose.tcp_rotation)
+    if task.running_target:
+        # IK from where the servos are taking the tool, as the env's running target does.
+        pose_from = kinematics.pose(ctrl[:7])
+        target = ik.advanced_target(pose_from.tcp, action[:3] * task.ee_step, pose.tcp, task.max_lead)
+        turn = ik.wrapped_angle(ik.yaw_of_rotation(pose_from.tcp_rotation) + action[3] * task.ee_yaw_step - yaw)
+        target_yaw = yaw + np.clip(turn, -task.max_yaw_lead, task.max_yaw_lead)
+    else:
+        pose_from = pose
+        target = pose.tcp + action[:3] * task.ee_step
+        target_yaw = yaw + action[3] * task.ee_yaw_step
+    target[2] = max(target[2], task.tcp_min_z)
+    rotation = ik.rotation_about_z(target_yaw) @ task.home_tcp_rotation
+    joints = ik.ik_arm_targets(
+        pose_from, target, rotation, task.ik_damping, task.ik_posture_gain, task.start_qpos, limits
+    )
+    if task.running_target:
+        # The env's second damped step, without the posture pull.
+        joints = ik.ik_arm_targets(
+            kinematics.pose(joints), target, rotation, task.ik_damping, 0.0, task.start_qpos, limits
+        )
+    return joints
+
+
+def finger_targets(task: SortTask, action: np.ndarray) -> np.ndarray:
+    """[2] each finger's target: the action's last entry maps [-1, 1] to closed..open."""
+    return np.full(2, (action[-1] + 1.0) * (task.finger_open / 2))
+
+
+class SortController:
+    """The sorter's observation and control at a robot, with what it tracks over an episode: which objects are
+    still in play and which one is the target.
+
+    Attributes:
+      task: the task's numbers.
+      kinematics: the arm's kinematic model.
+      outcome: [N] each object's `scoring` outcome, from the estimates.
+      target: the slot being worked on (the observation lists it first with `target_first`).
+    """
+
+    def __init__(self, task: SortTask, kinematics: ArmKinematics):
+        self.task = task
+        self.kinematics = kinematics
+        self.outcome = np.full(task.objects_count, scoring.IN_PLAY)
+        self.target = -1
+        self._pose: ArmPose | None = None
+
+    @property
+    def action_size(self) -> int:
+        return self.task.action_size
+
+    def begin(self) -> None:
+        """A new episode: every object in play, the target chosen at the first observation."""
+        self.outcome = np.full(self.task.objects_count, scoring.IN_PLAY)
+        self.target = -1
+
+    def observe(self, reading: ArmReading, objects: ObjectEstimate, ctrl: np.ndarray) -> np.ndarray:
+        """The observation at this tick; scores the estimated objects first, as the env does after a step."""
+        self._pose = self.kinematics.pose(reading.arm_q)
+        position = objects.pose[:, :3]
+        self.outcome = scoring.next_outcome(self.outcome, objects.shape, position, self.task.bins)
+        self.target = scoring.next_target(self.outcome, self.target, position, self._pose.tcp)
+        return observation(self.task, self._pose, reading, objects, self.outcome, self.target, ctrl)
+
+    def act(self, reading: ArmReading, ctrl: np.ndarray, action: np.ndarray) -> np.ndarray:
+        """[9] servo targets (arm, then fingers) for `action`, after `observe` of the same tick."""
+        assert self._pose is not None, "observe before act"
+        arm = arm_targets(self.task, self.kinematics, self._pose, ctrl, action)
+        return np.concatenate([arm, finger_targets(self.task, action)])

@@ -1,0 +1,167 @@
+"""The deployment loop's numpy observation and controller against the JAX envs', to 1e-5, on hand-placed states.
+
+One program per env computes the env's own observation and servo targets for a batch of actions (and the
+sorter's scoring, tests/deploy/test_scoring.py reads it); the numpy side runs the same states through
+`jaxarm.deploy`.
+"""
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxarm.deploy import from_env, peg, sort
+from jaxarm.deploy.reading import ArmReading, HoleEstimate, ObjectEstimate
+from jaxarm.envs.panda_sort import IN_CORRECT_BIN, IN_PLAY, MODE_JOINT, PandaSort, PandaSortSim
+from jaxarm.envs.panda_sort.reward import next_outcome, next_target, shaping_potential
+from jaxarm.envs.peg_insert.env import PegInsert, PegInsertSim
+
+pytestmark = pytest.mark.mjx
+TOLERANCE = 1e-5
+ACTIONS = 6
+
+
+def hand_placed_sorter(env: PandaSort, rng: np.random.Generator) -> PandaSortSim:
+    """Two objects, the second already in its bin; the arm near its start posture and moving, its servos' targets
+    leading it."""
+    model = env.mj_model
+    qpos = model.qpos0.astype(np.float32).copy()
+    arm_q = env.start_qpos + rng.uniform(-0.3, 0.3, 7)
+    qpos[:7], qpos[7:9] = arm_q, [0.012, 0.013]
+    positions = np.array([[0.45, -0.05, 0.02], [0.36, 0.36, 0.02]])
+    yaw = np.array([0.4, -1.1])
+    for slot, (position, angle) in enumerate(zip(positions, yaw, strict=True)):
+        start = env.ids.object_qpos[slot]
+        qpos[start : start + 7] = [*position, np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)]
+    qvel = rng.normal(0.0, 0.3, model.nv).astype(np.float32)
+    ctrl = np.concatenate([arm_q + rng.uniform(-0.05, 0.05, 7), [0.01, 0.01]]).astype(np.float32)
+    return PandaSortSim(
+        qpos=jnp.asarray(qpos),
+        qvel=jnp.asarray(qvel),
+        qacc_warmstart=jnp.zeros(model.nv),
+        ctrl=jnp.asarray(ctrl),
+        shape=jnp.array([1, 0], jnp.int32),
+        size=jnp.array([0.02, 0.03]),
+        colour=jnp.zeros((2, 3)),
+        outcome=jnp.array([IN_PLAY, IN_CORRECT_BIN], jnp.int32),
+        exit_xy=jnp.zeros((2, 2)),
+        target=jnp.array(1, jnp.int32),
+        potential=jnp.zeros(5),
+        queued_actions=env.initial_action_queue(),
+        noise_key=jax.random.key(0),
+    )
+
+
+@functools.cache
+def sorter_case(control_mode: str):
+    """(env, params, sim, actions [B, A], the env's observation [O], ctrl [B, 9], outcome [N], target, potential [2, 5]
+    with each slot the target)
+    for a two-object target-first sorter with the running target."""
+    env = PandaSort(objects_count=2, target_first=True, running_target=True, control_mode=control_mode)
+    params = env.default_params()
+    sim = hand_placed_sorter(env, np.random.default_rng(0))
+    rng = np.random.default_rng(1)
+    actions = rng.uniform(-1.0, 1.0, (ACTIONS, env.spec.action_shape[0])).astype(np.float32)
+    actions[0] = 0.0
+    actions[1, :4] = [1.0, -1.0, 1.0, 1.0]  # beyond the leads in every direction
+
+    @jax.jit
+    def reference(sim, actions):
+        model = env.episode_model(sim, params)
+        data = env.kinematics(model, sim)
+        obs = env._observe(model, data, sim, params, jax.random.key(1))
+        ctrl = jax.vmap(lambda action: env._ctrl(model, data, action, params))(actions)
+        positions = sim.qpos[env.ids.object_qpos[:, None] + np.arange(3)]
+        outcome = next_outcome(sim.outcome, sim.shape, positions, env.layout)
+        target = next_target(env.ids, data, sim.replace(outcome=outcome))
+        potential = jnp.stack(
+            [
+                shaping_potential(env.ids, env.layout, data, sim.replace(target=jnp.array(slot)), params, True)
+                for slot in range(2)
+            ]
+        )
+        return obs, ctrl, outcome, target, potential
+
+    return (env, params, sim, actions, *(np.asarray(value) for value in reference(sim, jnp.asarray(actions))))
+
+
+def sorter_inputs(env: PandaSort, sim: PandaSortSim) -> tuple[ArmReading, ObjectEstimate]:
+    qpos, qvel = np.asarray(sim.qpos, np.float64), np.asarray(sim.qvel, np.float64)
+    pose_index = env.ids.object_qpos[:, None] + np.arange(7)
+    velocity_index = env.ids.object_qvel[:, None] + np.arange(6)
+    reading = ArmReading(arm_q=qpos[:7], arm_qvel=qvel[:7], finger_q=qpos[7:9])
+    objects = ObjectEstimate(qpos[pose_index], qvel[velocity_index], np.asarray(sim.shape), np.asarray(sim.size))
+    return reading, objects
+
+
+@pytest.mark.parametrize("control_mode", ["ee", MODE_JOINT])
+def test_the_sorter_observes_and_acts_as_the_env(control_mode):
+    env, params, sim, actions, obs, ctrl, *_ = sorter_case(control_mode)
+    controller = from_env.controller(env, params)
+    assert isinstance(controller, sort.SortController)
+    reading, objects = sorter_inputs(env, sim)
+    pose = controller.kinematics.pose(reading.arm_q)
+    outcome, target, sim_ctrl = np.asarray(sim.outcome), int(sim.target), np.asarray(sim.ctrl, np.float64)
+    ours = sort.observation(controller.task, pose, reading, objects, outcome, target, sim_ctrl)
+    np.testing.assert_allclose(ours, obs, atol=TOLERANCE)
+    # The target (slot 1, out of play: zeros) comes first.
+    assert not np.any(ours[:26]) and np.any(ours[26:52])
+    for action, expected in zip(actions, ctrl, strict=True):
+        arm = sort.arm_targets(controller.task, controller.kinematics, pose, sim_ctrl, action.astype(np.float64))
+        fingers = sort.finger_targets(controller.task, action)
+        np.testing.assert_allclose(np.concatenate([arm, fingers]), expected, atol=TOLERANCE)
+    # The actions move the targets: a test of a controller that ignores them would pass otherwise.
+    assert np.ptp(ctrl[:, :7], axis=0).max() > 0.01
+
+
+def test_the_peg_observes_and_acts_as_the_env():
+    env = PegInsert()
+    params = env.default_params()
+    rng = np.random.default_rng(2)
+    qpos = env.mj_model.qpos0.astype(np.float32).copy()
+    qpos[:7] = env.start_qpos + rng.uniform(-0.2, 0.2, 7)
+    qvel = rng.normal(0.0, 0.3, env.mj_model.nv).astype(np.float32)
+    hole = np.array([0.55, -0.04], np.float32)
+    tcp_target = np.array([0.52, 0.01, 0.21], np.float32)
+    sim = PegInsertSim(
+        qpos=jnp.asarray(qpos),
+        qvel=jnp.asarray(qvel),
+        qacc_warmstart=jnp.zeros(env.mj_model.nv),
+        ctrl=jnp.asarray(np.r_[qpos[:7], 0.01, 0.01]),
+        tcp_target=jnp.asarray(tcp_target),
+        hole=jnp.asarray(hole),
+        initial_distance=jnp.array(0.2),
+        distance=jnp.array(0.2),
+        queued_actions=env.initial_action_queue(),
+        noise_key=jax.random.key(0),
+    )
+    actions = rng.uniform(-1.0, 1.0, (ACTIONS, 3)).astype(np.float32)
+
+    @jax.jit
+    def reference(sim, actions):
+        model = env.episode_model(sim, params)
+        data = env.kinematics(model, sim)
+        obs = env._observe(model, data, sim, params, jax.random.key(1))
+        tcp = data.site_xpos[env.ids.robot.tcp_site]
+
+        def ctrl(action):
+            target = jnp.clip(sim.tcp_target + action * params.ee_step, tcp - params.max_lead, tcp + params.max_lead)
+            return env.ik_targets(model, data, target, env.home_tcp_rotation, params)
+
+        return obs, jax.vmap(ctrl)(actions)
+
+    obs, arm = (np.asarray(value) for value in reference(sim, jnp.asarray(actions)))
+    controller = from_env.controller(env, params)
+    assert isinstance(controller, peg.PegController)
+    reading = ArmReading(arm_q=qpos[:7].astype(np.float64), arm_qvel=qvel[:7].astype(np.float64), finger_q=qpos[7:9])
+    pose = controller.kinematics.pose(reading.arm_q)
+    ours = peg.observation(controller.task, controller.kinematics, pose, reading, HoleEstimate(hole), tcp_target)
+    np.testing.assert_allclose(ours, obs, atol=TOLERANCE)
+    for action, expected in zip(actions, arm, strict=True):
+        target = peg.tcp_target_after(controller.task, pose, tcp_target.astype(np.float64), action)
+        np.testing.assert_allclose(
+            peg.arm_targets(controller.task, controller.kinematics, pose, target), expected, atol=TOLERANCE
+        )
+    assert np.ptp(arm, axis=0).max() > 1e-3

@@ -1,0 +1,77 @@
+"""The deployment loop's JAX-free import, Franka's limits and the tick's bookkeeping (no MJX)."""
+
+import subprocess
+import sys
+
+import numpy as np
+
+from jaxarm.deploy import limits
+from jaxarm.deploy.loop import DeploymentLoop
+from jaxarm.deploy.reading import ArmReading
+from jaxarm.envs.panda import robot
+
+
+def test_the_deployment_package_imports_no_jax():
+    modules = "jaxarm.deploy.loop, jaxarm.deploy.sort, jaxarm.deploy.peg, jaxarm.export.numpy_policy"
+    code = f"import sys, {modules}; print(sorted(m for m in sys.modules if m.split('.')[0] in ('jax', 'flax')))"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert result.stdout.strip() == "[]"
+
+
+def test_the_envs_read_the_datasheets_speed_limits():
+    assert robot.ARM_SPEED_LIMITS is limits.ARM_SPEED_LIMITS
+    np.testing.assert_allclose(limits.ARM_SPEED_LIMITS, [2.175] * 4 + [2.61] * 3, rtol=1e-7)
+    np.testing.assert_array_equal(limits.ARM_ACCELERATION_LIMITS, [15, 7.5, 10, 12.5, 15, 20, 20])
+
+
+def test_targets_are_clipped_to_the_limits():
+    period = 0.04
+    previous, velocity = np.zeros(7), np.zeros(7)
+    # From rest, a 0.1 rad step: every joint's speed is held to its acceleration limit times the period.
+    limited = limits.limit_targets(np.full(7, 0.1), previous, velocity, period)
+    np.testing.assert_allclose(limited.velocity, limits.ARM_ACCELERATION_LIMITS * period)
+    np.testing.assert_allclose(limited.targets, limited.velocity * period)
+    assert limited.acceleration_clipped.all() and not limited.speed_clipped.any()
+    # Already at the speed limit, asked for more: the speed limit holds it; a small change passes untouched.
+    at_limit = limits.ARM_SPEED_LIMITS.astype(np.float64)
+    limited = limits.limit_targets(at_limit * period * 1.05, previous, at_limit, period)
+    np.testing.assert_allclose(limited.velocity, at_limit)
+    assert limited.speed_clipped.all() and not limited.acceleration_clipped.any()
+    limited = limits.limit_targets(np.full(7, 0.001), previous, np.full(7, 0.02), period)
+    np.testing.assert_allclose(limited.targets, 0.001)
+    assert not (limited.speed_clipped.any() or limited.acceleration_clipped.any())
+
+
+class StepController:
+    """Asks every joint to jump by `jump` each tick."""
+
+    action_size = 1
+
+    def __init__(self, jump: float):
+        self.jump = jump
+
+    def begin(self) -> None:
+        pass
+
+    def observe(self, reading, estimate, ctrl):
+        return np.zeros(3, np.float32)
+
+    def act(self, reading, ctrl, action):
+        return np.concatenate([ctrl[:7] + self.jump + action[0], ctrl[7:]])
+
+
+def test_the_loop_clips_and_counts():
+    reading = ArmReading(np.zeros(7), np.zeros(7), np.zeros(2))
+    for clip in (True, False):
+        loop = DeploymentLoop(lambda obs: np.zeros(1), StepController(0.2), period=0.04, clip=clip)
+        loop.begin(np.zeros(9))
+        targets = [loop.tick(reading, None)[:7].copy() for _ in range(20)]
+        speed = np.diff(np.stack([np.zeros(7), *targets]), axis=0) / 0.04
+        assert len(loop.tick_seconds) == 20
+        if clip:
+            assert np.all(np.abs(speed) <= limits.ARM_SPEED_LIMITS * (1 + 1e-6))
+            np.testing.assert_allclose(speed[-1], limits.ARM_SPEED_LIMITS, rtol=1e-6)
+        else:
+            np.testing.assert_allclose(speed, 5.0)
+        # 5 rad/s is beyond every joint's speed limit, reached from rest beyond every acceleration limit.
+        assert loop.counts.speed.min() >= 10 and loop.counts.acceleration.min() >= 1

@@ -1,0 +1,64 @@
+"""The deployment package's numpy scoring against the sorter env's, on hand-placed states."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxarm.deploy import from_env, scoring
+from jaxarm.envs.panda_sort import make_layout, reward
+from tests.deploy.test_controller import sorter_case
+
+
+def test_the_outcome_codes_and_thresholds_are_the_envs():
+    for name in ("IN_PLAY", "IN_CORRECT_BIN", "IN_WRONG_BIN", "ON_FLOOR", "FLOOR_Z", "HELD_DISTANCE"):
+        assert getattr(scoring, name) == getattr(reward, name), name
+    assert (scoring.HELD_MIN_SQUEEZE, scoring.HELD_MIN_WIDTH) == (reward.HELD_MIN_SQUEEZE, reward.HELD_MIN_WIDTH)
+    assert scoring.SHAPING_TERMS == reward.SHAPING_TERMS
+
+
+@pytest.mark.parametrize("tosser", [False, True])
+def test_objects_score_as_in_the_env(tosser):
+    layout = make_layout(tosser=tosser)
+    bins = from_env.bins(layout)
+    rng = np.random.default_rng(0)
+    # Around and inside every bin, above and below its rim, on the table and below it.
+    centres = np.repeat(np.array(layout.bin_centers), 40, axis=0)
+    xy = centres + rng.uniform(-0.1, 0.1, centres.shape)
+    z = rng.uniform(-0.1, 0.1, len(xy))
+    position = np.concatenate([xy, z[:, None]], -1).astype(np.float32)
+    shape = rng.integers(0, 3, len(xy))
+    outcome = np.where(rng.random(len(xy)) < 0.2, scoring.ON_FLOOR, scoring.IN_PLAY)
+    expected = reward.next_outcome(jnp.asarray(outcome), jnp.asarray(shape), jnp.asarray(position), layout)
+    ours = scoring.next_outcome(outcome, shape, position, bins)
+    np.testing.assert_array_equal(ours, np.asarray(expected))
+    assert {scoring.IN_PLAY, scoring.IN_CORRECT_BIN, scoring.IN_WRONG_BIN, scoring.ON_FLOOR} <= set(ours.tolist())
+
+
+@pytest.mark.mjx
+def test_target_and_shaping_potential_are_the_envs():
+    env, params, sim, _, _, _, outcome, target, potential = sorter_case("ee")
+    qpos = np.asarray(sim.qpos, np.float64)
+    position = qpos[env.ids.object_qpos[:, None] + np.arange(3)]
+    controller = from_env.controller(env, params)
+    tcp = controller.kinematics.pose(qpos[:7]).tcp
+    np.testing.assert_array_equal(
+        scoring.next_outcome(np.asarray(sim.outcome), np.asarray(sim.shape), position, controller.task.bins), outcome
+    )
+    # The target (slot 1) is out of play: the nearest in-play object takes over.
+    assert scoring.next_target(outcome, int(sim.target), position, tcp) == int(target) == 0
+    for slot in range(2):
+        state = scoring.SortState(
+            position=position,
+            shape=np.asarray(sim.shape),
+            size=np.asarray(sim.size, np.float64),
+            outcome=np.asarray(sim.outcome),
+            exit_xy=np.asarray(sim.exit_xy, np.float64),
+            target=slot,
+            tcp=tcp,
+            finger_q=qpos[7:9],
+            finger_ctrl=np.asarray(sim.ctrl, np.float64)[7:],
+        )
+        ours = scoring.shaping_potential(state, controller.task.bins, from_env.sort_reward(env, params))
+        np.testing.assert_allclose(ours, potential[slot], atol=1e-5)
+    # With slot 0 (in play) the target, its reach term counts beside slot 1's full marks.
+    assert potential[0, 0] > potential[1, 0] == 1.0
