@@ -9,7 +9,7 @@ import sys
 
 from jaxarm.runner.cache import enable_compilation_cache
 
-SUITES = ("arm2d", "panda_sort", "training", "scaling", "devices", "ceilings", "profile", "learner", "camera")
+SUITES = ("arm2d", "panda_sort", "training", "scaling", "devices", "ceilings", "profile", "learner", "camera", "deploy")
 
 
 def suite_summary(name: str) -> str:
