@@ -19,6 +19,10 @@ from jaxarm.deploy.kinematics import ARM_JOINTS
 from jaxarm.deploy.limits import ARM_SPEED_LIMITS as ARM_SPEED_LIMITS
 
 PANDA_XML = Path(__file__).parent / "assets" / "panda.xml"
+MENAGERIE_PANDA_XML = Path(__file__).parent / "assets" / "menagerie" / "panda.xml"
+"""MuJoCo Menagerie's Panda with the names the scenes use (assets/menagerie/README.md): a robot jaxarm did not write."""
+SCENE_INCLUDE = 'file="../../panda/assets/panda.xml"'
+"""How each task's scene.xml includes the Panda."""
 FINGER_JOINTS = ("finger_left", "finger_right")
 HOME_QPOS = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], np.float32)
 """Arm posture of the Panda's "ready" pose: tool centre 0.49 m above the table, pointing down."""
@@ -47,6 +51,17 @@ class PandaIds:
     tcp_site: int
     arm_limits: np.ndarray
     arm_actuators: np.ndarray
+
+
+def scene_spec(scene_xml: Path, robot_xml: Path = PANDA_XML) -> mujoco.MjSpec:
+    """The MjSpec of a task's `scene_xml`, with `robot_xml` (a Panda with panda.xml's names) included in place of
+    panda.xml."""
+    if robot_xml == PANDA_XML:
+        return mujoco.MjSpec.from_file(str(scene_xml))
+    text = scene_xml.read_text()
+    if SCENE_INCLUDE not in text:
+        raise ValueError(f"{scene_xml} does not include the Panda as {SCENE_INCLUDE}")
+    return mujoco.MjSpec.from_string(text.replace(SCENE_INCLUDE, f'file="{robot_xml.resolve()}"'))
 
 
 def resolve_panda_ids(model: mujoco.MjModel) -> PandaIds:

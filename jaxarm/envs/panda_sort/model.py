@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 
 from jaxarm.envs.panda.franka_dynamics import NOMINAL, set_dynamics
-from jaxarm.envs.panda.robot import PandaIds, resolve_panda_ids
+from jaxarm.envs.panda.robot import PANDA_XML, PandaIds, resolve_panda_ids, scene_spec
 from jaxarm.envs.panda_sort.layout import Layout
 
 ASSETS = Path(__file__).parent / "assets"
@@ -108,11 +108,13 @@ def _add_object(worldbody, slot: int) -> None:
     body.add_geom(name=f"object{slot}_cylinder", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[s, s, 0], **common)
 
 
-def build_spec(objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm_grip: bool = False) -> mujoco.MjSpec:
+def build_spec(
+    objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm_grip: bool = False, robot_xml: Path = PANDA_XML
+) -> mujoco.MjSpec:
     """The scene as an MjSpec: robot and table from assets/scene.xml with the robot's `dynamics`
     (`franka_dynamics.DYNAMICS`), the rest from `layout`; `firm_grip` sets FIRM_GRIP_TIMESTEP and
-    FIRM_GRIP_SOLREF."""
-    spec = mujoco.MjSpec.from_file(str(ASSETS / "scene.xml"))
+    FIRM_GRIP_SOLREF; `robot_xml` replaces jaxarm's Panda (`robot.scene_spec`)."""
+    spec = scene_spec(ASSETS / "scene.xml", robot_xml)
     set_dynamics(spec, dynamics)
     if firm_grip:
         spec.option.timestep = FIRM_GRIP_TIMESTEP
@@ -155,10 +157,13 @@ def build_spec(objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm
 
 
 @functools.cache
-def build_model(objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm_grip: bool = False) -> mujoco.MjModel:
+def build_model(
+    objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm_grip: bool = False, robot_xml: Path = PANDA_XML
+) -> mujoco.MjModel:
     """Compiled model for `objects_count` object slots in `layout` with the robot's `dynamics`, with the firm grip
-    of a thrower if `firm_grip` (FIRM_GRIP_TIMESTEP; cached: every argument is hashable)."""
-    return build_spec(objects_count, layout, dynamics, firm_grip).compile()
+    of a thrower if `firm_grip` (FIRM_GRIP_TIMESTEP), the Panda of `robot_xml` (cached: every argument is
+    hashable)."""
+    return build_spec(objects_count, layout, dynamics, firm_grip, robot_xml).compile()
 
 
 def resolve_ids(model: mujoco.MjModel, objects_count: int) -> ModelIds:

@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from jaxarm.envs.panda.franka_dynamics import NOMINAL, set_dynamics
-from jaxarm.envs.panda.robot import PandaIds, resolve_panda_ids
+from jaxarm.envs.panda.robot import PANDA_XML, PandaIds, resolve_panda_ids, scene_spec
 
 ASSETS = Path(__file__).parent / "assets"
 PEG_RADIUS = 0.01
@@ -110,10 +110,11 @@ def _add_block(spec: mujoco.MjSpec, clearance: float) -> None:
         block.add_geom(name=name, pos=centre, size=half, **common)
 
 
-def build_spec(clearance: float, dynamics: str = NOMINAL) -> mujoco.MjSpec:
+def build_spec(clearance: float, dynamics: str = NOMINAL, robot_xml: Path = PANDA_XML) -> mujoco.MjSpec:
     """The scene as an MjSpec: robot, table and camera from assets/scene.xml with the robot's `dynamics`
-    (`franka_dynamics.DYNAMICS`), then the peg and the block."""
-    spec = mujoco.MjSpec.from_file(str(ASSETS / "scene.xml"))
+    (`franka_dynamics.DYNAMICS`), then the peg and the block; `robot_xml` replaces jaxarm's Panda
+    (`robot.scene_spec`)."""
+    spec = scene_spec(ASSETS / "scene.xml", robot_xml)
     set_dynamics(spec, dynamics)
     _add_peg(spec)
     _add_block(spec, clearance)
@@ -124,10 +125,10 @@ def build_spec(clearance: float, dynamics: str = NOMINAL) -> mujoco.MjSpec:
 
 
 @functools.cache
-def build_model(clearance: float = 0.001, dynamics: str = NOMINAL) -> mujoco.MjModel:
-    """Compiled model with the walls at `clearance` (the env replaces them per env from its params) and the
-    robot's `dynamics` (cached: both arguments are hashable)."""
-    return build_spec(clearance, dynamics).compile()
+def build_model(clearance: float = 0.001, dynamics: str = NOMINAL, robot_xml: Path = PANDA_XML) -> mujoco.MjModel:
+    """Compiled model with the walls at `clearance` (the env replaces them per env from its params), the robot's
+    `dynamics` and the Panda of `robot_xml` (cached: every argument is hashable)."""
+    return build_spec(clearance, dynamics, robot_xml).compile()
 
 
 def resolve_ids(model: mujoco.MjModel) -> PegIds:
