@@ -1,0 +1,297 @@
+"""Run a policy in stock MuJoCo through the deployment loop: `python -m experiments.transfer RUN [--model NAME]
+[--episodes N] [--seed S] [--video [gif|mp4]] [--no-clip]`.
+
+The "robot" is the task's scene in MuJoCo's C engine (`mujoco.mj_step`: the scene's timestep, MuJoCo's default
+constraint solver), with jaxarm's own Panda (`--model jaxarm`) or MuJoCo Menagerie's (`--model menagerie`, same
+kinematics, its own inertials, actuators, gains and gripper). Between the policy and the robot runs only the
+deployment loop (`jaxarm.deploy`): the robot's reading -> the env's observation -> RUN/export/policy.npz (written
+by `python -m experiments.export RUN`) -> the env's controller in numpy -> servo targets within Franka's speed and
+acceleration limits (clipped, and each clip counted; `--no-clip` only counts). Each episode starts where the run's
+eval env would start one (its reset, drawn by JAX); from there no jaxarm env code runs, and success and return are
+recomputed from MuJoCo's state in numpy (`jaxarm.deploy.scoring`). Writes RUN/transfer-<model>-<episodes>-<seed>.json
+and, with --video, RUN/transfer-<model>.gif (or .mp4) of the first episode.
+"""
+
+import argparse
+import copy
+import pathlib
+import sys
+import time
+
+import jax
+import mujoco
+import numpy as np
+from scipy import stats
+
+from jaxarm.deploy import from_env, scoring
+from jaxarm.deploy.loop import DeploymentLoop
+from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
+from jaxarm.deploy.reading import HoleEstimate, ObjectEstimate
+from jaxarm.envs.panda.base import CONTROL_DT
+from jaxarm.envs.panda.robot import MENAGERIE_PANDA_XML
+from jaxarm.envs.panda_sort import PandaSort
+from jaxarm.envs.panda_sort import model as sort_model
+from jaxarm.envs.panda_sort.objects import object_mass_inertia, pose_index, velocity_index
+from jaxarm.envs.panda_sort.render import dress_objects
+from jaxarm.envs.peg_insert import model as peg_model
+from jaxarm.envs.peg_insert.env import PegInsert
+from jaxarm.export import numpy_policy
+from jaxarm.runner import rundir, video
+
+MODELS = ("jaxarm", "menagerie")
+VIDEO_SIZE = (240, 320)
+
+
+def plant_model(env, params, model_name: str) -> mujoco.MjModel:
+    """A fresh copy of the task's scene with the Panda `model_name` names, MuJoCo's default solver."""
+    if model_name == "jaxarm":
+        model = copy.copy(env.mj_model)
+    elif isinstance(env, PandaSort):
+        # The tosser's scene is the only one built with the firm grip, and its timestep says so.
+        firm_grip = env.mj_model.opt.timestep == sort_model.FIRM_GRIP_TIMESTEP
+        model = copy.copy(
+            sort_model.build_model(env.objects_count, env.layout, firm_grip=firm_grip, robot_xml=MENAGERIE_PANDA_XML)
+        )
+    else:
+        model = copy.copy(peg_model.build_model(float(params.clearance), robot_xml=MENAGERIE_PANDA_XML))
+    stock_solver(model)
+    return model
+
+
+def episode_starts(env, params, episodes: int, seed: int):
+    """The eval env's reset sims of `episodes` episodes as numpy arrays (leading axis: episode)."""
+    keys = jax.random.split(jax.random.PRNGKey(seed), episodes)
+    states = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
+    return jax.tree.map(np.asarray, states.sim)
+
+
+def one(sims, index: int):
+    return jax.tree.map(lambda leaf: leaf[index], sims)
+
+
+class Recorder:
+    """Frames of the scene from its `front` camera, or nothing."""
+
+    def __init__(self, model: mujoco.MjModel | None):
+        self.frames: list[np.ndarray] = []
+        self._renderer = mujoco.Renderer(model, *VIDEO_SIZE) if model is not None else None
+
+    def capture(self, data: mujoco.MjData) -> None:
+        if self._renderer is not None:
+            self._renderer.update_scene(data, camera="front")
+            self.frames.append(self._renderer.render())
+
+
+def sort_episode(robot: MujocoRobot, loop: DeploymentLoop, env: PandaSort, params, sim, recorder) -> dict:
+    """One sorter episode from `sim` (the env's reset); its success, return, steps and objects placed."""
+    model, data, ids = robot.model, robot.data, env.ids
+    dress_objects(model, ids, sim.shape, sim.size, sim.colour)
+    geoms = ids.object_geom.ravel()
+    model.geom_rbound[geoms] = np.linalg.norm(model.geom_size[geoms], axis=-1)
+    spheres = ids.object_geom[:, 2]
+    model.geom_rbound[spheres] = model.geom_size[spheres, 0]
+    mass, inertia = (np.asarray(array) for array in object_mass_inertia(sim.shape, sim.size, params.density))
+    model.body_mass[ids.object_body] = mass * float(params.mass_scale)
+    model.body_inertia[ids.object_body] = inertia * float(params.mass_scale)
+    model.pair_friction[ids.finger_pair, :2] = float(params.finger_friction)
+    model.pair_friction[ids.object_pair, :2] = float(params.object_friction)
+    # The objects' new masses change the constants MuJoCo derives from them (their inverse weights).
+    mujoco.mj_setConst(model, data)
+    mujoco.mj_resetData(model, data)
+    data.qpos[:] = sim.qpos
+    robot.command(sim.ctrl)
+    mujoco.mj_forward(model, data)
+    bins, reward = from_env.bins(env.layout), from_env.sort_reward(env, params)
+    shape, size = sim.shape, sim.size.astype(np.float64)
+    tcp_site = ids.robot.tcp_site
+
+    def world(outcome, exit_xy, target) -> scoring.SortState:
+        return scoring.SortState(
+            position=data.qpos[pose_index(ids)[:, :3]].copy(),
+            shape=shape,
+            size=size,
+            outcome=outcome,
+            exit_xy=exit_xy,
+            target=target,
+            tcp=data.site_xpos[tcp_site].copy(),
+            finger_q=data.qpos[ids.robot.finger_qpos].copy(),
+            finger_ctrl=loop.ctrl[7:].copy(),
+        )
+
+    loop.begin(sim.ctrl)
+    state = world(sim.outcome.copy(), np.zeros((len(shape), 2)), int(sim.target))
+    potential = scoring.shaping_potential(state, bins, reward)
+    total, steps = 0.0, 0
+    recorder.capture(data)
+    while steps < int(params.max_episode_steps):
+        steps += 1
+        estimate = ObjectEstimate(data.qpos[pose_index(ids)].copy(), data.qvel[velocity_index(ids)].copy(), shape, size)
+        robot.command(loop.tick(robot.reading(), estimate))
+        robot.step()
+        recorder.capture(data)
+        now = world(state.outcome, state.exit_xy, state.target)
+        outcome = scoring.next_outcome(state.outcome, shape, now.position, bins)
+        leaving = (state.outcome == scoring.IN_PLAY) & (outcome != scoring.IN_PLAY)
+        exit_xy = np.where(leaving[:, None], now.position[:, :2], state.exit_xy)
+        target = scoring.next_target(outcome, state.target, now.position, now.tcp)
+        now = world(outcome, exit_xy, target)
+        next_potential = scoring.shaping_potential(now, bins, reward)
+        total += scoring.sort_reward(state.outcome, outcome, float(np.sum(next_potential - potential)), reward)
+        state, potential = now, next_potential
+        if not np.any(outcome == scoring.IN_PLAY):
+            break
+    placed = np.mean(state.outcome == scoring.IN_CORRECT_BIN)
+    return {"success": bool(placed == 1.0), "return": total, "steps": steps, "placed": float(placed)}
+
+
+def peg_episode(robot: MujocoRobot, loop: DeploymentLoop, env: PegInsert, params, sim, recorder) -> dict:
+    """One peg episode from `sim` (the env's reset); its success (inserted at any step), return and steps."""
+    model, data = robot.model, robot.data
+    ids = peg_model.resolve_ids(model)
+    model.body_pos[ids.block_body] = [*sim.hole, 0.0]
+    mujoco.mj_resetData(model, data)
+    data.qpos[:] = sim.qpos
+    robot.command(sim.ctrl)
+    mujoco.mj_forward(model, data)
+    reward = from_env.peg_reward(params)
+    radius, half_length = model.geom_size[ids.peg_geom, :2]
+    hole_bottom = np.array([*sim.hole, peg_model.HOLE_FLOOR])
+
+    def distance() -> float:
+        return float(np.linalg.norm(data.site_xpos[ids.peg_tip] - hole_bottom))
+
+    touched = [False]
+
+    def check_table(data: mujoco.MjData) -> None:
+        touched[0] |= scoring.capsule_below_plane(
+            data.geom_xpos[ids.peg_geom],
+            data.geom_xmat[ids.peg_geom].reshape(3, 3),
+            radius,
+            half_length,
+            data.geom_xpos[ids.table_geom],
+            data.geom_xmat[ids.table_geom].reshape(3, 3),
+        )
+
+    loop.begin(sim.ctrl)
+    initial = previous = distance()
+    total, steps, success = 0.0, 0, False
+    recorder.capture(data)
+    while steps < int(params.max_episode_steps):
+        steps += 1
+        robot.command(loop.tick(robot.reading(), HoleEstimate(sim.hole.astype(np.float64))))
+        robot.step(check_table)
+        recorder.capture(data)
+        now = distance()
+        total += scoring.peg_reward(previous, now, initial, reward)
+        success |= now < reward.insert_distance
+        previous = now
+        if touched[0] or now > reward.max_distance:
+            break
+    return {"success": bool(success), "return": total, "steps": steps}
+
+
+def set_walls(model: mujoco.MjModel, params) -> None:
+    """The peg block's walls at the params' clearance, as the env places them."""
+    ids = peg_model.resolve_ids(model)
+    centres, halves = (np.asarray(array) for array in peg_model.hole_walls(np.float32(params.clearance)))
+    model.geom_pos[ids.wall_geoms] = centres
+    model.geom_size[ids.wall_geoms] = halves
+
+
+def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int, clip: bool, record: bool) -> dict:
+    """Runs `episodes` episodes of `policy` (flat observation -> action, numpy) in the eval `env`'s scene with
+    `model_name`'s Panda, from the env's resets drawn from `seed`; the summary, and the first episode's frames
+    under "frames" when `record`."""
+    controller = from_env.controller(env, params)
+    run_episode = sort_episode if isinstance(env, PandaSort) else peg_episode
+    model = plant_model(env, params, model_name)
+    if isinstance(env, PegInsert):
+        set_walls(model, params)
+    robot = MujocoRobot(model, CONTROL_DT)
+    loop = DeploymentLoop(policy, controller, CONTROL_DT, clip=clip)
+    sims = episode_starts(env, params, episodes, seed)
+    began = time.perf_counter()
+    results: list[dict] = []
+    frames: list[np.ndarray] = []
+    for index in range(episodes):
+        recorder = Recorder(model if record and index == 0 else None)
+        results.append(run_episode(robot, loop, env, params, one(sims, index), recorder))
+        frames = frames or recorder.frames
+    successes = sum(result["success"] for result in results)
+    interval = stats.binomtest(successes, episodes).proportion_ci(method="wilson")
+    ticks = np.array(loop.tick_seconds)
+    summary = {
+        "model": model_name,
+        "episodes": episodes,
+        "seed": seed,
+        "success_rate": successes / episodes,
+        "success_ci95": [interval.low, interval.high],
+        "return_mean": float(np.mean([result["return"] for result in results])),
+        "steps_mean": float(np.mean([result["steps"] for result in results])),
+        "clip": clip,
+        "ticks": len(ticks),
+        "acceleration_clips": loop.counts.acceleration.tolist(),
+        "speed_clips": loop.counts.speed.tolist(),
+        "tick_ms_p50": float(np.percentile(ticks, 50) * 1e3),
+        "tick_ms_p99": float(np.percentile(ticks, 99) * 1e3),
+        "timestep": float(model.opt.timestep),
+        "solver_iterations": int(model.opt.iterations),
+        "wall_seconds": time.perf_counter() - began,
+    }
+    if isinstance(env, PandaSort):
+        summary["placed_fraction"] = float(np.mean([result["placed"] for result in results]))
+    return summary | {"frames": frames} if record else summary
+
+
+def transfer(run_dir: pathlib.Path, model_name: str, episodes: int, seed: int, clip: bool, record: bool) -> dict:
+    """`run_episodes` of RUN's exported policy in its eval env; ValueError if the policy is missing or does not
+    fit the env."""
+    config, _ = rundir.read_config(run_dir)
+    env, params = config.make_eval_env()
+    policy_path = run_dir / "export" / "policy.npz"
+    if not policy_path.exists():
+        raise ValueError(f"no {policy_path}: export the run first (python -m experiments.export {run_dir})")
+    policy = numpy_policy.load(policy_path)
+    if policy.observation_size != env.spec.observation_shape[0] or policy.action_size != env.spec.action_shape[0]:
+        raise ValueError(f"{policy_path} does not fit the run's env ({env.spec})")
+    return run_episodes(env, params, policy, model_name, episodes, seed, clip, record)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m experiments.transfer", description=__doc__)
+    parser.add_argument("run_dir")
+    parser.add_argument("--model", choices=MODELS, default="jaxarm", help="whose Panda the scene holds")
+    parser.add_argument("--episodes", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=12345)
+    parser.add_argument("--video", nargs="?", const="gif", choices=video.FORMATS, help="write the first episode")
+    parser.add_argument("--no-clip", action="store_true", help="count commands beyond Franka's limits, send them")
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    run_dir = pathlib.Path(args.run_dir)
+    try:
+        if args.episodes <= 0:
+            raise ValueError(f"--episodes must be positive, got {args.episodes}")
+        result = transfer(run_dir, args.model, args.episodes, args.seed, not args.no_clip, args.video is not None)
+        frames = result.pop("frames", [])
+        path = run_dir / f"transfer-{args.model}-{args.episodes}-{args.seed}.json"
+        rundir.write_json(path, result)
+        low, high = result["success_ci95"]
+        print(
+            f"{run_dir} in stock MuJoCo ({args.model}'s Panda): success_rate {result['success_rate']:.3f} "
+            f"[{low:.3f}, {high:.3f}] return_mean {result['return_mean']:.2f} over {args.episodes} episodes; "
+            f"tick p50 {result['tick_ms_p50']:.2f} ms, p99 {result['tick_ms_p99']:.2f} ms; "
+            f"{'clipped' if result['clip'] else 'beyond'} Franka's limits in {result['ticks']} ticks: "
+            f"acceleration {result['acceleration_clips']}, speed {result['speed_clips']}"
+        )
+        print(f"wrote {path}")
+        if args.video:
+            video_path = run_dir / f"transfer-{args.model}.{args.video}"
+            video.write_video(video_path, frames)
+            print(f"wrote {video_path} ({len(frames)} frames)")
+    except (ValueError, OSError, video.RenderError, mujoco.FatalError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

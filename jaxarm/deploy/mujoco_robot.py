@@ -1,0 +1,71 @@
+"""Stock MuJoCo as the robot: a scene stepped by MuJoCo's C engine (`mujoco.mj_step`), read and commanded only as
+a Panda's controller would be (joints, gripper, servo targets). Imports numpy and mujoco alone.
+
+The scene keeps its own timestep, integrator and contact settings; the constraint solver gets MuJoCo's defaults
+(`stock_solver`), not the few iterations the MJX scenes are tuned to for speed.
+"""
+
+import mujoco
+import numpy as np
+
+from jaxarm.deploy.kinematics import ARM_JOINTS
+from jaxarm.deploy.reading import ArmReading
+
+FINGER_JOINTS = ("finger_left", "finger_right")
+FINGER_ACTUATORS = (("finger_left", "finger_right"), ("fingers",))
+"""A Panda model's gripper drive: one position servo per finger (jaxarm's), or one for both (menagerie's)."""
+SOLVER_OPTIONS = ("solver", "iterations", "ls_iterations", "tolerance", "ls_tolerance", "noslip_iterations")
+
+
+def stock_solver(model: mujoco.MjModel) -> dict[str, float]:
+    """Sets `model`'s constraint solver options to MuJoCo's defaults (in place); returns them by name."""
+    default = mujoco.MjModel.from_xml_string("<mujoco/>").opt
+    for name in SOLVER_OPTIONS:
+        setattr(model.opt, name, getattr(default, name))
+    return {name: float(getattr(default, name)) for name in SOLVER_OPTIONS}
+
+
+class MujocoRobot:
+    """A Panda scene in MuJoCo C, driven one control period at a time.
+
+    Args:
+      model: the scene (a Panda with jaxarm's joint and actuator names; its gripper one of `FINGER_ACTUATORS`).
+      period: seconds per control tick; the scene steps `period / timestep` times per tick.
+
+    Attributes:
+      model, data: the scene and its state.
+      substeps: physics steps per tick.
+    """
+
+    def __init__(self, model: mujoco.MjModel, period: float):
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self.substeps = int(round(period / model.opt.timestep))
+        joints = [model.joint(name) for name in (*ARM_JOINTS, *FINGER_JOINTS)]
+        self._qpos = np.array([joint.qposadr[0] for joint in joints])
+        self._dof = np.array([joint.dofadr[0] for joint in joints])
+        self._arm_actuators = np.array([model.actuator(name).id for name in ARM_JOINTS])
+        names = {model.actuator(k).name for k in range(model.nu)}
+        drive = next(drive for drive in FINGER_ACTUATORS if set(drive) <= names)
+        self._finger_actuators = np.array([model.actuator(name).id for name in drive])
+        # Command units per metre of finger opening: 1 for a finger's own servo, 255 / 0.04 for menagerie's.
+        travel = model.joint(FINGER_JOINTS[0]).range[1]
+        self._finger_scale = model.actuator_ctrlrange[self._finger_actuators, 1] / travel
+
+    def reading(self) -> ArmReading:
+        """What the arm's sensors report now."""
+        qpos, qvel = self.data.qpos[self._qpos], self.data.qvel[self._dof]
+        return ArmReading(arm_q=qpos[:7].copy(), arm_qvel=qvel[:7].copy(), finger_q=qpos[7:].copy())
+
+    def command(self, ctrl: np.ndarray) -> None:
+        """Sends servo targets [9]: the arm's joints, then each finger's opening (m)."""
+        self.data.ctrl[self._arm_actuators] = ctrl[:7]
+        fingers = ctrl[7:] if len(self._finger_actuators) == 2 else np.mean(ctrl[7:], keepdims=True)
+        self.data.ctrl[self._finger_actuators] = fingers * self._finger_scale
+
+    def step(self, after_substep=None) -> None:
+        """One control period of physics; `after_substep(data)`, if given, runs after each physics step."""
+        for _ in range(self.substeps):
+            mujoco.mj_step(self.model, self.data)
+            if after_substep is not None:
+                after_substep(self.data)

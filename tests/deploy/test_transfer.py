@@ -1,0 +1,76 @@
+"""`python -m experiments.transfer`: policies run in stock MuJoCo through the deployment loop, on jaxarm's Panda
+and on menagerie's.
+
+The tests of episodes draw their starts with the env's reset (one MJX program: marked mjx); from there only
+MuJoCo C and `jaxarm.deploy` run.
+"""
+
+import dataclasses
+import json
+
+import mujoco
+import numpy as np
+import pytest
+
+from experiments import configs, transfer
+from experiments.benchmarks.deploy import random_policy
+from jaxarm.envs.panda.robot import resolve_panda_ids, tcp_pose_at
+from jaxarm.envs.peg_insert.env import PegInsert
+from jaxarm.runner import rundir
+
+
+def test_both_pandas_have_the_same_kinematics_and_the_stock_solver():
+    env = PegInsert()
+    params = env.default_params()
+    models = [transfer.plant_model(env, params, name) for name in transfer.MODELS]
+    default = mujoco.MjModel.from_xml_string("<mujoco/>").opt
+    for model in models:
+        assert model.opt.iterations == default.iterations and model.opt.timestep == env.mj_model.opt.timestep
+    jaxarm, menagerie = models
+    # Menagerie's own dynamics: another gripper drive, other link inertias.
+    assert menagerie.nu == jaxarm.nu - 1
+    assert not np.allclose(menagerie.body("link1").inertia, jaxarm.body("link1").inertia)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        arm_q = env.start_qpos + rng.uniform(-0.5, 0.5, 7)
+        (tcp_a, rotation_a), (tcp_b, rotation_b) = (tcp_pose_at(m, resolve_panda_ids(m), arm_q) for m in models)
+        np.testing.assert_allclose(tcp_a, tcp_b, atol=1e-9)
+        np.testing.assert_allclose(rotation_a, rotation_b, atol=1e-6)
+
+
+def scripted_insertion(obs: np.ndarray) -> np.ndarray:
+    """Over the hole (the observation's first entries: hole bottom − tip, per 0.1 m) to within 2 mm, then down."""
+    xy = np.clip(obs[:2] * 20.0, -1.0, 1.0)
+    return np.array([*xy, -1.0 if np.abs(obs[:2]).max() * 0.1 < 0.002 else 0.0])
+
+
+@pytest.mark.mjx
+@pytest.mark.slow
+def test_a_scripted_peg_inserts_in_stock_mujoco_with_both_pandas():
+    env = PegInsert()
+    params = env.default_params()
+    for name in transfer.MODELS:
+        result = transfer.run_episodes(env, params, scripted_insertion, name, 2, 0, clip=True, record=False)
+        assert result["success_rate"] == 1.0, (name, result)
+        assert result["ticks"] == 2 * result["steps_mean"] and result["return_mean"] > 1.0
+
+
+@pytest.mark.mjx
+@pytest.mark.slow
+def test_the_transfer_cli_runs_an_exported_sorter_policy_on_both_pandas(tmp_path, capsys):
+    config = configs.get("ppo_sorter_dr")
+    config = dataclasses.replace(config, env_params=(*config.env_params, ("max_episode_steps", 20)))
+    rundir.write_config(tmp_path, config, "ppo_sorter_dr")
+    assert transfer.main([str(tmp_path)]) == 2
+    assert "export the run first" in capsys.readouterr().err
+    env, _ = config.make_eval_env()
+    policy = random_policy(config, env.spec.observation_shape[0], env.spec.action_shape[0], np.random.default_rng(0))
+    (tmp_path / "export").mkdir()
+    policy.save(tmp_path / "export" / "policy.npz")
+    for name in transfer.MODELS:
+        assert transfer.main([str(tmp_path), "--model", name, "--episodes", "2"]) == 0
+        result = json.loads((tmp_path / f"transfer-{name}-2-12345.json").read_text())
+        assert result["model"] == name and result["ticks"] == 40 and result["steps_mean"] == 20
+        assert 0.0 <= result["success_rate"] <= result["success_ci95"][1] <= 1.0
+        assert len(result["acceleration_clips"]) == len(result["speed_clips"]) == 7
+        assert f"({name}'s Panda)" in capsys.readouterr().out
