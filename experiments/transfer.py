@@ -54,6 +54,8 @@ def plant_model(env, params, model_name: str) -> mujoco.MjModel:
         )
     else:
         model = copy.copy(peg_model.build_model(float(params.clearance), robot_xml=MENAGERIE_PANDA_XML))
+    if model.nq != env.mj_model.nq:
+        raise ValueError(f"{model_name}'s scene has {model.nq} positions, the env's {env.mj_model.nq}")
     stock_solver(model)
     return model
 
@@ -82,19 +84,28 @@ class Recorder:
             self.frames.append(self._renderer.render())
 
 
-def sort_episode(robot: MujocoRobot, loop: DeploymentLoop, env: PandaSort, params, sim, recorder) -> dict:
-    """One sorter episode from `sim` (the env's reset); its success, return, steps and objects placed."""
-    model, data, ids = robot.model, robot.data, env.ids
-    dress_objects(model, ids, sim.shape, sim.size, sim.colour)
+def dress_sort_scene(model: mujoco.MjModel, env: PandaSort, params, shape, size, colour) -> sort_model.ModelIds:
+    """Writes an episode's objects (shapes [N], sizes [N], colours [N, 3]) and the params' masses and friction into
+    the robot's scene `model` (in place), as the env's `episode_model` does; returns the scene's ids, resolved in
+    it (another Panda model may number its bodies differently)."""
+    ids = sort_model.resolve_ids(model, env.objects_count)
+    dress_objects(model, ids, shape, size, colour)
     geoms = ids.object_geom.ravel()
     model.geom_rbound[geoms] = np.linalg.norm(model.geom_size[geoms], axis=-1)
     spheres = ids.object_geom[:, 2]
     model.geom_rbound[spheres] = model.geom_size[spheres, 0]
-    mass, inertia = (np.asarray(array) for array in object_mass_inertia(sim.shape, sim.size, params.density))
+    mass, inertia = (np.asarray(array) for array in object_mass_inertia(shape, size, params.density))
     model.body_mass[ids.object_body] = mass * float(params.mass_scale)
     model.body_inertia[ids.object_body] = inertia * float(params.mass_scale)
     model.pair_friction[ids.finger_pair, :2] = float(params.finger_friction)
     model.pair_friction[ids.object_pair, :2] = float(params.object_friction)
+    return ids
+
+
+def sort_episode(robot: MujocoRobot, loop: DeploymentLoop, env: PandaSort, params, sim, recorder) -> dict:
+    """One sorter episode from `sim` (the env's reset); its success, return, steps and objects placed."""
+    model, data = robot.model, robot.data
+    ids = dress_sort_scene(model, env, params, sim.shape, sim.size, sim.colour)
     # The objects' new masses change the constants MuJoCo derives from them (their inverse weights).
     mujoco.mj_setConst(model, data)
     mujoco.mj_resetData(model, data)

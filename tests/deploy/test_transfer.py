@@ -15,6 +15,7 @@ import pytest
 from experiments import configs, transfer
 from experiments.benchmarks.deploy import random_policy
 from jaxarm.envs.panda.robot import resolve_panda_ids, tcp_pose_at
+from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.peg_insert.env import PegInsert
 from jaxarm.runner import rundir
 
@@ -36,6 +37,25 @@ def test_both_pandas_have_the_same_kinematics_and_the_stock_solver():
         (tcp_a, rotation_a), (tcp_b, rotation_b) = (tcp_pose_at(m, resolve_panda_ids(m), arm_q) for m in models)
         np.testing.assert_allclose(tcp_a, tcp_b, atol=1e-9)
         np.testing.assert_allclose(rotation_a, rotation_b, atol=1e-6)
+
+
+def test_each_pandas_scene_gets_the_episodes_objects_on_its_own_bodies():
+    env = PandaSort(objects_count=2)
+    params = env.default_params()
+    shape, size = np.array([0, 2]), np.array([0.02, 0.03])
+    masses = {}
+    for name in transfer.MODELS:
+        model = transfer.plant_model(env, params, name)
+        fingers = model.body("left_finger").mass.copy()
+        ids = transfer.dress_sort_scene(model, env, params, shape, size, np.zeros((2, 3)))
+        assert [model.body(int(body)).name for body in ids.object_body] == ["object0", "object1"]
+        masses[name] = model.body_mass[ids.object_body]
+        np.testing.assert_array_equal(model.body("left_finger").mass, fingers)
+        # The sphere's collision geom has its radius, the cube's box its half-size.
+        np.testing.assert_allclose([model.geom("object0_box").size[0], model.geom("object1_sphere").size[0]], size)
+    expected = float(params.density) * np.array([8 * 0.02**3, 4 / 3 * np.pi * 0.03**3])
+    np.testing.assert_allclose(masses["jaxarm"], expected, rtol=1e-6)
+    np.testing.assert_allclose(masses["menagerie"], expected, rtol=1e-6)
 
 
 def scripted_insertion(obs: np.ndarray) -> np.ndarray:
