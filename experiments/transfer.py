@@ -83,6 +83,11 @@ class Recorder:
             self._renderer.update_scene(data, camera="front")
             self.frames.append(self._renderer.render())
 
+    def close(self) -> None:
+        # Closed here: a renderer left to the interpreter's teardown prints a TypeError.
+        if self._renderer is not None:
+            self._renderer.close()
+
 
 def dress_sort_scene(model: mujoco.MjModel, env: PandaSort, params, shape, size, colour) -> sort_model.ModelIds:
     """Writes an episode's objects (shapes [N], sizes [N], colours [N, 3]) and the params' masses and friction into
@@ -227,6 +232,7 @@ def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int,
     for index in range(episodes):
         recorder = Recorder(model if record and index == 0 else None)
         results.append(run_episode(robot, loop, env, params, one(sims, index), recorder))
+        recorder.close()
         frames = frames or recorder.frames
     successes = sum(result["success"] for result in results)
     interval = stats.binomtest(successes, episodes).proportion_ci(method="wilson")
