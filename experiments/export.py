@@ -6,6 +6,8 @@ From the run's latest checkpoint, writes into RUN_DIR/export/ (or --out):
   policy.jax_export  the learner's own `act`, serialised by jax.export (CPU and CUDA);
                      `jax.export.deserialize(data).call(obs)` runs it for any batch size
   policy.onnx        the same as an ONNX model, when jax2onnx is installed (`pip install -e ".[export]"`)
+  deploy.json, robot.mjb   for the sorter and the peg (state observations): the deployment loop's task and the
+                     scene it poses the arm in; `jaxarm.deploy.files.load(dir)` builds its controller without JAX
 Every form maps flat observations float32 [B, O] (or [O] for the numpy policy) to deterministic actions.
 """
 
@@ -15,6 +17,8 @@ import sys
 
 from experiments import configs
 from jaxarm.agents.common import checkpoint
+from jaxarm.deploy import files as deploy_files
+from jaxarm.deploy import from_env
 from jaxarm.export import policy
 from jaxarm.runner import rundir
 
@@ -35,6 +39,10 @@ def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Pat
         onnx_model: bytes | None = policy.onnx_policy(trainer, state, observation_size)
     except ImportError:
         onnx_model = None
+    try:
+        controller = from_env.controller(*config.make_eval_env())
+    except ValueError:  # the deployment loop runs the sorter and the peg only
+        controller = None
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / "policy.npz", out_dir / "policy.jax_export"]
     arrays.save(written[0])
@@ -42,6 +50,8 @@ def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Pat
     if onnx_model is not None:
         written.append(out_dir / "policy.onnx")
         written[2].write_bytes(onnx_model)
+    if controller is not None:
+        written += deploy_files.save(out_dir, controller)
     return written
 
 
@@ -63,7 +73,7 @@ def main(argv=None) -> int:
         return 2
     for path in written:
         print(f"wrote {path}")
-    if len(written) < 3:
+    if not any(path.name == "policy.onnx" for path in written):
         print('no policy.onnx: jax2onnx is not installed (pip install -e ".[export]")')
     return 0
 

@@ -79,11 +79,9 @@ def controller(env, params) -> Controller:
     """The numpy controller of `env` (a `PandaSort` or `PegInsert` with state observations) with `params`, posing
     the arm in the env's own model. ValueError for any other env."""
     env = getattr(env, "unwrapped", env)
-    if getattr(env, "obs_mode", None) != "state":
+    if not isinstance(env, sort_env.PandaSort | peg_env.PegInsert) or env.obs_mode != "state":
         raise ValueError(f"the deployment loop runs the sorter and the peg with state observations, not {env!r}")
     kinematics = ArmKinematics(env.mj_model)
     if isinstance(env, sort_env.PandaSort):
         return sort.SortController(sort_task(env, params), kinematics)
-    if isinstance(env, peg_env.PegInsert):
-        return peg.PegController(peg_task(env, params), kinematics)
-    raise ValueError(f"the deployment loop runs the sorter and the peg, not {type(env).__name__}")
+    return peg.PegController(peg_task(env, params), kinematics)

@@ -12,7 +12,7 @@ from jaxarm.envs.panda import robot
 
 
 def test_the_deployment_package_imports_no_jax():
-    modules = "jaxarm.deploy.loop, jaxarm.deploy.sort, jaxarm.deploy.peg, jaxarm.export.numpy_policy"
+    modules = "jaxarm.deploy.loop, jaxarm.deploy.files, jaxarm.deploy.mujoco_robot, jaxarm.export.numpy_policy"
     code = f"import sys, {modules}; print(sorted(m for m in sys.modules if m.split('.')[0] in ('jax', 'flax')))"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert result.stdout.strip() == "[]"
