@@ -27,9 +27,7 @@ import logging  # noqa: E402
 import math  # noqa: E402
 import pathlib  # noqa: E402
 
-import jax  # noqa: E402
-
-from experiments import configs  # noqa: E402
+from experiments import configs, distributed  # noqa: E402
 from jaxarm.agents.common import checkpoint  # noqa: E402
 from jaxarm.agents.common.config import apply_overrides  # noqa: E402
 from jaxarm.runner import loop, processes, rundir, show  # noqa: E402
@@ -79,41 +77,17 @@ def parse_args(argv):
     parser.add_argument(
         "--wandb-offline", action="store_true", help="with --wandb: write under the run directory, sync later"
     )
-    parser.add_argument(
-        "--distributed",
-        action="store_true",
-        help="one of several processes (several hosts, or one process per GPU): run the same command in each, "
-        "with the same --out; on SLURM the processes find each other alone, elsewhere give the three options below",
-    )
-    parser.add_argument("--coordinator", metavar="HOST:PORT", help="with --distributed: process 0's address")
-    parser.add_argument("--num-processes", type=int, help="with --distributed: how many processes in all")
-    parser.add_argument("--process-id", type=int, help="with --distributed: this process's index, from 0")
+    distributed.add_arguments(parser, "--out")
     parser.add_argument("overrides", nargs="*", help="config overrides key=value (env_params.NAME=VALUE too)")
     args = parser.parse_args(argv)
     if not (args.list or args.config or args.resume):
         parser.error("give --config NAME, --resume RUN_DIR or --list")
     if args.resume and args.config:
         parser.error("--resume takes the config saved in the run directory; give no --config")
-    joining = (args.coordinator, args.num_processes, args.process_id)
-    if any(option is not None for option in joining) and not args.distributed:
-        parser.error("--coordinator, --num-processes and --process-id go with --distributed")
+    distributed.check_arguments(parser, args)
     if args.distributed and args.config and not args.out and not (args.list or args.show):
         parser.error("with --distributed give --out: every process must write to the same run directory")
     return args
-
-
-def join_processes(args) -> None:
-    """Joins the run's other processes (`jax.distributed.initialize`); ValueError in one line where that fails."""
-    try:
-        jax.distributed.initialize(
-            coordinator_address=args.coordinator, num_processes=args.num_processes, process_id=args.process_id
-        )
-    except (ValueError, RuntimeError) as error:
-        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-        raise ValueError(
-            f"--distributed could not join the other processes ({first_line}); outside SLURM give --coordinator "
-            "HOST:PORT, --num-processes N and --process-id I"
-        ) from None
 
 
 def quiet_libraries() -> None:
@@ -138,7 +112,7 @@ def _main(argv) -> int:
     args = parse_args(argv)
     if args.distributed:
         try:
-            join_processes(args)
+            distributed.join(args)
         except ValueError as error:
             print(f"error: {error}", file=sys.stderr)
             return 2

@@ -4,7 +4,8 @@ Dynamic hyper-parameters (the config's fields declared `dynamic`) of every seed 
 compiled call; static choices (num_envs, sizes, ...) form separate groups, each compiled once. Writes
 results.csv and results.md (mean, std and 95% CI over seeds of final return and success, wall time) and
 curves.png (mean success rate and return over env steps with 95% CI bands) into the sweep directory, a new or
-empty one, locked while the sweep runs: a sweep never replaces another's results.
+empty one, locked while the sweep runs: a sweep never replaces another's results. With several devices the
+seeds and values are shared out over them, each run whole on one device (as many devices as divide their count).
 """
 
 import argparse
@@ -17,12 +18,14 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.sharding import Mesh
 
-from experiments import configs
+from experiments import configs, distributed
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
+from jaxarm.agents.common.sharding import gathered, members_mesh, over_members
 from jaxarm.agents.common.trainer import Trainer, run_updates
-from jaxarm.runner import plots, rundir
+from jaxarm.runner import plots, processes, rundir
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.stats import confidence_halfwidth
 
@@ -52,24 +55,30 @@ def parse_grid(base: RunConfig, assignments: list[str]) -> Grid:
     return Grid(groups=[apply_overrides(base, overrides) for overrides in static], dynamic=dynamic)
 
 
-def init_members(trainer: Trainer, keys: jax.Array, hparams):
-    """Learner states of a sweep's members, stacked: keys [M, 2] and hparams with leaves [M] -> states [M, ...].
+def init_members(trainer: Trainer, keys: jax.Array, hparams, mesh: Mesh | None = None):
+    """Learner states of a sweep's members, stacked: keys [M, 2] and hparams with leaves [M] -> states [M, ...],
+    each device of `mesh` making its share (sharding.over_members).
 
     One member at a time: vmapped, the orthogonal initialisers become batched QR factorisations, and jaxlib
     0.10's CPU runtime deadlocks when two of those fan out over a two-worker pool at once (gdb: both workers in
     ParallelBatchMap's BlockingCounter::Wait inside lapack_sgeqrf, 64 seeds, 2 cores).
     """
-    return jax.jit(lambda k, h: jax.lax.map(lambda member: trainer.init(*member), (k, h)))(keys, hparams)
+    init = over_members(lambda k, h: jax.lax.map(lambda member: trainer.init(*member), (k, h)), mesh)
+    return jax.jit(init)(keys, hparams)
 
 
 def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, progress=print):
     """Trains every (dynamic combination × seed) of one static group in one vmapped program.
 
     Returns (metrics with leaves [members, updates], eval results [members, episodes], wall seconds); members
-    are ordered combination-major, seed-minor.
+    are ordered combination-major, seed-minor. The members are shared out over as many devices (of every
+    process) as divide their count, each member computed as on one device.
     """
     trainer = configs.make_trainer(config)
     members = [(combo, seed) for combo in dynamic for seed in range(seeds)]
+    mesh = members_mesh(len(members))
+    if mesh is not None:
+        progress(f"  {len(members)} runs shared over {mesh.devices.size} devices")
     base = config.hparams()
     hparams = jax.tree.map(
         lambda *leaves: jnp.stack(leaves),
@@ -77,17 +86,17 @@ def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, pr
     )
     keys = jnp.stack([jax.random.PRNGKey(config.seed + seed) for _, seed in members])
     start = time.perf_counter()
-    state = init_members(trainer, keys, hparams)
+    state = init_members(trainer, keys, hparams, mesh)
     if config.init_from:
-        state = jax.vmap(rundir.warm_starter(config))(state)
+        state = jax.jit(over_members(jax.vmap(rundir.warm_starter(config)), mesh))(state)
     chunk = jax.jit(
-        jax.vmap(lambda s, h: run_updates(trainer, s, h, config.chunk_updates)),
+        over_members(jax.vmap(lambda s, h: run_updates(trainer, s, h, config.chunk_updates)), mesh),
         compiler_options=trainer.compiler_options,
     )
     chunks = []
     for index in range(trainer.num_updates // config.chunk_updates):
         state, metrics = chunk(state, hparams)
-        chunks.append(jax.device_get(metrics))
+        chunks.append(gathered(metrics))
         progress(
             f"  chunk {index + 1}/{trainer.num_updates // config.chunk_updates} ({time.perf_counter() - start:.1f} s)"
         )
@@ -95,13 +104,16 @@ def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, pr
     env, env_params = config.make_eval_env()
     eval_keys = jax.random.split(jax.random.PRNGKey(config.seed + 1_000_003), len(members))
     results = jax.jit(
-        jax.vmap(
-            lambda learner, key: evaluate(
-                env, env_params, lambda obs: trainer.act(learner, obs), key, config.eval_episodes
-            )
+        over_members(
+            jax.vmap(
+                lambda learner, key: evaluate(
+                    env, env_params, lambda obs: trainer.act(learner, obs), key, config.eval_episodes
+                )
+            ),
+            mesh,
         )
     )(state, eval_keys)
-    return metrics, jax.device_get(results), time.perf_counter() - start
+    return metrics, gathered(results), time.perf_counter() - start
 
 
 def summarise(label: str, success: np.ndarray, returns: np.ndarray, wall: float) -> dict:
@@ -179,9 +191,15 @@ def main(argv=None) -> int:
     parser.add_argument("--config", required=True)
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--out", help="sweep directory (default runs/sweep-<config>-<timestamp>)")
+    distributed.add_arguments(parser, "--out")
     parser.add_argument("assignments", nargs="*", help="key=v1,v2,... (one value: a plain override)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    distributed.check_arguments(parser, args)
+    if args.distributed and not args.out:
+        parser.error("with --distributed give --out: every process must write to the same sweep directory")
     try:
+        if args.distributed:
+            distributed.join(args)
         if args.seeds <= 0:
             raise ValueError(f"--seeds must be positive, got {args.seeds}")
         base = configs.get(args.config)
@@ -190,8 +208,12 @@ def main(argv=None) -> int:
             rundir.check_output_dir(pathlib.Path(args.out))
         enable_compilation_cache()
         out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"sweep-{args.config}")
+        title = f"{args.config}, {args.seeds} seeds"
+        if not processes.is_primary():  # every process trains its members; process 0 alone writes
+            sweep(base, grid, args.seeds, None, title)
+            return 0
         with rundir.locked(out, check=rundir.check_empty):
-            sweep(base, grid, args.seeds, out, title=f"{args.config}, {args.seeds} seeds")
+            sweep(base, grid, args.seeds, out, title)
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -201,8 +223,9 @@ def main(argv=None) -> int:
     return 0
 
 
-def sweep(base: RunConfig, grid: Grid, seeds: int, out: pathlib.Path, title: str) -> None:
-    """Trains every group of `grid` and writes the tables and curves into `out`."""
+def sweep(base: RunConfig, grid: Grid, seeds: int, out: pathlib.Path | None, title: str) -> None:
+    """Trains every group of `grid` and writes the tables and curves into `out` (None: writes nothing, as a
+    process other than the first of a distributed sweep)."""
     rows, curves = [], {}
     for config in grid.groups:
         print(f"group {describe(config, base, {})}: {len(grid.dynamic)} settings × {seeds} seeds", flush=True)
@@ -210,6 +233,8 @@ def sweep(base: RunConfig, grid: Grid, seeds: int, out: pathlib.Path, title: str
         group_rows, group_curves = collect(config, base, grid.dynamic, seeds, metrics, results, wall)
         rows += group_rows
         curves.update(group_curves)
+    if out is None:
+        return
     write_tables(rows, out)
     plots.sweep_curves(curves, out / "curves.png", title=title)
     print((out / "results.md").read_text())

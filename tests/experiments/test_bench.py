@@ -8,7 +8,7 @@ import math
 import jax
 import pytest
 
-from experiments.benchmarks import arm2d, learner, record, scaling, training
+from experiments.benchmarks import arm2d, devices, learner, record, scaling, training
 from experiments.benchmarks.arm2d import default_max_env_steps, scan_length
 from experiments.benchmarks.training import PARTS, Result, ppo_config
 from jaxarm import envs
@@ -125,6 +125,20 @@ def test_scaling_suite_writes_its_curves(tmp_path):
     assert all(row["env_steps_per_second"] > 0 for row in written["rows"])
     assert written["breakdown_at_preset"] == {}  # the preset's 1,024 envs were not reached
     assert (tmp_path / "scaling.png").exists()
+
+
+@pytest.mark.slow
+def test_devices_suite_scales_the_env_batch_and_times_training_to_a_target(tmp_path):
+    scaled = devices.scaled_config("ppo_sorter_warp", 4, None)
+    assert scaled.num_envs == 4 * 8192 and dict(scaled.env_kwargs)["max_envs"] == 8192  # one device's share
+    argv = ["--configs", "ppo_arm2d", "--devices", "1,2", "--envs-per-device", "16", "--updates", "1"]
+    argv += ["--train-to", "0.0", "--eval-every", "1", "--train-minutes", "0", "--out", str(tmp_path)]
+    devices.main(argv)
+    written = read_record(tmp_path, "devices", argv)
+    assert [(row["devices"], row["envs"]) for row in written["rows"]] == [(1, 16)]  # one CPU device here
+    assert written["rows"][0]["env_steps_per_second"] > 0 and written["rows"][0]["over_first"] == 1.0
+    (trained,) = written["trainings"]
+    assert trained["seconds_to_target"] is not None and trained["env_steps_to_target"] > 0
 
 
 def test_breakdown_at_the_preset_books_every_phase_of_an_update():

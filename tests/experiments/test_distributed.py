@@ -1,6 +1,9 @@
 """Runs of two processes (`--distributed`, JAX's CPU collectives over gloo) compute what one process computes, and
-a run checkpointed by two processes resumes on one and the reverse."""
+a run checkpointed by two processes resumes on one and the reverse; a sweep shared out over devices computes what
+one device does."""
 
+import csv
+import os
 import socket
 import subprocess
 import sys
@@ -100,3 +103,26 @@ def test_distributed_without_its_processes_is_one_line(tmp_path):
     )
     assert result.returncode == 2
     assert result.stderr.strip().splitlines()[-1].startswith("error: --distributed could not join")
+
+
+def sweep_results(out, device_count: int) -> list[dict]:
+    """results.csv of a 2-value × 2-seed ppo_arm2d sweep run on `device_count` forced host devices."""
+    command = [sys.executable, "-m", "experiments.sweep", "--config", "ppo_arm2d", "--seeds", "2", "--out", str(out)]
+    command += [*OVERRIDES[:5], "eval_episodes=16", "learning_rate=3e-4,1e-3"]
+    flags = f"--xla_force_host_platform_device_count={device_count}"
+    result = subprocess.run(
+        command, capture_output=True, text=True, timeout=600, env={**os.environ, "XLA_FLAGS": flags}
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert (f"4 runs shared over {device_count} devices" in result.stdout) == (device_count > 1)
+    with (out / "results.csv").open() as handle:
+        return list(csv.DictReader(handle))
+
+
+@pytest.mark.slow
+def test_a_sweep_shared_over_devices_computes_what_one_device_does(tmp_path):
+    one, four = sweep_results(tmp_path / "one", 1), sweep_results(tmp_path / "four", 4)
+    assert [row["setting"] for row in one] == [row["setting"] for row in four]
+    for single, shared in zip(one, four, strict=True):
+        for column in ("success_mean", "return_mean", "return_std"):
+            assert float(shared[column]) == pytest.approx(float(single[column]), abs=1e-4)

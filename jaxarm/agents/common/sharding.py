@@ -6,15 +6,28 @@ replay, key) is replicated. The same jitted update then runs SPMD: traced under 
 `VmapEnv` steps each device's share of the envs on that device alone (`jaxarm.envs.wrappers.over_env_batch`),
 and XLA inserts the all-reduces that average gradients, so results match a single device up to float summation
 order. `num_envs` is the whole batch, over all devices: a config computes the same run on any number of them.
+A sweep's independent runs (seeds × values) are shared out whole instead, each device running its own
+(`over_members`).
 """
+
+from collections.abc import Callable
 
 import jax
 import numpy as np
+from jax.experimental import multihost_utils
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from jaxarm.envs.wrappers import ENV_AXIS, envs_split_over
 
-__all__ = ["data_mesh", "data_parallel", "envs_split_over", "state_shardings"]
+__all__ = [
+    "data_mesh",
+    "data_parallel",
+    "envs_split_over",
+    "gathered",
+    "members_mesh",
+    "over_members",
+    "state_shardings",
+]
 
 
 def data_mesh(devices=None) -> Mesh:
@@ -29,6 +42,31 @@ def data_mesh(devices=None) -> Mesh:
     if len(chosen) > 1:
         jax.config.update("jax_use_shardy_partitioner", False)
     return Mesh(np.array(chosen), (ENV_AXIS,))
+
+
+def members_mesh(members: int) -> Mesh | None:
+    """A mesh over as many devices (of all processes) as evenly share `members` independent runs (a sweep's
+    seeds × values), the most that divide their count; None where that is one device."""
+    devices = jax.devices()
+    count = max(size for size in range(1, len(devices) + 1) if members % size == 0)
+    return data_mesh(devices[:count]) if count > 1 else None
+
+
+def over_members(fn: Callable, mesh: Mesh | None) -> Callable:
+    """`fn`, whose arguments and outputs all have a leading [members] axis, run on each device of `mesh` for its
+    share of the members (each member computed as on one device); `fn` itself where `mesh` is None."""
+    if mesh is None:
+        return fn
+    split = PartitionSpec(ENV_AXIS)
+    # check_vma off, as in over_env_batch: MJX Warp's FFI outputs drop the varying-axis type.
+    return jax.shard_map(fn, mesh=mesh, in_specs=split, out_specs=split, check_vma=False)
+
+
+def gathered(tree):
+    """`tree` (arrays that may span devices of other processes) as numpy arrays whole, on every process."""
+    if jax.process_count() == 1:
+        return jax.device_get(tree)
+    return multihost_utils.process_allgather(tree, tiled=True)
 
 
 def state_shardings(state, mesh: Mesh):
