@@ -12,13 +12,19 @@ IN_PLAY = 0
 IN_CORRECT_BIN = 1
 IN_WRONG_BIN = 2
 ON_FLOOR = 3
-"""Outcome of an object slot, `jaxarm.envs.panda_sort.reward`'s codes (a test checks both)."""
+"""Outcome of a sorter object slot (the env's `jaxarm.envs.panda_sort.reward` reads these too)."""
 FLOOR_Z = -0.05
+"""An object whose centre is this far below the table top has fallen off."""
 HELD_DISTANCE = 0.01
+"""An object counts as held when its centre is within its size plus this of the tool centre ..."""
 HELD_MIN_SQUEEZE = 0.002
+"""... and the fingers are commanded at least this much (metres) closer than they are: they press on something
+(open fingers straddling a large object do not hold it) ..."""
 HELD_MIN_WIDTH = 1.0
-"""`jaxarm.envs.panda_sort.reward`'s thresholds of falling and holding (a test checks both)."""
+"""... but are open more than this many sizes (fully closed fingers hold nothing; a cylinder is gripped at
+1.4 sizes, a small sphere squeezed to about 1.5)."""
 SHAPING_TERMS = ("reach", "grasp", "lift", "carry", "toss")
+"""The sorter's shaping potentials, in the order the env's `shaping_potential` stacks them."""
 
 
 @dataclasses.dataclass(frozen=True)

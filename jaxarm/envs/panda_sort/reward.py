@@ -21,31 +21,24 @@ import jax.numpy as jnp
 from flax import struct
 from mujoco import mjx
 
+# The outcome codes, the thresholds of falling and holding and the shaping terms' names are declared once, where
+# the deployment loop (no JAX) scores a real or simulated robot too.
+from jaxarm.deploy.scoring import (
+    FLOOR_Z,
+    HELD_DISTANCE,
+    HELD_MIN_SQUEEZE,
+    HELD_MIN_WIDTH,
+    IN_CORRECT_BIN,
+    IN_PLAY,
+    IN_WRONG_BIN,
+    ON_FLOOR,
+    SHAPING_TERMS,
+)
 from jaxarm.envs.panda_sort.layout import Layout
 from jaxarm.envs.panda_sort.model import ModelIds
 from jaxarm.envs.panda_sort.objects import object_positions
 from jaxarm.envs.panda_sort.params import PandaSortParams
 from jaxarm.envs.panda_sort.sim import PandaSortSim
-
-IN_PLAY = 0
-IN_CORRECT_BIN = 1
-IN_WRONG_BIN = 2
-ON_FLOOR = 3
-"""Outcome of an object slot."""
-FLOOR_Z = -0.05
-"""An object whose centre is this far below the table top has fallen off."""
-HELD_DISTANCE = 0.01
-"""An object counts as held when its centre is within its size plus this of the tool centre ..."""
-HELD_MIN_SQUEEZE = 0.002
-"""... and the fingers are commanded at least this much (metres) closer than they are: they press on something
-(open fingers straddling a large object do not hold it) ..."""
-HELD_MIN_WIDTH = 1.0
-"""... but are open more than this many sizes (fully closed fingers hold nothing; a cylinder is gripped at
-1.4 sizes, a small sphere squeezed to about 1.5)."""
-
-
-SHAPING_TERMS = ("reach", "grasp", "lift", "carry", "toss")
-"""The shaping potentials, in the order `shaping_potential` stacks them."""
 
 
 class RewardTerms(struct.PyTreeNode):
