@@ -118,10 +118,12 @@ def test_integers_beyond_int32_and_wrong_types_are_refused(config_class):
             with pytest.raises(ValueError, match=f"^{field} must be a number"):
                 config_class(**{field: "0.5"})
             continue
-        with pytest.raises(ValueError, match=f"^{field} must fit in int32"):
-            config_class(**{field: 2**31})
-        with pytest.raises(ValueError, match=f"^{field} must fit in int32"):
-            apply_overrides(config_class(), [f"{field}=1e10"])
+        # A budget in env steps is counted on the host and may use int64; every other integer is int32.
+        width, beyond = ("int64", 2**63) if field == "total_env_steps" else ("int32", 2**31)
+        with pytest.raises(ValueError, match=f"^{field} must fit in {width}"):
+            config_class(**{field: beyond})
+        with pytest.raises(ValueError, match=f"^{field} must fit in {width}"):
+            apply_overrides(config_class(), [f"{field}={float(beyond) * 10:.0e}"])
         with pytest.raises(ValueError, match=f"^{field} must be an integer"):
             config_class(**{field: 2.5})
     with pytest.raises(ValueError, match="normalize_observations must be true or false|target_smoothing must be"):
@@ -185,9 +187,10 @@ def test_a_chunk_larger_than_the_budget_shrinks_to_the_budget():
     assert big.num_updates * big.env_steps_per_update - big.total_env_steps < big.env_steps_per_update
 
 
-def test_a_budget_beyond_the_int32_step_counter_is_refused():
-    with pytest.raises(ValueError, match="total_env_steps=2,147,000,000 .run as 2,147,483,648 env steps"):
-        PPOConfig(num_envs=1024, rollout_length=16, updates_per_chunk=4096, total_env_steps=2_147_000_000).validate()
+def test_a_budget_beyond_int32_env_steps_is_taken_and_one_beyond_int32_updates_is_refused():
+    PPOConfig(num_envs=1024, rollout_length=16, updates_per_chunk=4096, total_env_steps=10_000_000_000).validate()
+    with pytest.raises(ValueError, match="needs 2,147,483,650 updates, more than the learners' int32 update counter"):
+        PPOConfig(num_envs=1, rollout_length=1, num_minibatches=1, total_env_steps=2**31).validate()
 
 
 def test_an_edited_config_json_is_refused_on_reading(tmp_path):
