@@ -1,4 +1,5 @@
-"""Named envs: `make(name, **kwargs)` builds one, `names()` lists them, `override_params` edits params.
+"""Named envs: `make(name, **kwargs)` builds one (once per arguments), `names()` lists them, `override_params`
+edits params.
 
 Factories import their module lazily so that making arm2d never imports MuJoCo.
 """
@@ -63,11 +64,26 @@ def families() -> dict[str, list[str]]:
     return grouped
 
 
+_BUILT: dict[tuple, Any] = {}
+"""(name, sorted kwargs) -> the env `make` built for them."""
+
+
 def make(name: str, **kwargs):
-    """Builds the registered env `name`; `kwargs` override its static constructor arguments."""
+    """The registered env `name`; `kwargs` override its static constructor arguments.
+
+    An env is immutable once built, so every call with the same (hashable) arguments returns the same instance:
+    a run's config checks, trainer and evaluations share one env, whose MJX scene takes seconds to build.
+    """
     if name not in _REGISTRY:
         raise KeyError(f"unknown env {name!r}{closest_match_hint(name, _REGISTRY)}; known: {', '.join(names())}")
-    return _REGISTRY[name].build(**kwargs)
+    key = (name, tuple(sorted(kwargs.items())))
+    try:
+        hash(key)
+    except TypeError:  # a list-valued kwarg from the CLI: built each time
+        return _REGISTRY[name].build(**kwargs)
+    if key not in _BUILT:
+        _BUILT[key] = _REGISTRY[name].build(**kwargs)
+    return _BUILT[key]
 
 
 def override_params(params, overrides: Mapping[str, Any], prefix: str = "env param "):

@@ -8,6 +8,7 @@ import typing
 import jax
 import jax.numpy as jnp
 import pytest
+from mujoco import mjx
 
 from experiments import configs
 from jaxarm import envs, ranges
@@ -39,6 +40,18 @@ def test_hparams_hold_the_fields_declared_dynamic_and_no_others(config_class, dy
 def test_every_preset_is_valid():
     for name in configs.names():
         configs.get(name)  # validates
+
+
+def test_a_run_builds_its_mjx_scene_once(monkeypatch):
+    # validate() runs at every step of a run's start (preset, overrides, trainer, run directory) and each builds the
+    # env: the registry hands them one instance, so the scene goes onto the device once.
+    put_model = mjx.put_model
+    calls = []
+    monkeypatch.setattr(mjx, "put_model", lambda *args, **kwargs: calls.append(args) or put_model(*args, **kwargs))
+    config = apply_overrides(configs.get("ppo_sorter"), ["seed=3"])
+    config.validate()
+    assert config.make_env()[0] is config.make_eval_env()[0] is envs.make(config.env, **dict(config.env_kwargs))
+    assert len(calls) <= 1  # none where an earlier test built the same env
 
 
 def test_every_sorter_preset_trains_with_curricula_and_evaluates_the_plain_task():

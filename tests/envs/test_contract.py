@@ -7,6 +7,7 @@ a minute or more each to compile on a 2-core CPU: the jitted reset and step come
 the envs' own test files, in the same xdist worker as those files' tests (`same_worker`).
 """
 
+import copy
 import warnings
 
 import jax
@@ -239,8 +240,8 @@ def test_a_plain_env_stepped_past_its_end_keeps_the_episode_it_reported():
 
 
 def test_vmap_warns_above_an_envs_cpu_limit():
-    env = envs.make("arm2d")
-    env.cpu_max_envs = 4  # this instance only: arm2d itself has no limit
+    env = copy.copy(envs.make("arm2d"))  # the registry's instance is shared
+    env.cpu_max_envs = 4  # this copy only: arm2d itself has no limit
     with pytest.warns(UserWarning, match="8 envs on the CPU: above 4 envs"):
         envs.VmapEnv(envs.AutoReset(env), 8)
     with warnings.catch_warnings():

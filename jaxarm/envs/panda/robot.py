@@ -99,16 +99,29 @@ def solve_arm_posture(
         data.qpos[ids.arm_qpos] = arm_q
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
-        position = data.site_xpos[ids.tcp_site]
-        current = data.site_xmat[ids.tcp_site].reshape(3, 3)
-        error = np.concatenate([tcp_position - position, rotation_error(current, rotation)])
         mujoco.mj_jacSite(model, data, jacp, jacr, ids.tcp_site)
-        jacobian = np.concatenate([jacp, jacr])[:, ids.arm_qpos]
-        step, _ = damped_least_squares(jacobian, error, 1e-3)
+        step, error = _posture_step(
+            np.concatenate([jacp, jacr])[:, ids.arm_qpos],
+            tcp_position - data.site_xpos[ids.tcp_site],
+            data.site_xmat[ids.tcp_site].reshape(3, 3),
+            rotation,
+        )
         arm_q = np.clip(arm_q + np.asarray(step), ids.arm_limits[:, 0], ids.arm_limits[:, 1])
+    error = np.asarray(error)
     if np.linalg.norm(error[:3]) > 1e-4:
         raise ValueError(f"no arm posture puts the tool centre at {tcp_position} (error {error[:3]})")
     return arm_q.astype(np.float32)
+
+
+@jax.jit
+def _posture_step(
+    jacobian: np.ndarray, position_error: np.ndarray, rotation: np.ndarray, target_rotation: np.ndarray
+) -> tuple[jax.Array, jax.Array]:
+    """One step of `solve_arm_posture`: ([7] joint step, [6] task error). Compiled once, because the same
+    operations dispatched one by one took 2.6 s of the 200-iteration solve on the 2-core CPU (0.3 s compiled)."""
+    error = jnp.concatenate([position_error, rotation_error(rotation, target_rotation)])
+    step, _ = damped_least_squares(jacobian, error, 1e-3)
+    return step, error
 
 
 def damped_least_squares(
