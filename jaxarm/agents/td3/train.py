@@ -14,6 +14,7 @@ hyper-parameters at once.
 """
 
 import dataclasses
+import functools
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -40,8 +41,8 @@ from jaxarm.agents.td3.losses import (
     polyak_update,
     smoothed_target_action,
 )
-from jaxarm.agents.td3.networks import make_networks
-from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
+from jaxarm.agents.td3.networks import Params, TD3Networks, make_networks
+from jaxarm.envs import AutoReset, EnvSpec, EnvState, Observation, VmapEnv, compiler_options
 from jaxarm.export.numpy_policy import NumpyPolicy
 
 
@@ -128,6 +129,286 @@ class TD3Metrics:
     q_mean: jax.Array
 
 
+def to_env_action(spec: EnvSpec, action: jax.Array) -> jax.Array:
+    """Actions [..., A] in the actor's [-1, 1] units -> the env's [action_low, action_high]."""
+    return spec.action_low + (action + 1.0) * (0.5 * (spec.action_high - spec.action_low))
+
+
+def standardized(config: TD3Config, normalizer: observation_normalizer.Normalizer, obs: Observation) -> Observation:
+    """Observations [B, ...] as the networks read them: standardised where the config normalises them."""
+    return observation_normalizer.normalize(normalizer, config.normalize_observations, obs)
+
+
+def augmented(key: jax.Array, stream: int, obs: Observation, shift_pad: int) -> Observation:
+    """Observations [B, ...] randomly shifted by up to `shift_pad` pixels (0: as they are), with a key folded from
+    `key` (whose own draws, and so the numbers of runs without augmentation, stay as they are)."""
+    if not shift_pad:
+        return obs
+    return shift_observation(jax.random.fold_in(key, stream), obs, shift_pad)
+
+
+def exploration_scales(config: TD3Config) -> jax.Array:
+    """[B, 1] each env's share of `exploration_noise` (see `TD3Config.mixed_exploration_noise`)."""
+    if config.mixed_exploration_noise:
+        return (jnp.arange(1, config.num_envs + 1) / config.num_envs)[:, None]
+    return jnp.ones((config.num_envs, 1))
+
+
+def warm_up_steps(config: TD3Config, updates: jax.Array) -> jax.Array:
+    """[] int32 env steps collected before update `updates`, as far as `learning_starts` reads them: counted up to
+    the first update past the warm-up and constant after, so that the count never leaves int32."""
+    warm_up_updates = -(-config.learning_starts // config.env_steps_per_update)
+    return jnp.minimum(updates, warm_up_updates) * config.env_steps_per_update
+
+
+def init_state(config: TD3Config, networks: TD3Networks, batch_env: VmapEnv, env_params, key: jax.Array) -> TD3State:
+    """A fresh learner: networks and their targets initialised alike, an empty replay, [num_envs] reset envs."""
+    spec = batch_env.spec
+    actor_key, critic_key, env_key, state_key = jax.random.split(key, 4)
+    obs = spec.zero_observation()
+    action = jnp.zeros((spec.action_size,), jnp.float32)
+    actor_params, critic_params = networks.init(actor_key, critic_key, config.num_critics, obs, action)
+    zero = jnp.zeros((), jnp.float32)
+    example = Experience(
+        obs=obs, action=action, reward=zero, next_obs=obs, terminated=jnp.zeros((), jnp.bool_), discount=zero
+    )
+    # optax.adam(lr) holds no state that depends on lr, so the update rebuilds it per step from the traced
+    # hyper-parameter; the step size stays data and vmaps.
+    optimizer_state_init = optax.adam(0.0).init
+    return TD3State(
+        actor_params=actor_params,
+        critic_params=critic_params,
+        target_actor_params=actor_params,
+        target_critic_params=critic_params,
+        actor_opt_state=optimizer_state_init(actor_params),
+        critic_opt_state=optimizer_state_init(critic_params),
+        normalizer=observation_normalizer.init(spec),
+        replay=replay.init(example, config.buffer_size),
+        env_state=batch_env.reset(env_key, env_params),
+        key=state_key,
+        updates=jnp.zeros((), jnp.int32),
+    )
+
+
+def collect(
+    config: TD3Config, networks: TD3Networks, batch_env: VmapEnv, env_params, state: TD3State, hparams: HParams, key
+) -> tuple[EnvState, jax.Array, Experience, EnvState]:
+    """Steps the envs `rollout_length` times: uniform random actions while fewer than `learning_starts` env steps
+    are collected, then the actor's plus Gaussian noise.
+
+    Returns (env state [B], env steps as `warm_up_steps` counts them, experience [T*B], states [T, B]).
+    """
+    spec = batch_env.spec
+    scales = exploration_scales(config)
+
+    def env_step(carry, step_key):
+        env_state, env_steps = carry
+        noise_key, random_key = jax.random.split(step_key)
+        shape = (config.num_envs, spec.action_size)
+        obs = standardized(config, state.normalizer, env_state.obs)
+        policy = networks.action(state.actor_params, networks.encode(state.critic_params, obs))
+        noise = scales * hparams.exploration_noise * jax.random.normal(noise_key, shape)
+        noisy = jnp.clip(policy + noise, -1.0, 1.0)
+        random = jax.random.uniform(random_key, shape, minval=-1.0, maxval=1.0)
+        action = jnp.where(env_steps < config.learning_starts, random, noisy)
+        next_state = batch_env.step(env_state, to_env_action(spec, action), env_params)
+        experience = Experience(
+            obs=env_state.obs,
+            action=action,
+            reward=next_state.reward,
+            next_obs=next_state.final_obs,
+            terminated=next_state.terminated,
+            discount=jnp.broadcast_to(hparams.gamma, next_state.reward.shape),
+        )
+        return (next_state, env_steps + config.num_envs), (experience, next_state)
+
+    step_keys = jax.random.split(key, config.rollout_length)
+    (env_state, env_steps), (experience, states) = jax.lax.scan(
+        env_step, (state.env_state, warm_up_steps(config, state.updates)), step_keys
+    )
+    if config.n_step > 1:
+        experience = n_step_experience(experience, states.done, hparams.gamma, config.n_step)
+    flat = jax.tree.map(lambda leaf: leaf.reshape(-1, *leaf.shape[2:]), experience)
+    return env_state, env_steps, flat, states
+
+
+def critic_step(
+    config: TD3Config,
+    networks: TD3Networks,
+    shift_pad: int,
+    hparams: HParams,
+    state: TD3State,
+    critic: tuple[Params, optax.OptState],
+    batch_and_key: tuple[Experience, jax.Array],
+) -> tuple[tuple[Params, optax.OptState], tuple[jax.Array, jax.Array]]:
+    """One gradient step of the critics (params, Adam state) on a batch of `Experience` [N] towards the targets of
+    `state`'s target networks (smoothed target actions with `target_smoothing`; distributions with atoms).
+
+    Returns ((critic params, Adam state), ([] loss, [] mean Q of the batch)).
+    """
+    critic_params, opt_state = critic
+    batch, noise_key = batch_and_key
+    batch = dataclasses.replace(
+        batch,
+        obs=standardized(config, state.normalizer, augmented(noise_key, 1, batch.obs, shift_pad)),
+        next_obs=standardized(config, state.normalizer, augmented(noise_key, 2, batch.next_obs, shift_pad)),
+    )
+    next_encoded = networks.encode(state.target_critic_params, batch.next_obs)
+    next_action = networks.action(state.target_actor_params, next_encoded)
+    if config.target_smoothing:
+        noise = hparams.target_noise * jax.random.normal(noise_key, next_action.shape)
+        next_action = smoothed_target_action(next_action, noise, hparams.target_noise_clip)
+    next_outputs = networks.q(state.target_critic_params, next_encoded, next_action)
+    target_args = (batch.reward, batch.terminated, batch.discount, hparams.reward_scale)
+    loss_of_outputs: Callable[[jax.Array, jax.Array], jax.Array]
+    if networks.atoms is None:
+        target = critic_target(next_outputs, *target_args)
+        loss_of_outputs = critic_loss
+    else:
+        target = distributional_critic_target(next_outputs, *target_args, jnp.asarray(networks.atoms))
+        loss_of_outputs = distributional_critic_loss
+
+    def loss_fn(params):
+        outputs = networks.q(params, networks.encode(params, batch.obs), batch.action)
+        return loss_of_outputs(outputs, target), networks.q_values(outputs)
+
+    (loss, q), grads = jax.value_and_grad(loss_fn, has_aux=True)(critic_params)
+    updates, opt_state = optax.adam(hparams.critic_learning_rate).update(grads, opt_state, critic_params)
+    return (optax.apply_updates(critic_params, updates), opt_state), (loss, jnp.mean(q))
+
+
+def actor_step(
+    networks: TD3Networks,
+    params: Params,
+    opt_state: optax.OptState,
+    critic_params: Params,
+    obs: Observation,
+    hparams: HParams,
+) -> tuple[Params, optax.OptState, jax.Array]:
+    """One gradient step of the actor raising the first critic's Q of its actions in `obs` [N, ...] (as the
+    networks read them). Returns (actor params, Adam state, [] loss)."""
+    encoded = networks.encode(critic_params, obs)
+
+    def loss_fn(actor_params):
+        q = networks.q_values(networks.q(critic_params, encoded, networks.action(actor_params, encoded)))
+        return actor_loss(q[0])
+
+    loss, grads = jax.value_and_grad(loss_fn)(params)
+    updates, opt_state = optax.adam(hparams.actor_learning_rate).update(grads, opt_state, params)
+    return optax.apply_updates(params, updates), opt_state, loss
+
+
+def delayed_block(
+    config: TD3Config, networks: TD3Networks, shift_pad: int, state: TD3State, key: jax.Array, hparams: HParams
+) -> tuple[TD3State, tuple[jax.Array, jax.Array, jax.Array]]:
+    """`policy_delay` critic steps on fresh replay batches, then one actor step and one Polyak step of both target
+    networks. Returns (state, ([] mean critic loss, [] actor loss, [] mean Q))."""
+    sample_key, noise_key = jax.random.split(key)
+    batches = replay.sample(state.replay, sample_key, config.policy_delay * config.batch_size)
+    batches = jax.tree.map(lambda leaf: leaf.reshape(config.policy_delay, config.batch_size, *leaf.shape[1:]), batches)
+    (critic_params, critic_opt_state), (critic_losses, q_means) = jax.lax.scan(
+        functools.partial(critic_step, config, networks, shift_pad, hparams, state),
+        (state.critic_params, state.critic_opt_state),
+        (batches, jax.random.split(noise_key, config.policy_delay)),
+    )
+    last_obs = jax.tree.map(lambda leaf: leaf[-1], batches.obs)
+    actor_params, actor_opt_state, loss = actor_step(
+        networks,
+        state.actor_params,
+        state.actor_opt_state,
+        critic_params,
+        standardized(config, state.normalizer, augmented(key, 1, last_obs, shift_pad)),
+        hparams,
+    )
+    state = state.replace(
+        actor_params=actor_params,
+        critic_params=critic_params,
+        actor_opt_state=actor_opt_state,
+        critic_opt_state=critic_opt_state,
+        target_actor_params=polyak_update(state.target_actor_params, actor_params, hparams.tau),
+        target_critic_params=polyak_update(state.target_critic_params, critic_params, hparams.tau),
+    )
+    return state, (jnp.mean(critic_losses), loss, jnp.mean(q_means))
+
+
+def learn(
+    config: TD3Config, networks: TD3Networks, shift_pad: int, state: TD3State, key: jax.Array, hparams: HParams
+) -> tuple[TD3State, tuple[jax.Array, jax.Array, jax.Array]]:
+    """`grad_steps_per_update` gradient steps in `delayed_block`s. Returns (state, the blocks' mean losses and Q)."""
+    blocks = config.grad_steps_per_update // config.policy_delay
+    state, (critic_losses, actor_losses, q_means) = jax.lax.scan(
+        lambda carry, block_key: delayed_block(config, networks, shift_pad, carry, block_key, hparams),
+        state,
+        jax.random.split(key, blocks),
+    )
+    return state, (jnp.mean(critic_losses), jnp.mean(actor_losses), jnp.mean(q_means))
+
+
+def update(
+    config: TD3Config,
+    networks: TD3Networks,
+    batch_env: VmapEnv,
+    env_params,
+    shift_pad: int,
+    state: TD3State,
+    hparams: HParams,
+) -> tuple[TD3State, TD3Metrics]:
+    """One update (the module docstring): collect, store, and learn once `learning_starts` env steps are in."""
+    key, collect_key, learn_key = jax.random.split(state.key, 3)
+    env_state, env_steps, experience, states = collect(
+        config, networks, batch_env, env_params, state, hparams, collect_key
+    )
+    normalizer = observation_normalizer.update(state.normalizer, config.normalize_observations, experience.obs)
+    state = state.replace(
+        normalizer=normalizer,
+        env_state=env_state,
+        key=key,
+        updates=state.updates + 1,
+        replay=replay.add(state.replay, experience),
+    )
+
+    def skip_learning(state: TD3State, key: jax.Array, hparams: HParams):
+        del key, hparams
+        zero = jnp.zeros((), jnp.float32)
+        return state, (zero, zero, zero)
+
+    state, (critic_loss_value, actor_loss_value, q_mean) = jax.lax.cond(
+        env_steps >= config.learning_starts,
+        functools.partial(learn, config, networks, shift_pad),
+        skip_learning,
+        state,
+        learn_key,
+        hparams,
+    )
+    metrics = TD3Metrics(
+        episodes=summarise_episodes(states),
+        critic_loss=critic_loss_value,
+        actor_loss=actor_loss_value,
+        q_mean=q_mean,
+    )
+    return state, metrics
+
+
+def numpy_policy(config: TD3Config, spec: EnvSpec, state: TD3State) -> NumpyPolicy:
+    """The actor as arrays: its MLP, and the map of its tanh outputs onto the env's action bounds."""
+    if not spec.flat_observation:
+        raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
+    kernels, biases = mlp_layers(state.actor_params)
+    obs_mean, obs_std = observation_normalizer.numpy_mean_std(
+        state.normalizer, config.normalize_observations, spec.observation_size
+    )
+    half_range = 0.5 * (spec.action_high - spec.action_low)
+    return NumpyPolicy(
+        kernels=kernels,
+        biases=biases,
+        activation=config.activation,
+        obs_mean=obs_mean,
+        obs_std=obs_std,
+        action_offset=np.full(spec.action_size, spec.action_low + half_range, np.float32),
+        action_scale=np.full(spec.action_size, half_range, np.float32),
+    )
+
+
 def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     """Builds the TD3 / DDPG trainer for `config`. `env`, `env_params` replace the config's env (probe envs)."""
     config.validate()
@@ -135,233 +416,20 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
         env, env_params = config.make_env()
     batch_env = VmapEnv(AutoReset(env), config.num_envs)
     spec = env.spec
-    action_size = spec.action_size
     camera = not spec.flat_observation
-    networks = make_networks(config, action_size, camera)
-    shift = camera and config.random_shift_pad > 0
-
-    def augment(key: jax.Array, stream: int, obs: Observation) -> Observation:
-        """`obs` randomly shifted when augmenting, with a key folded from `key` (whose own draws, and so the
-        numbers of runs without augmentation, stay as they are)."""
-        if not shift:
-            return obs
-        return shift_observation(jax.random.fold_in(key, stream), obs, config.random_shift_pad)
-
-    # optax.adam(lr) holds no state that depends on lr, so it is rebuilt per step from the traced
-    # hyper-parameter; the step size stays data and vmaps.
-    optimizer_state_init = optax.adam(0.0).init
-
-    def to_env_action(action):
-        return spec.action_low + (action + 1.0) * (0.5 * (spec.action_high - spec.action_low))
-
-    def standardized(normalizer: observation_normalizer.Normalizer, obs: Observation) -> Observation:
-        """Observations [B, ...] as the networks read them: standardised where the config normalises them."""
-        return observation_normalizer.normalize(normalizer, config.normalize_observations, obs)
+    networks = make_networks(config, spec.action_size, camera)
+    shift_pad = config.random_shift_pad if camera else 0
 
     def act(state: TD3State, obs: jax.Array) -> jax.Array:
-        encoded = networks.encode(state.critic_params, standardized(state.normalizer, obs))
-        return to_env_action(networks.action(state.actor_params, encoded))
-
-    def numpy_policy(state: TD3State) -> NumpyPolicy:
-        """`act` as arrays: the actor's MLP, and the map of its tanh outputs onto the env's action bounds."""
-        if camera:
-            raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
-        kernels, biases = mlp_layers(state.actor_params)
-        obs_mean, obs_std = observation_normalizer.numpy_mean_std(
-            state.normalizer, config.normalize_observations, spec.observation_size
-        )
-        half_range = 0.5 * (spec.action_high - spec.action_low)
-        return NumpyPolicy(
-            kernels=kernels,
-            biases=biases,
-            activation=config.activation,
-            obs_mean=obs_mean,
-            obs_std=obs_std,
-            action_offset=np.full(action_size, spec.action_low + half_range, np.float32),
-            action_scale=np.full(action_size, half_range, np.float32),
-        )
-
-    def init(key: jax.Array, hparams: HParams) -> TD3State:
-        del hparams  # nothing in the initial state depends on them
-        actor_key, critic_key, env_key, state_key = jax.random.split(key, 4)
-        obs = spec.zero_observation()
-        action = jnp.zeros((action_size,), jnp.float32)
-        actor_params, critic_params = networks.init(actor_key, critic_key, config.num_critics, obs, action)
-        zero = jnp.zeros((), jnp.float32)
-        example = Experience(
-            obs=obs, action=action, reward=zero, next_obs=obs, terminated=jnp.zeros((), jnp.bool_), discount=zero
-        )
-        return TD3State(
-            actor_params=actor_params,
-            critic_params=critic_params,
-            target_actor_params=actor_params,
-            target_critic_params=critic_params,
-            actor_opt_state=optimizer_state_init(actor_params),
-            critic_opt_state=optimizer_state_init(critic_params),
-            normalizer=observation_normalizer.init(spec),
-            replay=replay.init(example, config.buffer_size),
-            env_state=batch_env.reset(env_key, env_params),
-            key=state_key,
-            updates=jnp.zeros((), jnp.int32),
-        )
-
-    # [B, 1] each env's share of `exploration_noise` (see `TD3Config.mixed_exploration_noise`).
-    exploration_scales = jnp.ones((config.num_envs, 1))
-    if config.mixed_exploration_noise:
-        exploration_scales = (jnp.arange(1, config.num_envs + 1) / config.num_envs)[:, None]
-
-    warm_up_updates = -(-config.learning_starts // config.env_steps_per_update)
-
-    def warm_up_steps(updates: jax.Array) -> jax.Array:
-        """[] int32 env steps collected before update `updates`, as far as `learning_starts` reads them: counted
-        up to the first update past the warm-up and constant after, so that the count never leaves int32."""
-        return jnp.minimum(updates, warm_up_updates) * config.env_steps_per_update
-
-    def collect(state: TD3State, hparams: HParams, key: jax.Array):
-        """Steps the envs `rollout_length` times; returns (env state, env steps, experience [T*B], states [T, B])."""
-
-        def env_step(carry, step_key):
-            env_state, env_steps = carry
-            noise_key, random_key = jax.random.split(step_key)
-            shape = (config.num_envs, action_size)
-            obs = standardized(state.normalizer, env_state.obs)
-            policy = networks.action(state.actor_params, networks.encode(state.critic_params, obs))
-            noise = exploration_scales * hparams.exploration_noise * jax.random.normal(noise_key, shape)
-            noisy = jnp.clip(policy + noise, -1.0, 1.0)
-            random = jax.random.uniform(random_key, shape, minval=-1.0, maxval=1.0)
-            action = jnp.where(env_steps < config.learning_starts, random, noisy)
-            next_state = batch_env.step(env_state, to_env_action(action), env_params)
-            experience = Experience(
-                obs=env_state.obs,
-                action=action,
-                reward=next_state.reward,
-                next_obs=next_state.final_obs,
-                terminated=next_state.terminated,
-                discount=jnp.broadcast_to(hparams.gamma, next_state.reward.shape),
-            )
-            return (next_state, env_steps + config.num_envs), (experience, next_state)
-
-        step_keys = jax.random.split(key, config.rollout_length)
-        (env_state, env_steps), (experience, states) = jax.lax.scan(
-            env_step, (state.env_state, warm_up_steps(state.updates)), step_keys
-        )
-        if config.n_step > 1:
-            experience = n_step_experience(experience, states.done, hparams.gamma, config.n_step)
-        flat = jax.tree.map(lambda leaf: leaf.reshape(-1, *leaf.shape[2:]), experience)
-        return env_state, env_steps, flat, states
-
-    def critic_step(carry, inputs, hparams: HParams, normalizer, target_actor_params, target_critic_params):
-        critic_params, opt_state = carry
-        batch, noise_key = inputs
-        batch = batch.replace(
-            obs=standardized(normalizer, augment(noise_key, 1, batch.obs)),
-            next_obs=standardized(normalizer, augment(noise_key, 2, batch.next_obs)),
-        )
-        next_encoded = networks.encode(target_critic_params, batch.next_obs)
-        next_action = networks.action(target_actor_params, next_encoded)
-        if config.target_smoothing:
-            noise = hparams.target_noise * jax.random.normal(noise_key, next_action.shape)
-            next_action = smoothed_target_action(next_action, noise, hparams.target_noise_clip)
-        next_outputs = networks.q(target_critic_params, next_encoded, next_action)
-        target_args = (batch.reward, batch.terminated, batch.discount, hparams.reward_scale)
-        loss_of_outputs: Callable[[jax.Array, jax.Array], jax.Array]
-        if networks.atoms is None:
-            target = critic_target(next_outputs, *target_args)
-            loss_of_outputs = critic_loss
-        else:
-            target = distributional_critic_target(next_outputs, *target_args, jnp.asarray(networks.atoms))
-            loss_of_outputs = distributional_critic_loss
-
-        def loss_fn(params):
-            outputs = networks.q(params, networks.encode(params, batch.obs), batch.action)
-            return loss_of_outputs(outputs, target), networks.q_values(outputs)
-
-        (loss, q), grads = jax.value_and_grad(loss_fn, has_aux=True)(critic_params)
-        updates, opt_state = optax.adam(hparams.critic_learning_rate).update(grads, opt_state, critic_params)
-        return (optax.apply_updates(critic_params, updates), opt_state), (loss, jnp.mean(q))
-
-    def actor_step(params, opt_state, critic_params, obs, hparams: HParams):
-        encoded = networks.encode(critic_params, obs)
-
-        def loss_fn(actor_params):
-            q = networks.q_values(networks.q(critic_params, encoded, networks.action(actor_params, encoded)))
-            return actor_loss(q[0])
-
-        loss, grads = jax.value_and_grad(loss_fn)(params)
-        updates, opt_state = optax.adam(hparams.actor_learning_rate).update(grads, opt_state, params)
-        return optax.apply_updates(params, updates), opt_state, loss
-
-    def delayed_block(state: TD3State, key: jax.Array, hparams: HParams):
-        """`policy_delay` critic steps, then one actor step and one target step; returns (state, losses)."""
-        sample_key, noise_key = jax.random.split(key)
-        batches = replay.sample(state.replay, sample_key, config.policy_delay * config.batch_size)
-        batches = jax.tree.map(
-            lambda leaf: leaf.reshape(config.policy_delay, config.batch_size, *leaf.shape[1:]), batches
-        )
-        (critic_params, critic_opt_state), (critic_losses, q_means) = jax.lax.scan(
-            lambda carry, inputs: critic_step(
-                carry, inputs, hparams, state.normalizer, state.target_actor_params, state.target_critic_params
-            ),
-            (state.critic_params, state.critic_opt_state),
-            (batches, jax.random.split(noise_key, config.policy_delay)),
-        )
-        actor_params, actor_opt_state, loss = actor_step(
-            state.actor_params,
-            state.actor_opt_state,
-            critic_params,
-            standardized(state.normalizer, augment(key, 1, jax.tree.map(lambda leaf: leaf[-1], batches.obs))),
-            hparams,
-        )
-        state = state.replace(
-            actor_params=actor_params,
-            critic_params=critic_params,
-            actor_opt_state=actor_opt_state,
-            critic_opt_state=critic_opt_state,
-            target_actor_params=polyak_update(state.target_actor_params, actor_params, hparams.tau),
-            target_critic_params=polyak_update(state.target_critic_params, critic_params, hparams.tau),
-        )
-        return state, (jnp.mean(critic_losses), loss, jnp.mean(q_means))
-
-    def learn(state: TD3State, key: jax.Array, hparams: HParams):
-        blocks = config.grad_steps_per_update // config.policy_delay
-        state, (critic_losses, actor_losses, q_means) = jax.lax.scan(
-            lambda carry, block_key: delayed_block(carry, block_key, hparams), state, jax.random.split(key, blocks)
-        )
-        return state, (jnp.mean(critic_losses), jnp.mean(actor_losses), jnp.mean(q_means))
-
-    def skip_learning(state: TD3State, key: jax.Array, hparams: HParams):
-        del key, hparams
-        zero = jnp.zeros((), jnp.float32)
-        return state, (zero, zero, zero)
-
-    def update(state: TD3State, hparams: HParams) -> tuple[TD3State, TD3Metrics]:
-        key, collect_key, learn_key = jax.random.split(state.key, 3)
-        env_state, env_steps, experience, states = collect(state, hparams, collect_key)
-        normalizer = observation_normalizer.update(state.normalizer, config.normalize_observations, experience.obs)
-        state = state.replace(
-            normalizer=normalizer,
-            env_state=env_state,
-            key=key,
-            updates=state.updates + 1,
-            replay=replay.add(state.replay, experience),
-        )
-        state, (critic_loss_value, actor_loss_value, q_mean) = jax.lax.cond(
-            env_steps >= config.learning_starts, learn, skip_learning, state, learn_key, hparams
-        )
-        metrics = TD3Metrics(
-            episodes=summarise_episodes(states),
-            critic_loss=critic_loss_value,
-            actor_loss=actor_loss_value,
-            q_mean=q_mean,
-        )
-        return state, metrics
+        encoded = networks.encode(state.critic_params, standardized(config, state.normalizer, obs))
+        return to_env_action(spec, networks.action(state.actor_params, encoded))
 
     return Trainer(
-        init=init,
-        update=update,
+        init=lambda key, hparams: init_state(config, networks, batch_env, env_params, key),
+        update=functools.partial(update, config, networks, batch_env, env_params, shift_pad),
         act=act,
         num_updates=config.num_updates,
         env_steps_per_update=config.env_steps_per_update,
         compiler_options=compiler_options(env),
-        numpy_policy=numpy_policy,
+        numpy_policy=functools.partial(numpy_policy, config, spec),
     )
