@@ -135,7 +135,7 @@ def figure_path(out: pathlib.Path) -> pathlib.Path:
     """Where `--out` puts the figure: `out` itself for a .png, .pdf or .svg name, `out/compare.png` for a
     directory, `out.png` for a name without a suffix. ValueError naming `out` for another suffix or a file in the
     way of its folder; missing folders are made."""
-    rundir.check_not_under_a_file(out)
+    rundir.check_not_under_a_file(out, "--out")
     if out.is_dir():
         out = out / "compare.png"
     elif not out.suffix:

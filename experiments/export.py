@@ -63,7 +63,7 @@ def main(argv=None) -> int:
     run_dir = pathlib.Path(args.run_dir)
     out_dir = pathlib.Path(args.out) if args.out else run_dir / "export"
     try:
-        rundir.check_output_dir(out_dir)
+        rundir.check_output_dir(out_dir, "--out")
         written = export_run(run_dir, out_dir)
     except (ValueError, checkpoint.CheckpointError) as error:
         print(f"error: {error}", file=sys.stderr)

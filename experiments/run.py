@@ -97,6 +97,15 @@ def quiet_libraries() -> None:
         logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
+def cli_message(error: BaseException) -> str:
+    """`error`'s message, with this CLI's command where the library marked the error as one a resume gets past
+    (`rundir.resumable`)."""
+    resume_dir = getattr(error, "resume_dir", None)
+    if resume_dir is None:
+        return str(error)
+    return f"{error}; continue with: python -m experiments.run --resume {resume_dir}"
+
+
 def main(argv=None) -> int:
     # Start-up is over: from here Ctrl-C raises KeyboardInterrupt (caught below), and the loop checkpoints on it.
     signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -142,11 +151,11 @@ def _main(argv) -> int:
             preset = args.config
             config = apply_overrides(configs.get(preset), args.overrides)
             if args.out:
-                rundir.check_output_dir(pathlib.Path(args.out))
+                rundir.check_output_dir(pathlib.Path(args.out), "--out")
             run_dir = pathlib.Path(args.out) if args.out else rundir.new_run_dir(preset)
             result = loop.train(config, run_dir, preset=preset, options=options)
     except (ValueError, checkpoint.CheckpointError, loop.TrainingDiverged) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"error: {cli_message(error)}", file=sys.stderr)
         quiet_libraries()
         return 2
     except OSError as error:
@@ -154,7 +163,7 @@ def _main(argv) -> int:
         quiet_libraries()
         return 2
     except loop.TrainingInterrupted as error:
-        print(error, file=sys.stderr)
+        print(cli_message(error), file=sys.stderr)
         quiet_libraries()
         return 130
     if not processes.is_primary():

@@ -205,7 +205,7 @@ def main(argv=None) -> int:
         base = configs.get(args.config)
         grid = parse_grid(base, args.assignments)
         if args.out:
-            rundir.check_output_dir(pathlib.Path(args.out))
+            rundir.check_output_dir(pathlib.Path(args.out), "--out")
         enable_compilation_cache()
         out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"sweep-{args.config}")
         title = f"{args.config}, {args.seeds} seeds"

@@ -243,7 +243,10 @@ def _start(
             rundir.clear_run(run_dir)
         has_run, resume = False, False
     elif has_run and not resume:
-        raise rundir.RunDirError(f"{run_dir} already holds a run; use --resume {run_dir} or another --out")
+        raise rundir.resumable(
+            rundir.RunDirError(f"{run_dir} already holds a run; resume it (resume=True) or use another run directory"),
+            run_dir,
+        )
     elif resume and not has_run:
         raise rundir.RunDirError(f"{run_dir} is not a run directory: no config.json")
     like = jax.eval_shape(trainer.init, jax.random.PRNGKey(config.seed), config.hparams())
@@ -338,9 +341,12 @@ def _train_chunks(
             if options.on_chunk:
                 options.on_chunk(done_updates)
             if stopping:
-                raise TrainingInterrupted(
-                    f"interrupted: checkpoint at update {done_updates} of {trainer.num_updates} saved in "
-                    f"{checkpoints}; continue with: python -m experiments.run --resume {run_dir}"
+                raise rundir.resumable(
+                    TrainingInterrupted(
+                        f"interrupted: checkpoint at update {done_updates} of {trainer.num_updates} saved in "
+                        f"{checkpoints}; resume the run to continue"
+                    ),
+                    run_dir,
                 )
             if out_of_time:
                 break
@@ -420,8 +426,8 @@ def save(directory: pathlib.Path, step: int, state, run_dir: pathlib.Path) -> No
     try:
         checkpoint.save(directory, step, state)
     except checkpoint.CheckpointError as error:
-        raise checkpoint.CheckpointError(
-            f"{error}; fix that, then continue with: python -m experiments.run --resume {run_dir}"
+        raise rundir.resumable(
+            checkpoint.CheckpointError(f"{error}; fix that, then resume the run to continue"), run_dir
         ) from error
 
 
@@ -437,7 +443,7 @@ def diverged_message(bad: tuple[int, str] | None, done_updates: int, count: int,
     if latest is None:
         return (
             f"NaN or inf at {where}; training stopped before its first checkpoint, so there is nothing to keep. "
-            "Change the config and start again (the same --out starts afresh)."
+            "Change the config and start again (training into the same directory starts afresh)."
         )
     return (
         f"NaN or inf at {where}; training stopped. The last good checkpoint (update {latest}) in {checkpoints} "

@@ -2,7 +2,7 @@
 
 Layout of `runs/<config>-<timestamp>/`:
   config.json      the resolved config (with "preset", and "agent": the learner's name in jaxarm.agents.registry)
-  resumes.jsonl    one JSON row per `--resume` that changed settings: the overrides and the update it resumed at
+  resumes.jsonl    one JSON row per resume that changed settings: the overrides and the update it resumed at
   metrics.jsonl    one JSON row per update (evaluation during training adds "eval/..." to its update's row)
   tensorboard/     TensorBoard event files, against env steps
   checkpoints/     orbax checkpoints of the whole learner state, named by update count, and config.json: the
@@ -16,7 +16,7 @@ Layout of `runs/<config>-<timestamp>/`:
   .lock            held (flock) by the one process writing to the directory
 
 A directory becomes a run when its config.json is written; until its first checkpoint, starting it again (or
-`--resume`) starts it afresh. Nothing here deletes or overwrites a file that is not one of the above.
+resuming it) starts it afresh. Nothing here deletes or overwrites a file that is not one of the above.
 """
 
 import contextlib
@@ -30,7 +30,7 @@ import shutil
 import time
 import typing
 from collections.abc import Callable, Iterator, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 import jax
 import numpy as np
@@ -50,33 +50,44 @@ class RunDirError(ValueError):
     """A run directory cannot be used as asked (foreign files, in use, damaged); the message says what to do."""
 
 
+ErrorT = TypeVar("ErrorT", bound=BaseException)
+
+
+def resumable(error: ErrorT, run_dir: pathlib.Path) -> ErrorT:
+    """`error`, marked as one that resuming the run in `run_dir` gets past (`error.resume_dir`). Messages here
+    speak of the library (`resume`); a front end adds its own way to resume (the CLI its --resume command)."""
+    error.resume_dir = pathlib.Path(run_dir)  # type: ignore[attr-defined]
+    return error
+
+
 FILE_SUFFIXES = (".txt", ".json", ".jsonl", ".csv", ".md", ".png", ".pdf", ".svg", ".gif", ".mp4", ".npz", ".onnx")
 """Name endings of files: a directory to be made with one of these names is more likely a mistake."""
 
 
-def check_output_dir(path: pathlib.Path, flag: str = "--out") -> None:
-    """RunDirError, naming `path`, unless it can be (or is) a directory: not a file, under no file, and, when it
-    does not exist yet, with no file's name ending (`.txt`, ...). Missing parent folders are made later."""
+def check_output_dir(path: pathlib.Path, label: str = "directory") -> None:
+    """RunDirError, naming `path` as `label` (a CLI passes its flag), unless it can be (or is) a directory: not a
+    file, under no file, and, when it does not exist yet, with no file's name ending (`.txt`, ...). Missing parent
+    folders are made later."""
     if path.exists() and not path.is_dir():
-        raise RunDirError(f"{flag} {path} is a file; give a directory")
-    check_not_under_a_file(path, flag)
+        raise RunDirError(f"{label} {path} is a file; give a directory")
+    check_not_under_a_file(path, label)
     if not path.exists() and path.suffix.lower() in FILE_SUFFIXES:
-        raise RunDirError(f"{flag} {path} is the name of a {path.suffix} file; give a directory")
+        raise RunDirError(f"{label} {path} is the name of a {path.suffix} file; give a directory")
 
 
-def check_not_under_a_file(path: pathlib.Path, flag: str = "--out") -> None:
-    """RunDirError, naming `path`, when a file stands where one of its parent folders should be."""
+def check_not_under_a_file(path: pathlib.Path, label: str = "directory") -> None:
+    """RunDirError, naming `path` as `label`, when a file stands where one of its parent folders should be."""
     for parent in path.parents:
         if parent.exists() and not parent.is_dir():
-            raise RunDirError(f"{flag} {path} lies under {parent}, which is a file; give a directory")
+            raise RunDirError(f"{label} {path} lies under {parent}, which is a file; give a directory")
 
 
 def os_error_message(error: OSError, directory: str | pathlib.Path | None = None) -> str:
     """An OS error (permission, read-only, full disk, a file in a directory's place) in one line, naming its path
     (or, for an error on an open file, which names none, the `directory` written to) and what to do."""
     advice = {
-        errno.ENOSPC: "the disk is full; free space and retry (a run goes on with --resume)",
-        errno.EDQUOT: "the disk quota is used up; free space and retry (a run goes on with --resume)",
+        errno.ENOSPC: "the disk is full; free space and retry (a resumed run goes on)",
+        errno.EDQUOT: "the disk quota is used up; free space and retry (a resumed run goes on)",
         errno.EACCES: "not writable here; choose another place or fix its permissions",
         errno.EPERM: "not writable here; choose another place or fix its permissions",
         errno.EROFS: "choose a writable place (copy a run there to go on with it)",
@@ -100,7 +111,7 @@ def new_run_dir(preset: str, root: str = "runs") -> pathlib.Path:
         except FileExistsError:
             continue
         return path
-    raise RunDirError(f"10,000 runs named {stem}-* exist; pass --out")
+    raise RunDirError(f"10,000 runs named {stem}-* exist; give a run directory")
 
 
 def foreign_files(run_dir: pathlib.Path) -> list[str]:
@@ -120,8 +131,8 @@ def check_holds_a_run_or_nothing(run_dir: pathlib.Path) -> None:
         held = sorted(path.name for path in run_dir.iterdir() if path.name != ".lock")
         if held:
             raise RunDirError(
-                f"{run_dir} holds files but no run ({', '.join(held[:5])}; no config.json); choose another --out "
-                "(nothing was written)"
+                f"{run_dir} holds files but no run ({', '.join(held[:5])}; no config.json); choose another run "
+                "directory (nothing was written)"
             )
 
 
@@ -152,7 +163,7 @@ def check_empty(directory: pathlib.Path) -> None:
     held = sorted(path.name for path in directory.iterdir() if path.name != ".lock") if directory.is_dir() else []
     if held:
         raise RunDirError(
-            f"{directory} already holds {_shown(held)}; choose a new or empty --out (nothing was written)"
+            f"{directory} already holds {_shown(held)}; choose a new or empty directory (nothing was written)"
         )
 
 
@@ -164,7 +175,7 @@ def locked(
     written, when `check` refuses the directory (default: it holds foreign files) or another process holds the
     lock. A directory that was missing or empty and holds only the lock afterwards is removed again."""
     if run_dir.exists() and not run_dir.is_dir():
-        raise RunDirError(f"{run_dir} is a file, not a run directory; choose another --out")
+        raise RunDirError(f"{run_dir} is a file, not a run directory; choose another one")
     check(run_dir)
     created = not run_dir.exists() or not any(run_dir.iterdir())
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -361,12 +372,13 @@ def flatten_metrics(metrics, prefix: str = "") -> dict[str, np.ndarray]:
 
 
 RESUMABLE_KEYS = ("total_env_steps", "checkpoint_every_updates", "eval_every_updates", "eval_episodes")
-"""Config fields `--resume RUN key=value` may change: they set how long the run goes on, how often it is saved
-and evaluated, and how, but neither the compiled update nor what it computes. `eval_env_params.NAME` may change
-too. `total_env_steps` only where the learner's schedule does not depend on it (`RunConfig.budget_shapes_updates`)."""
+"""Config fields a resumed run may change (`resume(run_dir, ["key=value"])`): they set how long the run goes on,
+how often it is saved and evaluated, and how, but neither the compiled update nor what it computes.
+`eval_env_params.NAME` may change too. `total_env_steps` only where the learner's schedule does not depend on it
+(`RunConfig.budget_shapes_updates`)."""
 
 
-def check_resumable(config: RunConfig, key: str, changer: str = "--resume") -> None:
+def check_resumable(config: RunConfig, key: str, changer: str = "a resumed run") -> None:
     """RunDirError, saying that `changer` cannot change it and what a resume may change, unless a resumed run of
     `config` may change the config key `key` (a field, or `eval_env_params.NAME`)."""
     allowed = [*RESUMABLE_KEYS, "eval_env_params.NAME"]

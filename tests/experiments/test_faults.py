@@ -178,7 +178,7 @@ def test_a_sweep_never_replaces_another_sweeps_results(tmp_path, capsys):
     assert sorted(before) == [".lock", "curves.png", "results.csv", "results.md"]
     assert sweep.main(argv) == 2
     (line,) = error_lines(capsys)
-    assert f"{out} already holds curves.png, results.csv, results.md; choose a new or empty --out" in line
+    assert f"{out} already holds curves.png, results.csv, results.md; choose a new or empty directory" in line
     assert snapshot(out) == before
 
 
@@ -293,8 +293,7 @@ def test_ctrl_c_during_start_up_imports_ends_the_run_at_once(tmp_path):
 def test_os_errors_name_the_path_or_the_directory_written_to():
     full = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # a write to an open file names no path
     assert rundir.os_error_message(full, "runs/a") == (
-        "writing into runs/a: No space left on device; the disk is full; free space and retry (a run goes on with "
-        "--resume)"
+        "writing into runs/a: No space left on device; the disk is full; free space and retry (a resumed run goes on)"
     )
     read_only = OSError(errno.EROFS, os.strerror(errno.EROFS), "/mnt/run/.lock")
     assert rundir.os_error_message(read_only).startswith("/mnt/run/.lock: Read-only file system; choose a writable")

@@ -65,6 +65,18 @@ def test_a_second_process_on_a_run_directory_is_refused_and_changes_nothing(refe
         assert snapshot(reference) == before
 
 
+def test_a_directory_holding_a_run_is_refused_in_library_terms_and_the_cli_adds_its_command(reference, capsys):
+    config, preset = rundir.read_config(reference)
+    with pytest.raises(rundir.RunDirError) as refused:
+        loop.train(config, reference, preset=preset)
+    assert "already holds a run; resume it (resume=True) or use another run directory" in str(refused.value)
+    assert "--" not in str(refused.value), "a library caller has no flags to pass"
+    before = snapshot(reference)
+    assert run_cli("--out", str(reference)) == 2
+    assert f"continue with: python -m experiments.run --resume {reference}" in capsys.readouterr().err
+    assert snapshot(reference) == before
+
+
 def test_a_foreign_directory_is_refused_and_its_files_untouched(reference, tmp_path, capsys):
     foreign = tmp_path / "mine"
     foreign.mkdir()
