@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm import ranges
+from jaxarm.envs.base import Env
 
 
 @dataclasses.dataclass(frozen=True)
@@ -24,10 +25,12 @@ class EnvEntry:
     kwargs: Mapping[str, Any]
     description: str
 
-    def build(self, **kwargs):
+    def env_class(self) -> type[Env]:
         module_name, class_name = self.target.split(":")
-        cls = getattr(importlib.import_module(module_name), class_name)
-        return cls(**{**self.kwargs, **kwargs})
+        return getattr(importlib.import_module(module_name), class_name)
+
+    def build(self, **kwargs):
+        return self.env_class()(**{**self.kwargs, **kwargs})
 
 
 _REGISTRY: dict[str, EnvEntry] = {}
@@ -68,21 +71,32 @@ _BUILT: dict[tuple, Any] = {}
 """(name, sorted kwargs) -> the env `make` built for them."""
 
 
+def entry(name: str) -> EnvEntry:
+    """The registration of `name`; KeyError naming the closest registered env for an unknown name."""
+    if name not in _REGISTRY:
+        raise KeyError(f"unknown env {name!r}{closest_match_hint(name, _REGISTRY)}; known: {', '.join(names())}")
+    return _REGISTRY[name]
+
+
+def uses_mjx(name: str) -> bool:
+    """Whether the env `name` steps MJX physics (`Env.uses_mjx`), read from its class: nothing is built."""
+    return entry(name).env_class().uses_mjx
+
+
 def make(name: str, **kwargs):
     """The registered env `name`; `kwargs` override its static constructor arguments.
 
     An env is immutable once built, so every call with the same (hashable) arguments returns the same instance:
     a run's config checks, trainer and evaluations share one env, whose MJX scene takes seconds to build.
     """
-    if name not in _REGISTRY:
-        raise KeyError(f"unknown env {name!r}{closest_match_hint(name, _REGISTRY)}; known: {', '.join(names())}")
+    registered = entry(name)
     key = (name, tuple(sorted(kwargs.items())))
     try:
         hash(key)
     except TypeError:  # a list-valued kwarg from the CLI: built each time
-        return _REGISTRY[name].build(**kwargs)
+        return registered.build(**kwargs)
     if key not in _BUILT:
-        _BUILT[key] = _REGISTRY[name].build(**kwargs)
+        _BUILT[key] = registered.build(**kwargs)
     return _BUILT[key]
 
 

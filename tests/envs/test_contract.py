@@ -44,17 +44,13 @@ def with_worker_group(names: list[str]) -> list:
     """`names` as pytest params, each marked to run beside the tests that share its programs, and as `mjx` where
     it compiles MJX programs."""
     return [
-        pytest.param(name, marks=[*worker_group(name), *([pytest.mark.mjx] if uses_mjx(name) else [])])
+        pytest.param(name, marks=[*worker_group(name), *([pytest.mark.mjx] if envs.uses_mjx(name) else [])])
         for name in names
     ]
 
 
 def worker_group(name: str) -> list:
     return [same_worker(WORKER_GROUPS[name])] if name in WORKER_GROUPS else []
-
-
-def uses_mjx(name: str) -> bool:
-    return name.startswith(("panda", "peg"))
 
 
 def contract_num_envs(env) -> int:
@@ -117,7 +113,7 @@ def assert_spec_shapes_and_finite(env, states, steps: int, num_envs: int) -> Non
 def test_every_registered_env_is_covered():
     assert sorted(FULL_CONTRACT + VARIANTS) == envs.names()
     assert {"arm2d", "panda_sort", "peg_insert"} <= set(FULL_CONTRACT)
-    assert [uses_mjx(name) for name in envs.names()] == [envs.make(name).uses_mjx for name in envs.names()]
+    assert [envs.uses_mjx(name) for name in envs.names()] == [envs.make(name).uses_mjx for name in envs.names()]
 
 
 @pytest.mark.parametrize("name", with_worker_group(VARIANTS))
