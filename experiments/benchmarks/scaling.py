@@ -24,14 +24,14 @@ import matplotlib
 import numpy as np
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
-from experiments.benchmarks.record import add_out_argument, write_record  # noqa: E402
-from experiments.benchmarks.timing import compile_updates, env_seconds, timed  # noqa: E402
-from experiments.benchmarks.training import base_ppo_config  # noqa: E402
-from jaxarm import envs  # noqa: E402
-from jaxarm.agents.common.config import with_pair  # noqa: E402
-from jaxarm.agents.ppo import PPOConfig, make_trainer  # noqa: E402
+from experiments.benchmarks.record import add_out_argument, write_record
+from experiments.benchmarks.timing import compile_updates, env_seconds, timed
+from experiments.benchmarks.training import base_ppo_config
+from jaxarm import envs
+from jaxarm.agents.common.config import with_pair
+from jaxarm.agents.ppo import PPOConfig, make_trainer
 
 
 def parse_sizes(text: str) -> list[int]:

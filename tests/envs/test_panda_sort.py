@@ -9,15 +9,15 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
 
-from jaxarm import envs  # noqa: E402
-from jaxarm.envs.panda.robot import HOME_QPOS  # noqa: E402
-from jaxarm.envs.panda_sort import (  # noqa: E402
+from jaxarm import envs
+from jaxarm.envs.panda.robot import HOME_QPOS
+from jaxarm.envs.panda_sort import (
     IN_CORRECT_BIN,
     IN_PLAY,
     SHAPE_CUBE,
@@ -25,11 +25,11 @@ from jaxarm.envs.panda_sort import (  # noqa: E402
     SHAPE_SPHERE,
     PandaSort,
 )
-from jaxarm.envs.panda_sort.curriculum import StartDraw, place_in_hand, pose_in_hand  # noqa: E402
-from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE  # noqa: E402
-from jaxarm.envs.panda_sort.reward import SHAPING_TERMS  # noqa: E402
-from jaxarm.envs.panda_sort.scripted import script_start, scripted_action  # noqa: E402
-from tests.envs.compiled import compiled, same_worker  # noqa: E402
+from jaxarm.envs.panda_sort.curriculum import StartDraw, place_in_hand, pose_in_hand
+from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE
+from jaxarm.envs.panda_sort.reward import SHAPING_TERMS
+from jaxarm.envs.panda_sort.scripted import script_start, scripted_action
+from tests.envs.compiled import compiled, same_worker
 
 # Craig (modified) DH parameters of the Franka Panda as published by Franka Emika.
 DH_A = [0.0, 0.0, 0.0, 0.0825, -0.0825, 0.0, 0.088]

@@ -9,15 +9,15 @@ import os
 
 os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
 
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
 
-from jaxarm.envs.panda.robot import wrapped_angle, yaw_of_quaternion  # noqa: E402
-from jaxarm.envs.panda_sort import MODE_JOINT, PandaSort  # noqa: E402
-from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE, SERVO_LEAD_OBS_SIZE, TOOL_OBS_SIZE  # noqa: E402
-from tests.envs.compiled import same_worker  # noqa: E402
+from jaxarm.envs.panda.robot import wrapped_angle, yaw_of_quaternion
+from jaxarm.envs.panda_sort import MODE_JOINT, PandaSort
+from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE, SERVO_LEAD_OBS_SIZE, TOOL_OBS_SIZE
+from tests.envs.compiled import same_worker
 
 pytestmark = [pytest.mark.mjx, same_worker("panda_sort_running_target")]
 TOOL = OBJECT_OBS_SIZE  # one object: the tool's part starts after its row

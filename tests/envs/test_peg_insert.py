@@ -8,16 +8,16 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
 
-from jaxarm import envs  # noqa: E402
-from jaxarm.envs.peg_insert import PegInsert  # noqa: E402
-from jaxarm.envs.peg_insert.env import POSITION_SCALE, START_TIP_HEIGHT  # noqa: E402
-from jaxarm.envs.peg_insert.model import HOLE_DEPTH, HOLE_FLOOR, HOLE_NOMINAL, PEG_RADIUS  # noqa: E402
-from tests.envs.compiled import compiled, same_worker  # noqa: E402
+from jaxarm import envs
+from jaxarm.envs.peg_insert import PegInsert
+from jaxarm.envs.peg_insert.env import POSITION_SCALE, START_TIP_HEIGHT
+from jaxarm.envs.peg_insert.model import HOLE_DEPTH, HOLE_FLOOR, HOLE_NOMINAL, PEG_RADIUS
+from tests.envs.compiled import compiled, same_worker
 
 BLOCK_TOP = HOLE_FLOOR + HOLE_DEPTH
 

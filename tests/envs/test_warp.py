@@ -13,15 +13,15 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
 
-from jaxarm import envs  # noqa: E402
-from jaxarm.envs.panda.base import CONTROL_DT, WARP_TIMESTEP  # noqa: E402
-from jaxarm.envs.panda.mjx_impl import (  # noqa: E402
+from jaxarm import envs
+from jaxarm.envs.panda.base import CONTROL_DT, WARP_TIMESTEP
+from jaxarm.envs.panda.mjx_impl import (
     Impl,
     constraint_capacity,
     contact_capacity,
@@ -30,9 +30,9 @@ from jaxarm.envs.panda.mjx_impl import (  # noqa: E402
     warp_available,
     with_geom_sizes,
 )
-from jaxarm.envs.panda_sort import SHAPE_CUBE, PandaSort  # noqa: E402
-from jaxarm.envs.panda_sort.scripted import script_start, scripted_action  # noqa: E402
-from jaxarm.envs.peg_insert import PegInsert  # noqa: E402
+from jaxarm.envs.panda_sort import SHAPE_CUBE, PandaSort
+from jaxarm.envs.panda_sort.scripted import script_start, scripted_action
+from jaxarm.envs.peg_insert import PegInsert
 
 HORIZON = 10
 """Env steps compared between the implementations (0.4 s of simulated time)."""
