@@ -68,3 +68,14 @@ def compiler_options(env) -> dict[str, bool]:
     """XLA options for a program that steps `env` (an env or a wrapped one), in this process: pass them to
     `jax.jit(..., compiler_options=...)`. See `fusion_emitter_options`."""
     return fusion_emitter_options(_cpu_flag_applied, getattr(env, "unwrapped", env).uses_mjx)
+
+
+def import_mjx_quietly() -> None:
+    """Imports mujoco.mjx (and jax with it) without the "Failed to import warp: ..." lines it prints on stdout
+    where warp-lang is not installed: Warp is optional here, and `impl="warp"` names what to install when it is
+    asked for. Called first by the packages whose modules import mujoco.mjx or brax (which imports it)."""
+    import contextlib
+    import io
+
+    with contextlib.redirect_stdout(io.StringIO()):
+        import mujoco.mjx  # noqa: F401

@@ -39,3 +39,11 @@ def test_a_child_process_makes_its_parents_choice():
         check=True,
     )
     assert child.stdout.strip() == str(_runtime._cpu_flag_applied)
+
+
+def test_importing_the_learners_and_mjx_envs_prints_nothing():
+    """mujoco-mjx prints "Failed to import warp" on import without warp-lang; every command started with it."""
+    program = "import experiments.configs, jaxarm.envs.panda_sort, jaxarm.envs.peg_insert"
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == ""

@@ -202,6 +202,8 @@ def _train_locked(
 ) -> dict:
     """`train`, with the lock held; a resume's `overrides` are recorded once its checkpoint is restored."""
     trainer = registry.make_trainer(config)
+    if processes.is_primary():
+        progress.explain_slow_compiles(config.make_env(randomized=False)[0])
     run_steps = config.num_updates * config.env_steps_per_update
     if run_steps > config.total_env_steps and processes.is_primary():
         print(

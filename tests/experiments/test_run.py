@@ -86,6 +86,15 @@ def test_eval_cli_writes_its_own_file_keeps_eval_json_and_draws_a_video(finished
     assert (finished_run / "video.gif").stat().st_size > 1000
 
 
+def test_a_run_without_a_terminal_logs_a_progress_line_per_chunk(tmp_path, capsys):
+    assert run_cli(*SMALL, "--out", str(tmp_path / "logged")) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("env steps ")]
+    assert len(lines) == 6, "24 updates in chunks of 4"
+    assert lines[0].startswith("env steps 4,096/24,576 (17%)")
+    assert lines[-1].startswith("env steps 24,576/24,576 (100%)") and lines[-1].endswith("ETA 0:00:00")
+    assert all("steps/s  return " in line and "  success " in line and " elapsed " in line for line in lines)
+
+
 def test_cli_errors_are_one_line_and_name_the_closest(capsys, tmp_path):
     assert run.main(["--config", "ppo_arm2dd"]) == 2
     assert "did you mean 'ppo_arm2d'" in capsys.readouterr().err
