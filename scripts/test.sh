@@ -4,9 +4,9 @@
 #   bash scripts/test.sh           # the whole suite: what CI runs
 #   bash scripts/test.sh --quick   # the quick tier for the inner loop: every test marked neither slow nor mjx
 #
-# Further arguments go to pytest. Compiled programs persist in .jax-cache/ (tests/conftest.py), so a second run
-# on the same checkout compiles little; tests marked xdist_group (the MJX envs', tests/envs/compiled.py) stay in
-# one worker with the programs they share.
+# Further arguments go to pytest. Compiled programs persist in ~/.cache/jaxarm/jax, shared with the commands
+# (tests/conftest.py), so a second run compiles little; tests marked xdist_group (the MJX envs',
+# tests/envs/compiled.py) stay in one worker with the programs they share.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh || exit 1

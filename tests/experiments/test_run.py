@@ -86,6 +86,25 @@ def test_eval_cli_writes_its_own_file_keeps_eval_json_and_draws_a_video(finished
     assert (finished_run / "video.gif").stat().st_size > 1000
 
 
+def test_eval_after_training_compiles_nothing(finished_run):
+    """The evaluation training compiled is read back from the shared cache: a restored state lowers as a trained
+    one does (`checkpoint._uncommitted`), so no program of `experiments.eval` misses the cache."""
+    events = []
+
+    def listen(event, **kwargs):
+        if event.startswith("/jax/compilation_cache/cache_"):
+            events.append(event)
+
+    jax.monitoring.register_event_listener(listen)
+    try:
+        assert eval_cli.main([str(finished_run), "--episodes", "20"]) == 0  # the run's eval_episodes
+        assert eval_cli.main([str(finished_run), "--episodes", "20", "--seed", "3"]) == 0
+    finally:
+        jax.monitoring.unregister_event_listener(listen)
+    assert events.count("/jax/compilation_cache/cache_hits") >= 2
+    assert "/jax/compilation_cache/cache_misses" not in events
+
+
 def test_a_run_without_a_terminal_logs_a_progress_line_per_chunk(tmp_path, capsys):
     assert run_cli(*SMALL, "--out", str(tmp_path / "logged")) == 0
     lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("env steps ")]
