@@ -171,13 +171,24 @@ def train(
 
 def resume(run_dir: pathlib.Path, overrides: Sequence[str] = (), options=Options()) -> tuple[dict, RunConfig]:
     """Continues the run in `run_dir` from its latest checkpoint with the `key=value` overrides a resumed run may
-    take (rundir.RESUMABLE_KEYS; recorded in config.json and resumes.jsonl). Returns (evaluation, config)."""
+    take (rundir.RESUMABLE_KEYS; recorded in config.json and resumes.jsonl). Returns (evaluation, config). A run
+    that has finished, resumed without overrides, is left as it is: its eval.json is returned."""
     run_dir = pathlib.Path(run_dir)
     # Checked before the lock writes anything: a directory that is no run, or overrides it may not take.
     config, preset = rundir.read_config(run_dir)
     rundir.check_config_unedited(run_dir, config)
     config = rundir.apply_resume_overrides(config, list(overrides))
     with _locked_by_primary(run_dir):
+        finished = None if overrides else rundir.finished_evaluation(run_dir, config)
+        if finished is not None:
+            # Nothing asked: evaluating again would only rewrite eval.json (experiments.eval writes its own file).
+            if processes.is_primary():
+                print(
+                    f"{run_dir} has finished its {config.num_updates:,} updates; nothing done. To train further, "
+                    f"give a larger total_env_steps=N; to evaluate again, python -m experiments.eval {run_dir}",
+                    file=sys.stderr,
+                )
+            return finished, config
         return _train_locked(config, preset, run_dir, True, options, list(overrides)), config
 
 

@@ -318,6 +318,20 @@ def evaluate_state(trainer, config: RunConfig, state, episodes: int, seed: int) 
     return make_evaluator(trainer, config, episodes)(state, jax.random.PRNGKey(seed))
 
 
+def finished_evaluation(run_dir: pathlib.Path, config: RunConfig) -> dict | None:
+    """The final evaluation (eval.json) of a run that trained all of `config`'s updates and evaluated their end;
+    None where there is more to train or to evaluate (no such file, an unreadable one, or a stopped run's)."""
+    latest = checkpoint.latest_step(run_dir / "checkpoints")
+    path = run_dir / "eval.json"
+    if latest is None or latest < config.num_updates or not path.exists():
+        return None
+    try:
+        result = json.loads(path.read_text())
+    except json.JSONDecodeError:
+        return None
+    return result if result.get("finished") else None
+
+
 def write_json(path: pathlib.Path, data: dict) -> None:
     """Writes `data` to `path` whole or not at all (a temporary file renamed over it): a process killed while
     writing leaves the previous file."""

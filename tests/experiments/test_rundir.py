@@ -182,6 +182,13 @@ def test_resume_extends_the_budget_as_if_it_had_been_set_at_the_start(tmp_path, 
     assert record["overrides"] == ["total_env_steps=32768", "eval_episodes=10"] and record["resumed_at_update"] == 24
 
 
+def test_resume_of_a_finished_run_says_so_and_changes_nothing(reference, capsys):
+    before = snapshot(reference)
+    assert run.main(["--resume", str(reference)]) == 0
+    assert "has finished its 24 updates; nothing done" in capsys.readouterr().err
+    assert snapshot(reference) == before, "no evaluation, no rewritten eval.json"
+
+
 def test_resume_refuses_overrides_that_change_the_learner_and_changes_nothing(reference, capsys):
     before = snapshot(reference)
     assert run.main(["--resume", str(reference), "learning_rate=1e-2"]) == 2
