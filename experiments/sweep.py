@@ -213,6 +213,7 @@ def main(argv=None) -> int:
             sweep(base, grid, args.seeds, None, title)
             return 0
         with rundir.locked(out, check=rundir.check_empty):
+            rundir.append_provenance(out, "sweep")
             sweep(base, grid, args.seeds, out, title)
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)

@@ -269,6 +269,7 @@ def _start(
         done_updates = int(state.updates)
         rundir.check_budget(config, done_updates)
         if primary:
+            rundir.append_provenance(run_dir, "resume")
             if overrides:
                 rundir.record_resume(run_dir, config, preset, overrides, done_updates)
             rundir.truncate_metrics(run_dir, done_updates)
@@ -282,6 +283,7 @@ def _start(
     if primary:
         # Written once the start state exists: a warm start that fails leaves no half-made run directory.
         rundir.write_config(run_dir, config, preset)
+        rundir.append_provenance(run_dir, "start")
     return _Start(state, 0, 0.0, None)
 
 

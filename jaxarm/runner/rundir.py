@@ -2,6 +2,8 @@
 
 Layout of `runs/<config>-<timestamp>/`:
   config.json      the resolved config (with "preset", and "agent": the learner's name in jaxarm.agents.registry)
+  provenance.json  {"records": [...]}: git commit and dirty flag, package versions, devices, command line, host
+                   and time of the start and of each resume that trained (jaxarm/runner/provenance.py)
   resumes.jsonl    one JSON row per resume that changed settings: the overrides and the update it resumed at
   metrics.jsonl    one JSON row per update (evaluation during training adds "eval/..." to its update's row)
   tensorboard/     TensorBoard event files, against env steps
@@ -39,8 +41,19 @@ from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
+from jaxarm.runner import provenance
 
-RUN_FILES = ("config.json", "resumes.jsonl", "metrics.jsonl", "tensorboard", "checkpoints", "best", "best.json")
+PROVENANCE_FILE = "provenance.json"
+RUN_FILES = (
+    "config.json",
+    PROVENANCE_FILE,
+    "resumes.jsonl",
+    "metrics.jsonl",
+    "tensorboard",
+    "checkpoints",
+    "best",
+    "best.json",
+)
 """What training writes; with `OUTPUT_FILES`, what a run directory may hold."""
 OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock")
 OUTPUT_PATTERNS = ("eval-*.json", "robustness-*.json", "robustness-*.md", "robustness-*.png", "wandb", ".*.tmp")
@@ -330,6 +343,15 @@ def finished_evaluation(run_dir: pathlib.Path, config: RunConfig) -> dict | None
     except json.JSONDecodeError:
         return None
     return result if result.get("finished") else None
+
+
+def append_provenance(directory: pathlib.Path, event: str) -> dict:
+    """Adds `provenance.record(event)` to `directory`'s provenance.json and returns it."""
+    path = directory / PROVENANCE_FILE
+    records = json.loads(path.read_text())["records"] if path.exists() else []
+    entry = provenance.record(event)
+    write_json(path, {"records": [*records, entry]})
+    return entry
 
 
 def write_json(path: pathlib.Path, data: dict) -> None:

@@ -15,7 +15,7 @@ import pytest
 from experiments import configs, run
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import loop, rundir
+from jaxarm.runner import loop, provenance, rundir
 from tests.experiments.test_run import SMALL  # the same compiled chunk as there
 
 
@@ -180,6 +180,24 @@ def test_resume_extends_the_budget_as_if_it_had_been_set_at_the_start(tmp_path, 
     assert config.total_env_steps == 32768
     (record,) = [json.loads(line) for line in (tmp_path / "short" / "resumes.jsonl").read_text().splitlines()]
     assert record["overrides"] == ["total_env_steps=32768", "eval_episodes=10"] and record["resumed_at_update"] == 24
+    assert [
+        entry["event"] for entry in json.loads((tmp_path / "short" / "provenance.json").read_text())["records"]
+    ] == [
+        "start",
+        "resume",
+    ]
+
+
+def test_a_run_records_its_provenance(reference):
+    (entry,) = json.loads((reference / "provenance.json").read_text())["records"]
+    assert entry["event"] == "start" and entry["hostname"] and entry["command"]
+    assert entry["packages"]["jax"] == jax.__version__ and entry["packages"]["python"].startswith("3.")
+    assert {"jaxlib", "mujoco", "mujoco-mjx", "flax", "optax", "orbax-checkpoint", "numpy", "warp-lang"} <= set(
+        entry["packages"]
+    )
+    assert entry["devices"] and entry["devices"][0].startswith(jax.devices()[0].platform)
+    assert len(entry["git"]["commit"]) == 40 and isinstance(entry["git"]["dirty"], bool), "tests run in a checkout"
+    assert provenance.git_state(reference) == {"commit": None, "dirty": None}, "no checkout, no commit"
 
 
 def test_resume_of_a_finished_run_says_so_and_changes_nothing(reference, capsys):
