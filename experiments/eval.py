@@ -55,6 +55,8 @@ def main(argv=None) -> int:
             raise ValueError(f"--episodes must be positive, got {args.episodes}")
         enable_compilation_cache()
         config, _ = rundir.read_config(run_dir)
+        if args.video:
+            video.check_can_draw(config.make_eval_env()[0])  # before anything compiles
         trainer = configs.make_trainer(config)
         with rundir.locked(run_dir):
             state = rundir.restore_state(run_dir, trainer, config, best=args.best)

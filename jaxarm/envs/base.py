@@ -234,11 +234,13 @@ class Env(abc.ABC, Generic[Params, Sim]):
         warns above it there.
       uses_mjx: the env steps MJX physics; learners then compile their programs with jaxarm's process-wide
         XLA:CPU setting for MJX rather than for everything else (`jaxarm.envs.compiler_options`).
+      draws_with_gl: `render` draws with MuJoCo's OpenGL renderer, which needs a GL platform (`MUJOCO_GL`).
     """
 
     spec: EnvSpec
     cpu_max_envs: int | None = None
     uses_mjx: bool = False
+    draws_with_gl: bool = False
 
     @abc.abstractmethod
     def default_params(self) -> Params:

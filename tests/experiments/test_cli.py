@@ -5,6 +5,7 @@ import os
 import pathlib
 import subprocess
 import sys
+import time
 import types
 
 import numpy as np
@@ -12,7 +13,11 @@ import pytest
 
 from experiments import bench, compare, run, sweep
 from experiments import eval as eval_cli
-from jaxarm.runner import cache, sinks, video
+from experiments.configs.td3 import td3_peg
+from jaxarm.agents.common.config import apply_overrides
+from jaxarm.runner import cache, rundir, sinks, video
+
+README = (pathlib.Path(__file__).resolve().parents[2] / "README.md").read_text()
 
 SMALL = [
     "num_envs=64",
@@ -164,8 +169,43 @@ def test_a_missing_gl_platform_gets_a_one_line_hint():
     env = envs.make("arm2d")
     params = env.default_params().replace(max_episode_steps=np.int32(3))
     trainer = types.SimpleNamespace(act=lambda learner, obs: np.zeros((obs.shape[0], 2), np.float32))
-    with pytest.raises(video.RenderError, match=r"set MUJOCO_GL=egl \(GPU\) or MUJOCO_GL=osmesa \(CPU\)"):
+    with pytest.raises(video.RenderError) as raised:
         video.episode_frames(Headless(), params, trainer, None, jax.random.PRNGKey(0), 1)
+    assert str(raised.value).endswith(video.GL_HINT) and "\n" not in str(raised.value)
+
+
+def test_a_mujoco_gl_that_cannot_load_fails_at_import_with_the_readmes_hint():
+    """mujoco loads MUJOCO_GL's platform when imported, before any command can probe it."""
+    env = {**os.environ, "MUJOCO_GL": "bogus"}
+    command = [sys.executable, "-m", "experiments.eval", "no-such-run", "--video"]
+    done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode != 0
+    assert done.stderr.strip().splitlines()[-1].endswith(video.GL_HINT) and "MUJOCO_GL=bogus" in done.stderr
+
+
+def test_eval_video_without_gl_fails_at_once_with_the_readmes_hint(tmp_path, monkeypatch, capsys):
+    """Checked before the checkpoint loads or anything compiles (a Panda env compiled for 9.5 minutes first)."""
+
+    def no_gl():
+        raise AttributeError("'NoneType' object has no attribute 'glGetError'")  # MUJOCO_GL=osmesa, no libOSMesa
+
+    def never(*args, **kwargs):
+        raise AssertionError("restored a checkpoint before checking GL")
+
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    config = apply_overrides(td3_peg(), ["num_envs=2"])
+    rundir.write_config(run_dir, config, "td3_peg")
+    monkeypatch.setattr(video, "probe_gl", no_gl)
+    monkeypatch.setattr(rundir, "restore_state", never)
+    start = time.perf_counter()
+    assert eval_cli.main([str(run_dir), "--video"]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and error.strip().endswith(video.GL_HINT) and "glGetError" in error
+    assert all(
+        part in README and part in video.GL_HINT for part in ("MUJOCO_GL=egl", "libegl1 libegl-mesa0 libgl1-mesa-dri")
+    )
+    assert time.perf_counter() - start < 10
 
 
 @pytest.mark.parametrize(

@@ -121,6 +121,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
     """
 
     uses_mjx = True
+    draws_with_gl = True
 
     def __init__(
         self,
