@@ -2,7 +2,16 @@
 
 from jaxarm._runtime import compiler_options
 from jaxarm.envs.base import Env, EnvSpec, EnvState, EpisodeStats, Observation, Transition, check_action
-from jaxarm.envs.registry import describe, families, make, names, override_params, register, uses_mjx
+from jaxarm.envs.registry import (
+    describe,
+    families,
+    make,
+    names,
+    override_params,
+    register,
+    registered_kwargs,
+    uses_mjx,
+)
 from jaxarm.envs.wrappers import AutoReset, VmapEnv, Wrapper
 
 __all__ = [
@@ -23,5 +32,6 @@ __all__ = [
     "names",
     "override_params",
     "register",
+    "registered_kwargs",
     "uses_mjx",
 ]

@@ -67,6 +67,11 @@ def families() -> dict[str, list[str]]:
     return grouped
 
 
+def registered_kwargs(name: str) -> dict[str, Any]:
+    """The constructor arguments env `name` is registered with (a variant such as arm2d_pixels fixes some)."""
+    return dict(entry(name).kwargs)
+
+
 _BUILT: dict[tuple, Any] = {}
 """(name, sorted kwargs) -> the env `make` built for them."""
 

@@ -1,31 +1,40 @@
-"""`--show`: every config field (type, value, docstring) and the env's params (value, default, docstring).
+"""`--show`: every config field (type, value, docstring), the env's constructor arguments (value, default,
+docstring) and the env's params (value, default, docstring).
 
-The docs are the `Attributes:` sections of the config's and the params' class docstrings, where each field is
-documented once.
+The docs are the `Attributes:` sections of the config's and the params' class docstrings and the `Args:` sections
+of the env classes', where each field or argument is documented once.
 """
 
 import dataclasses
+import enum
+import inspect
 import re
 import textwrap
 import typing
 
 import numpy as np
 
-from jaxarm import ranges
+from jaxarm import envs, ranges
 from jaxarm.agents.common.config import RunConfig
 
 _ENTRY = re.compile(r"^\s{2,}(\w+): (.*)$")
+_SECTION = re.compile(r"^\s{0,4}[A-Z]\w*( \(.*\))?:$")
+"""A docstring section's header ("Attributes:", "Args:"), where the previous section ends."""
 
 
-def attribute_docs(cls: type) -> dict[str, str]:
-    """{field: its line(s) in the `Attributes:` sections of `cls` and its bases' docstrings}."""
+def attribute_docs(cls: type, section: str = "Attributes") -> dict[str, str]:
+    """{field: its line(s) in the `Attributes:` (or another `section`'s) sections of `cls` and its bases'
+    docstrings}."""
     docs: dict[str, str] = {}
     for klass in reversed(cls.__mro__):
         doc = klass.__dict__.get("__doc__") or ""
-        if "Attributes" not in doc:
+        header = re.search(rf"^\s*{section}( \(.*\))?:$", doc, re.MULTILINE)
+        if header is None:
             continue
         current = None
-        for line in doc.split("Attributes", 1)[1].splitlines()[1:]:
+        for line in doc[header.end() :].splitlines()[1:]:
+            if _SECTION.match(line):
+                break
             match = _ENTRY.match(line)
             if match and len(line) - len(line.lstrip()) <= 6:
                 current = match.group(1)
@@ -86,12 +95,38 @@ def env_param_lines(config: RunConfig) -> list[str]:
     return lines
 
 
+def env_kwarg_lines(config: RunConfig) -> list[str]:
+    """One line per constructor argument of the config's env: name, the value the config builds it with (and the
+    constructor's default where it differs), doc (from the class's `Args:`)."""
+    env, _ = config.make_env(randomized=False)  # the env itself, no Randomized wrapper
+    cls = type(env)
+    built = {**envs.registered_kwargs(config.env), **dict(config.env_kwargs)}
+    docs = attribute_docs(cls, "Args")
+    lines = []
+    for name, parameter in inspect.signature(cls.__init__).parameters.items():
+        if name == "self" or parameter.kind in (parameter.VAR_POSITIONAL, parameter.VAR_KEYWORD):
+            continue
+        default = _enum_value(parameter.default)
+        value = _enum_value(built.get(name, default))
+        changed = "" if value == default else f"  (default {default!r})"
+        lines.append(f"  env_kwargs.{name} = {value!r}{changed}")
+        if name in docs:
+            lines.append(_wrapped(docs[name]))
+    return lines
+
+
+def _enum_value(value):
+    return value.value if isinstance(value, enum.Enum) else value
+
+
 def describe(config: RunConfig, preset: str) -> str:
     """The text `--show` prints for `config` (the preset `preset` with any overrides)."""
     return "\n".join(
         [
             f"{preset}: {type(config).__name__} (set any field as key=value; lists as 64,64 or [64,64])",
             *config_lines(config),
+            f"env {config.env!r} constructor arguments (env_kwargs.NAME=VALUE):",
+            *env_kwarg_lines(config),
             f"env {config.env!r} params (env_params.NAME=VALUE; eval_env_params.NAME=VALUE for evaluation only):",
             *env_param_lines(config),
         ]

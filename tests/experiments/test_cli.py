@@ -11,7 +11,7 @@ import types
 import numpy as np
 import pytest
 
-from experiments import bench, compare, run, sweep
+from experiments import bench, compare, configs, run, sweep
 from experiments import eval as eval_cli
 from experiments.configs.td3 import td3_peg
 from jaxarm.agents.common.config import apply_overrides
@@ -59,6 +59,21 @@ def test_show_lists_config_fields_and_env_params_with_defaults_and_docs(capsys):
     assert "env_params.goal_mode (one of 0, 1, 2) = 2  (default 0)" in out
     assert "reward on the step that completes the hold" in out
     assert "env_params.max_episode_steps (>= 1) = 200" in out and "time limit (truncation)." in out
+
+
+def test_show_lists_the_env_constructor_arguments_with_defaults_and_docs(capsys):
+    assert run.main(["--config", "ppo_arm2d_pixels", "--show", "env_kwargs.resolution=24"]) == 0
+    out = capsys.readouterr().out
+    assert "env 'arm2d_pixels_proprio' constructor arguments (env_kwargs.NAME=VALUE):" in out
+    assert "env_kwargs.obs_mode = 'pixels+proprio'  (default 'state')" in out, "the registered variant's"
+    assert "env_kwargs.resolution = 24  (default 64)" in out and "env_kwargs.num_links = 2\n" in out
+
+
+def test_list_describes_every_preset_in_one_line(capsys):
+    assert run.main(["--list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == len(configs.names()) and all(len(line.split(maxsplit=1)) == 2 for line in lines)
+    assert not any("comment" in line for line in lines), "no pointer to a source comment"
 
 
 def test_cache_directory_follows_the_environment(tmp_path):
