@@ -223,10 +223,8 @@ def run_brax(config: PPOConfig, learning_rate: float, eval_episodes: int) -> Res
     """Trains brax's PPO on the same env through the adapter (`PARTS` epochs) and evaluates it."""
     from brax.training.agents.ppo import train as brax_ppo
 
-    from jaxarm.interop.brax_compat import install_device_put_replicated
     from jaxarm.interop.brax_env import BraxEnv
 
-    install_device_put_replicated()
     env, env_params = config.make_env()
     epochs = []
     start = time.perf_counter()

@@ -11,8 +11,9 @@ the sorter's 235 s on an H100).
 
 Nothing else brax's PPO and SAC trainers use is missing on jax 0.10.2: `jax.pmap` still exists (now built on
 shard_map; brax reads its outputs with `addressable_shards`, which works), and `jax.tree_util.tree_map` is
-still there. This module patches nothing when imported; the caller opts in, once, before calling a brax
-trainer. It never replaces a `jax.device_put_replicated` that jax itself provides.
+still there. This module patches nothing when imported; `BraxEnv` (brax_env.py) installs the function when it
+is constructed, so a brax trainer given one finds it. It never replaces a `jax.device_put_replicated` that jax
+itself provides.
 """
 
 from collections.abc import Sequence

@@ -20,7 +20,9 @@ modes; `auto_reset` picks one, and a wrong pairing raises at trace time:
 
 `metrics['success']` is 1.0 on the step that ends a successful episode, so brax's episode sums of it (its
 evaluator's `eval/episode_success`) are success rates. Actions from brax's tanh policies lie in [-1, 1];
-the jaxarm env clips them to its own bounds. Not thread-safe or numpy-facing: see `gymnasium_env` for that.
+the jaxarm env clips them to its own bounds. Constructing a `BraxEnv` puts back `jax.device_put_replicated`,
+which brax's trainers call and jax >= 0.10 removed (`brax_compat`). Not thread-safe or numpy-facing: see
+`gymnasium_env` for that.
 """
 
 from typing import Any
@@ -31,6 +33,7 @@ from brax.envs import base as brax_base
 from brax.envs.wrappers.training import VmapWrapper
 
 from jaxarm.envs import AutoReset, EnvState
+from jaxarm.interop.brax_compat import install_device_put_replicated
 
 # Keys the brax AutoResetWrapper adds to `info`; seeing one means brax is resetting this env too.
 _BRAX_AUTO_RESET_KEY = "first_pipeline_state"
@@ -47,6 +50,8 @@ class BraxEnv(brax_base.Env):
     """
 
     def __init__(self, env, params, auto_reset: bool = True):
+        # brax's trainers call jax.device_put_replicated, gone in jax >= 0.10: put it back before they can.
+        install_device_put_replicated()
         self.env = env
         self.params = params
         self.auto_reset = auto_reset

@@ -42,6 +42,13 @@ def test_device_put_replicated_stacks_one_copy_per_device():
     assert install_device_put_replicated() is False  # never replaces an existing one
 
 
+def test_the_adapter_installs_what_brax_trainers_need(monkeypatch):
+    monkeypatch.delattr(jax, "device_put_replicated", raising=False)
+    env, params = make_params()
+    BraxEnv(env, params)
+    assert jax.device_put_replicated is device_put_replicated
+
+
 def test_replicated_state_has_the_layout_brax_pmap_gives_back():
     # Any other layout makes brax's pmapped epoch compile a second time, for its own outputs.
     epoch = jax.pmap(lambda tree: jax.tree.map(lambda leaf: leaf + 1, tree), axis_name=BRAX_PMAP_AXIS)
@@ -104,7 +111,6 @@ def test_brax_ppo_trains_through_the_adapter():
     from brax.training.agents.ppo import networks as ppo_networks
     from brax.training.agents.ppo import train as ppo
 
-    install_device_put_replicated()
     env, params = make_params(max_episode_steps=20)
     steps_seen = []
     _, policy_params, metrics = ppo.train(
@@ -135,7 +141,6 @@ def test_brax_sac_trains_through_the_adapter():
     from brax.training.agents.sac import networks as sac_networks
     from brax.training.agents.sac import train as sac
 
-    install_device_put_replicated()
     env, params = make_params(max_episode_steps=20)
     _, policy_params, metrics = sac.train(
         environment=BraxEnv(env, params),
