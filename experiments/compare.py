@@ -1,4 +1,4 @@
-"""Compare finished or stopped runs: `python -m experiments.compare RUN_DIR ... [--out compare.png]`.
+"""Compare finished or stopped runs: `python -m experiments.compare RUN_DIR ... [--out PNG]`.
 
 For studies whose points are separate runs (a batch-size study stopped at equal wall clock with
 `run.py --stop-after-minutes`, or runs from several sessions): reads each run's config.json, metrics.jsonl and,
@@ -13,6 +13,7 @@ evaluations; evaluations compare any runs of one task.
 import argparse
 import dataclasses
 import json
+import os
 import pathlib
 import sys
 
@@ -117,10 +118,17 @@ def table(runs: list[RunCurves]) -> str:
 
 
 def device_name(runs: list[RunCurves], given: str | None) -> str:
-    """The device for the figure's title: `given`, else the one every evaluated run names; ValueError if none."""
+    """The device for the figure's title: the one every evaluated run names, or `given`, which must be part of
+    the device every evaluated run names (case aside: "H100" for "NVIDIA H100 80GB HBM3") so that runs are never
+    labelled with a device they did not run on; ValueError otherwise."""
+    recorded = {run.label: run.evaluation["device"] for run in runs if run.evaluation and "device" in run.evaluation}
     if given:
+        elsewhere = {label: device for label, device in recorded.items() if given.lower() not in device.lower()}
+        if elsewhere:
+            shown = ", ".join(f"{label} on {device!r}" for label, device in elsewhere.items())
+            raise ValueError(f"--device {given!r} does not name the device of every run: {shown}")
         return given
-    named = {run.evaluation["device"] for run in runs if run.evaluation and "device" in run.evaluation}
+    named = set(recorded.values())
     if len(named) != 1:
         raise ValueError(
             f"name the device for the figure with --device (the runs' eval.json files name {sorted(named) or 'none'})"
@@ -145,6 +153,12 @@ def figure_path(out: pathlib.Path) -> pathlib.Path:
     return out
 
 
+def default_out(run_dirs: list[str]) -> pathlib.Path:
+    """compare.png in the directory that holds the runs (their nearest common one), not the working directory."""
+    parents = [str(pathlib.Path(path).resolve().parent) for path in run_dirs]
+    return pathlib.Path(os.path.commonpath(parents)) / "compare.png"
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m experiments.compare", description=__doc__.splitlines()[0])
     parser.add_argument("run_dirs", nargs="+")
@@ -155,9 +169,13 @@ def main(argv=None) -> int:
         help="a run's label; give one per run, in order (default: directory names)",
     )
     parser.add_argument("--title", default="runs compared")
-    parser.add_argument("--device", help="device named in the figure (default: the runs' eval.json)")
     parser.add_argument(
-        "--out", default="compare.png", help="the figure (.png, .pdf or .svg; a directory gets compare.png)"
+        "--device",
+        help="device named in the figure, for runs without an eval.json (default: the runs' eval.json; a name "
+        "that is not part of a run's recorded device is refused)",
+    )
+    parser.add_argument(
+        "--out", help="the figure (.png, .pdf or .svg; a directory gets compare.png; default: beside the runs)"
     )
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     labels = args.labels or [None] * len(args.run_dirs)
@@ -166,7 +184,7 @@ def main(argv=None) -> int:
             raise ValueError(f"{len(labels)} --label for {len(args.run_dirs)} runs")
         runs = [load_run(pathlib.Path(path), label) for path, label in zip(args.run_dirs, labels, strict=True)]
         device = device_name(runs, args.device)
-        out = figure_path(pathlib.Path(args.out))
+        out = figure_path(pathlib.Path(args.out)) if args.out else default_out(args.run_dirs)
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

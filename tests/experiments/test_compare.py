@@ -2,6 +2,7 @@
 
 import dataclasses
 import json
+import pathlib
 
 import numpy as np
 import pytest
@@ -94,6 +95,17 @@ def test_the_cli_draws_the_figure_and_names_the_device_or_refuses(tmp_path, caps
     assert out.stat().st_size > 0
     assert compare.main([str(tmp_path)]) == 2
     assert "not a run directory" in capsys.readouterr().err
+    assert compare.main([str(first), str(second), "--device", "CPU"]) == 0, "compare.png beside the runs"
+    assert (tmp_path / "compare.png").exists() and not pathlib.Path("compare.png").exists()
+
+
+def test_a_named_device_never_relabels_runs_recorded_on_another(tmp_path, capsys):
+    on_cpu = write_run(tmp_path / "cpu", 64, [(10.0, 100.0, 2, 0.2, 1.0)], "cpu")
+    on_gpu = write_run(tmp_path / "gpu", 64, [(10.0, 100.0, 2, 0.2, 1.0)], "NVIDIA H100 80GB HBM3")
+    assert compare.main([str(on_cpu), str(on_gpu), "--device", "NVIDIA H100 80GB"]) == 2
+    assert "cpu on 'cpu'" in capsys.readouterr().err
+    runs = [compare.load_run(on_gpu)]
+    assert compare.device_name(runs, "H100") == "H100", "a part of the recorded name labels it"
 
 
 def test_a_run_without_finished_episodes_is_an_error(tmp_path):
