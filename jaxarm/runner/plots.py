@@ -11,7 +11,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from jaxarm.runner.stats import confidence_halfwidth
+from jaxarm.runner.stats import mean_band
 
 
 def figure(width: float, height: float, columns: int = 1, rows: int = 1):
@@ -89,11 +89,9 @@ def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
     fig, (success_ax, return_ax) = figure(12, 4.5, columns=2)
     for index, (label, (steps, success, returns)) in enumerate(curves.items()):
         x = np.asarray(steps, float)[0]
-        for ax, values in ((success_ax, success), (return_ax, returns)):
-            values = np.asarray(values, float)
-            mean, half = np.nanmean(values, axis=0), confidence_halfwidth(values)
+        for ax, (mean, lower, upper) in ((success_ax, mean_band(success, 0.0, 1.0)), (return_ax, mean_band(returns))):
             ax.plot(x, mean, color=f"C{index}", label=label)
-            ax.fill_between(x, mean - half, mean + half, color=f"C{index}", alpha=0.2)
+            ax.fill_between(x, lower, upper, color=f"C{index}", alpha=0.2)
     success_ax.set_ylabel("success rate (training episodes)")
     return_ax.set_ylabel("episode return")
     for ax in (success_ax, return_ax):

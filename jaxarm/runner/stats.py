@@ -1,5 +1,7 @@
 """Confidence intervals over seeds."""
 
+import warnings
+
 import numpy as np
 from scipy import stats
 
@@ -9,7 +11,22 @@ def confidence_halfwidth(values: np.ndarray, axis: int = 0) -> np.ndarray:
     2 values remain the half-width is 0."""
     values = np.asarray(values, float)
     count = np.sum(~np.isnan(values), axis=axis)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    # Columns with fewer than 2 values get 0 below; numpy warns about them ("Degrees of freedom <= 0").
+    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
         spread = np.nanstd(values, axis=axis, ddof=1) / np.sqrt(count)
         half = stats.t.ppf(0.975, np.maximum(count - 1, 1)) * spread
     return np.where(count >= 2, half, 0.0)
+
+
+def mean_band(
+    values: np.ndarray, low: float = -np.inf, high: float = np.inf
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(mean, lower, upper) over axis 0 of `values` [seeds, points], the band the mean's 95% CI clipped to
+    [`low`, `high`] (a success rate's band stays in [0, 1]). NaNs are left out; a point with none is NaN, without
+    numpy's "Mean of empty slice" warning."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mean = np.nanmean(np.asarray(values, float), axis=0)
+    half = confidence_halfwidth(values)
+    return mean, np.clip(mean - half, low, high), np.clip(mean + half, low, high)

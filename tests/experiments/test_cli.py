@@ -248,3 +248,21 @@ def test_a_bad_value_is_refused_before_any_directory_is_written(bad, tmp_path, c
     assert run.main(["--config", "ppo_arm2d", bad, "--out", str(run_dir)]) == 2
     assert bad.split("=")[0].split(".")[-1] in capsys.readouterr().err
     assert not run_dir.exists()
+
+
+def test_sweep_bands_stay_in_0_1_and_numpy_stays_quiet(tmp_path):
+    import warnings
+
+    from jaxarm.runner import plots, stats
+
+    # Two seeds far apart: the success CI spans well beyond [0, 1]; an update no seed finished is all NaN; one
+    # where a single seed finished has no spread.
+    success = np.array([[0.0, np.nan, 0.9, 1.0], [1.0, np.nan, np.nan, 0.0]])
+    steps = np.tile(np.arange(4.0), (2, 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mean, lower, upper = stats.mean_band(success, 0.0, 1.0)
+        plots.sweep_curves({"a": (steps, success, success * 10)}, tmp_path / "curves.png", "t")
+    assert np.all(lower[[0, 2, 3]] >= 0.0) and np.all(upper[[0, 2, 3]] <= 1.0) and lower[0] == 0.0
+    assert np.isnan(mean[1]) and mean[2] == lower[2] == upper[2] == 0.9
+    assert (tmp_path / "curves.png").stat().st_size > 0
