@@ -19,9 +19,14 @@ episode, the returned observation already belongs to the next episode; `infos["f
 the observation each env reached before any reset (equal to the returned one where `infos["_final_obs"]`
 is False), and `infos["episode"]` holds the finished episodes' return `r`, length `l` and `success`, valid
 where `infos["_episode"]` is True (the RecordEpisodeStatistics convention).
+
+Importing this module registers every jaxarm env with Gymnasium as `jaxarm/<Name>-v0`, the name in CamelCase
+(`gymnasium_id`: arm2d is `jaxarm/Arm2d-v0`, panda_sort `jaxarm/PandaSort-v0`), so that
+`gymnasium.make("jaxarm/Arm2d-v0", render_mode=..., params=..., **env_kwargs)` builds a `GymnasiumEnv`.
 """
 
 import dataclasses
+import functools
 from collections.abc import Sequence
 
 import gymnasium as gym
@@ -31,8 +36,11 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from jaxarm import envs
 from jaxarm.envs import AutoReset, Env, EnvState, VmapEnv, check_action
 from jaxarm.envs.base import check_concrete_params
+
+NAMESPACE = "jaxarm"
 
 
 def _observation_space(env) -> gym.spaces.Space:
@@ -209,3 +217,23 @@ class GymnasiumVectorEnv(VectorEnv):
             self.jax_env.render(jax.tree.map(lambda leaf, i=i: leaf[i], states), self.params)
             for i in range(self.num_envs)
         )
+
+
+def gymnasium_id(name: str) -> str:
+    """The Gymnasium id of jaxarm env `name`: "arm2d_pixels" -> "jaxarm/Arm2dPixels-v0"."""
+    return f"{NAMESPACE}/{''.join(part[:1].upper() + part[1:] for part in name.split('_'))}-v0"
+
+
+def make_registered(name: str, render_mode: str | None = None, params=None, **env_kwargs) -> GymnasiumEnv:
+    """`gymnasium.make`'s entry point for jaxarm env `name`: `env_kwargs` go to its constructor."""
+    return GymnasiumEnv(envs.make(name, **env_kwargs), params, render_mode)
+
+
+def register_all() -> None:
+    """Registers every jaxarm env with Gymnasium under `gymnasium_id` (ids already registered are kept)."""
+    for name in envs.names():
+        if gymnasium_id(name) not in gym.registry:
+            gym.register(gymnasium_id(name), entry_point=functools.partial(make_registered, name))
+
+
+register_all()

@@ -2,6 +2,7 @@
 
 import warnings
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
@@ -142,3 +143,17 @@ def test_params_made_with_replace_are_checked_outside_jit():
     adapter.params = bad
     with pytest.raises(ValueError, match="hold_steps"):
         adapter.reset(seed=0)
+
+
+def test_every_env_is_registered_with_gymnasium_make():
+    from jaxarm import envs
+    from jaxarm.interop.gymnasium_env import gymnasium_id
+
+    assert gymnasium_id("arm2d") == "jaxarm/Arm2d-v0" and gymnasium_id("panda_sort") == "jaxarm/PandaSort-v0"
+    assert {gymnasium_id(name) for name in envs.names()} <= set(gym.registry)
+    assert gym.make("jaxarm/Arm2d-v0", num_links=3).unwrapped.jax_env.num_links == 3, "env_kwargs reach the env"
+    env = gym.make("jaxarm/Arm2d-v0", params=arm2d_params(max_episode_steps=3)[1])
+    obs, _ = env.reset(seed=0)
+    for _ in range(3):
+        obs, reward, terminated, truncated, _ = env.step(env.action_space.sample())
+    assert truncated and obs.shape == env.observation_space.shape
