@@ -4,6 +4,7 @@
 #   bash scripts/test.sh           # the whole suite: what CI runs
 #   bash scripts/test.sh --quick   # the quick tier for the inner loop: every test marked neither slow nor mjx
 #
+# JAXARM_PYTHON and JAXARM_VENV choose the interpreter and its venv (scripts/setup.sh).
 # Further arguments go to pytest. Compiled programs persist in ~/.cache/jaxarm/jax, shared with the commands
 # (tests/conftest.py), so a second run compiles little; tests marked xdist_group (the MJX envs',
 # tests/envs/compiled.py) stay in one worker with the programs they share.
@@ -23,7 +24,7 @@ if [ "${1:-}" = "--quick" ]; then
   tier=(-m "not slow and not mjx")
   shift
 fi
-.venv/bin/python -m pytest -n 2 --dist loadgroup --durations=10 "${tier[@]}" "$@"
+"${JAXARM_VENV:-.venv}/bin/python" -m pytest -n 2 --dist loadgroup --durations=10 "${tier[@]}" "$@"
 status=$?
 if [ "$status" -eq 5 ]; then
   echo "pytest collected no tests: the suite is broken" >&2

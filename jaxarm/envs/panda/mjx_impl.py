@@ -81,7 +81,7 @@ def resolve_impl(impl: str) -> Impl:
         return Impl.WARP if warp_available() and on_nvidia_gpu else Impl.JAX
     if chosen == Impl.WARP:
         if not warp_available():
-            raise ValueError("impl='warp' needs warp-lang (pip install warp-lang); use impl='jax' without it")
+            raise ValueError("impl='warp' needs warp-lang (pip install -e '.[warp]'); use impl='jax' without it")
         if not (on_nvidia_gpu or device.platform == "cpu"):
             raise ValueError(f"impl='warp' runs on a CUDA GPU or the CPU, but JAX's default device is {device}")
     return chosen
