@@ -366,6 +366,20 @@ def test_ddpg_solves_fixed_goal_arm2d():
     assert float(result.successes.mean()) >= 0.9
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("preset", ["ddpg_arm2d", "ddpg_arm2d_tuned"])
+def test_each_of_five_seeds_of_a_ddpg_preset_places_95_percent(preset):
+    """One DDPG run's success swings between evaluations, and float-level differences (another CPU's
+    instruction set, another jaxlib) decide where a run ends: ddpg_arm2d placed 69.6% on one 2-core CPU and
+    100% on another. Five seeds trained as one vmapped program (itself such a difference) must each place
+    >= 95% of 1,000 fresh episodes."""
+    from experiments import sweep
+
+    _, results, _ = sweep.run_group(getattr(td3_presets, preset)(), [{}], seeds=5, progress=lambda line: None)
+    success = results.successes.mean(axis=1)
+    assert np.all(success >= 0.95), f"{preset}: success per seed {np.round(success, 3)}"
+
+
 def image_probe_config(shared_encoder: bool) -> TD3Config:
     return TD3Config(
         num_envs=8,
