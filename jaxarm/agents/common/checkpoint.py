@@ -13,7 +13,6 @@ import os
 import pathlib
 
 import jax
-import numpy as np
 import orbax.checkpoint as ocp
 
 
@@ -132,18 +131,7 @@ def restore(directory: pathlib.Path, like, step: int | None = None, shardings=No
             f"(corrupt, or saved by a different config): {type(error).__name__}: {str(error)[:300]}"
         ) from error
     _check_matches(restored, like, directory, step)
-    return _uncommitted(restored)
-
-
-def _uncommitted(tree):
-    """`tree` with every leaf left to the default device, as a freshly trained state's are, instead of committed to
-    it as restored leaves are. jit lowers committed arguments with sharding annotations, so the same program
-    compiled for the trained state (the final evaluation, the next chunk) was a different one for a restored
-    state, and missed the compilation cache: `experiments.eval` after `run` compiled the evaluation again (282 s
-    on the sorter). With several devices callers place the state themselves, so it is left as it is there."""
-    if jax.device_count() > 1:
-        return tree
-    return jax.tree.map(lambda leaf: jax.device_put(np.asarray(leaf)), tree)
+    return restored
 
 
 def _check_matches(restored, like, directory, step) -> None:
