@@ -182,7 +182,9 @@ def resume(run_dir: pathlib.Path, overrides: Sequence[str] = (), options=Options
         finished = None if overrides else rundir.finished_evaluation(run_dir, config)
         if finished is not None:
             # Nothing asked: evaluating again would only rewrite eval.json (experiments.eval writes its own file).
+            # A row a killed process half wrote past the end is still dropped, as every resume drops it.
             if processes.is_primary():
+                rundir.truncate_metrics(run_dir, config.num_updates)
                 print(
                     f"{run_dir} has finished its {config.num_updates:,} updates; nothing done. To train further, "
                     f"give a larger total_env_steps=N; to evaluate again, python -m experiments.eval {run_dir}",

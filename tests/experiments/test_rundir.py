@@ -127,6 +127,7 @@ def test_damaged_files_are_named_with_what_to_do(reference, tmp_path, capsys):
         log.write('{"updates": 25, "wall_t')
     assert run.main(["--resume", str(half_written)]) == 0, "a half-written last row is dropped on resume"
     assert [row["updates"] for row in rundir.read_metrics(half_written)] == list(range(1, 25))
+    assert "has finished its 24 updates" in capsys.readouterr().err
 
     lines = (reference / "metrics.jsonl").read_text().splitlines()
     (half_written / "metrics.jsonl").write_text("\n".join([*lines[:2], "garbage", *lines[2:]]) + "\n")
