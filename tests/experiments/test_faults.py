@@ -175,10 +175,10 @@ def test_a_sweep_never_replaces_another_sweeps_results(tmp_path, capsys):
     assert not out.exists(), "the refused sweep left nothing behind"
     assert sweep.main(argv) == 0
     before = snapshot(out)
-    assert sorted(before) == [".lock", "curves.png", "results.csv", "results.md"]
+    assert sorted(before) == [".lock", "curves.png", "provenance.json", "results.csv", "results.md"]
     assert sweep.main(argv) == 2
     (line,) = error_lines(capsys)
-    assert f"{out} already holds curves.png, results.csv, results.md; choose a new or empty directory" in line
+    assert f"{out} already holds curves.png, provenance.json, results.csv, results.md; choose a new or empty" in line
     assert snapshot(out) == before
 
 
