@@ -117,9 +117,12 @@ class Randomized(Env):
         self.spec = env.spec
         self.cpu_max_envs = env.cpu_max_envs
         self.uses_mjx = env.uses_mjx
+        self.draws_with_gl = env.draws_with_gl
 
     def __getattr__(self, name: str) -> Any:
-        # Whatever else the wrapped env offers (counts, layouts, ids) is the same here.
+        # Whatever else the wrapped env offers (counts, layouts, ids) is the same here. `Env`'s own hooks
+        # (`draws_images`, `images`, `render`, ...) never reach this: each is overridden below, and
+        # tests/envs/test_contract.py fails on one that is not.
         if "env" not in self.__dict__:  # not yet set (copying, unpickling): no attribute, as Python expects
             raise AttributeError(name)
         return getattr(self.env, name)
@@ -152,6 +155,14 @@ class Randomized(Env):
 
     def observation_source_index(self, source: Env) -> np.ndarray:
         return self.env.observation_source_index(getattr(source, "unwrapped", source))
+
+    @property
+    def draws_images(self) -> bool:
+        return self.env.draws_images
+
+    def images(self, sim: RandomizedSim, params) -> jax.Array:
+        # The episode's drawn params, as its steps use them: a randomised scene is seen as it is simulated.
+        return self.env.images(sim.inner, sim.params)
 
     def render(self, state: EnvState[RandomizedSim], params) -> np.ndarray:
         return self.env.render(state.replace(sim=state.sim.inner), state.sim.params)

@@ -26,10 +26,19 @@ gathered: as many groups as a step needs, none on a step where no episode starts
 
 
 class Wrapper:
-    """Forwards the contract to an inner env; subclasses override what they change."""
+    """Forwards the contract to an inner env; subclasses override what they change.
+
+    `Env`'s hooks are forwarded one by one below; anything else the inner env offers (counts, layouts, ids,
+    `uses_mjx`, `render`) through `__getattr__`. tests/envs/test_contract.py runs every wrapper over a camera env.
+    """
 
     def __init__(self, env):
         self.env = env
+
+    def __getattr__(self, name: str):
+        if "env" not in self.__dict__:  # not yet set (copying, unpickling): no attribute, as Python expects
+            raise AttributeError(name)
+        return getattr(self.env, name)
 
     @property
     def spec(self) -> EnvSpec:
@@ -187,9 +196,20 @@ class VmapEnv(Wrapper):
             )
 
     def reset(self, key: jax.Array, params) -> EnvState:
-        keys = jax.random.split(key, self.num_envs)
-        reset = jax.vmap(self.env.reset, in_axes=(0, self.params_axis))
-        return over_env_batch(reset, self.num_envs, (True, self.params_axis == 0))(keys, params)
+        return self._each_env(self.env.reset)(jax.random.split(key, self.num_envs), params)
+
+    def reset_without_images(self, key: jax.Array, params) -> EnvState:
+        """`reset`, with every env's obs[IMAGE] left zero where the env `draws_images`."""
+        return self._each_env(self.env.reset_without_images)(jax.random.split(key, self.num_envs), params)
+
+    def images(self, sim, params) -> jax.Array:
+        """uint8 [B, H, W, C]: each env's camera images (`Env.images`) of a batch of sims [B]."""
+        return self._each_env(self.env.images)(sim, params)
+
+    def _each_env(self, fn: Callable) -> Callable:
+        """`fn(per-env argument, params)` over the batch: the first argument with a leading [B] axis."""
+        each = jax.vmap(fn, in_axes=(0, self.params_axis))
+        return over_env_batch(each, self.num_envs, (True, self.params_axis == 0))
 
     def step(self, state: EnvState, action: jax.Array, params) -> EnvState:
         if isinstance(self.env, AutoReset):

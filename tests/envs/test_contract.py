@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 
 from jaxarm import envs
+from jaxarm.envs.observation import IMAGE
+from jaxarm.envs.randomize import ParamRange, Randomized
 from tests.envs.compiled import compiled, same_worker
 
 ROLLOUT_STEPS = 8
@@ -244,3 +246,59 @@ def test_vmap_warns_above_an_envs_cpu_limit():
         warnings.simplefilter("error")
         envs.VmapEnv(envs.AutoReset(env), 4)
         envs.VmapEnv(envs.make("arm2d"), 1024)
+
+
+WRAPPER_NUM_ENVS = 4
+WRAPPER_STEPS = 4
+WRAPPED = {
+    "AutoReset": lambda env: envs.AutoReset(env),
+    "VmapEnv": lambda env: envs.VmapEnv(env, WRAPPER_NUM_ENVS),
+    "VmapEnv(AutoReset)": lambda env: envs.VmapEnv(envs.AutoReset(env), WRAPPER_NUM_ENVS),
+    "Randomized": lambda env: Randomized(env, {"goal_size": ParamRange(20.0, 60.0)}),
+    "VmapEnv(AutoReset(Randomized))": lambda env: envs.VmapEnv(
+        envs.AutoReset(Randomized(env, {"goal_size": ParamRange(20.0, 60.0)})), WRAPPER_NUM_ENVS
+    ),
+}
+"""Every wrapper of jaxarm.envs, alone and as runs stack them (`test_every_wrapper_is_covered`)."""
+BUILT_ON_THE_TASK = {"reset", "reset_without_images", "step", "blank_image"}
+"""`Env`'s methods built from `_reset`, `_transition` and `spec`, which an `Env` that wraps another inherits."""
+
+
+def wrapper_types(wrapped) -> set[type]:
+    """The classes of `wrapped` and of every env it wraps."""
+    return {type(wrapped)} | (wrapper_types(wrapped.env) if "env" in vars(wrapped) else set())
+
+
+def test_every_wrapper_is_covered():
+    camera = envs.make("arm2d_pixels")
+    covered = set().union(*(wrapper_types(wrap(camera)) for wrap in WRAPPED.values())) - {type(camera)}
+    assert covered == {*envs.Wrapper.__subclasses__(), Randomized}
+
+
+def test_an_env_that_wraps_another_forwards_every_hook_of_the_contract():
+    # Env's own defaults (draws_images False, images raising) would shadow the wrapped env's hooks: each must be
+    # overridden, or set on the instance.
+    wrapped = WRAPPED["Randomized"](envs.make("arm2d_pixels"))
+    hooks = {name for name in vars(envs.Env) if not name.startswith("_")} - BUILT_ON_THE_TASK
+    assert {name for name in hooks if name not in vars(Randomized) and name not in vars(wrapped)} == set()
+    assert wrapped.draws_images and wrapped.uses_mjx == wrapped.env.uses_mjx
+
+
+@pytest.mark.parametrize("name", WRAPPED)
+def test_every_wrapper_passes_camera_images_through(name):
+    """A wrapped camera env draws every env's image at reset, at each step and at each auto-reset (a 2-step time
+    limit), and its own `images` hook draws what its observation holds."""
+    camera = envs.make("arm2d_pixels")
+    wrapped = WRAPPED[name](camera)
+    params = envs.override_params(camera.default_params(), {"max_episode_steps": 2})
+    batch = (WRAPPER_NUM_ENVS,) if isinstance(wrapped, envs.VmapEnv) else ()
+    step = jax.jit(wrapped.step)
+    state = jax.jit(wrapped.reset)(jax.random.key(0), params)
+    assert wrapped.draws_images
+    np.testing.assert_array_equal(jax.jit(wrapped.images)(state.sim, params), state.obs[IMAGE])
+    assert not np.any(jax.jit(wrapped.reset_without_images)(jax.random.key(0), params).obs[IMAGE])
+    for index in range(WRAPPER_STEPS):
+        sums = np.asarray(state.obs[IMAGE], np.int64).reshape(*batch, -1).sum(-1)
+        assert np.all(sums > 0), f"{name}: a blank image after {index} steps"
+        state = step(state, random_actions(jax.random.key(index), camera, batch), params)
+    assert np.any(state.last_episode.length == 2), "no episode ended: the auto-resets' images went unchecked"
