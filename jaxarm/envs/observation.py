@@ -2,7 +2,9 @@
 
 "state" is the env's flat float32 observation; "pixels" observes {"image": uint8 [H, W, C]} alone;
 "pixels+proprio" adds {"proprio": float32 [P]}, the robot's own state (joints, gripper), never the task's
-(goal, objects), which the image must show.
+(goal, objects), which the image must show. An env built with `privileged=True` adds to a pixel mode's
+observation {"privileged": float32 [S]}, its "state" observation of the same step, which only a learner's critic
+or a teacher may read (`actor_observation` removes it).
 """
 
 from collections.abc import Mapping
@@ -17,31 +19,52 @@ IMAGE = "image"
 """Key of the camera image in a dict observation."""
 PROPRIO = "proprio"
 """Key of the proprioceptive part in a dict observation."""
+PRIVILEGED = "privileged"
+"""Key of the privileged part in a dict observation: the env's state observation (see the module docstring)."""
 
 
-def check_obs_mode(obs_mode: str, resolution: int) -> None:
-    """ValueError naming the valid choices for an unknown `obs_mode` or a resolution below 8 pixels."""
+def check_obs_mode(obs_mode: str, resolution: int, privileged: bool = False) -> None:
+    """ValueError naming the valid choices for an unknown `obs_mode`, a resolution below 8 pixels, or `privileged`
+    with obs_mode "state" (whose observation is the state observation already)."""
     if obs_mode not in OBS_MODES:
         raise ValueError(f"obs_mode must be one of {', '.join(OBS_MODES)}, got {obs_mode!r}")
     if resolution < 8:
         raise ValueError(f"resolution must be at least 8 pixels, got {resolution}")
+    if privileged and obs_mode == "state":
+        raise ValueError('privileged=True adds the state observation to a pixel obs_mode; "state" observes it alone')
 
 
 def observation_parts(
-    obs_mode: str, image_shape: tuple[int, ...], proprio_size: int
+    obs_mode: str, image_shape: tuple[int, ...], proprio_size: int, privileged_size: int | None = None
 ) -> dict[str, jax.ShapeDtypeStruct]:
-    """`EnvSpec.observation_parts` of a pixel mode: the uint8 image, and the float32 proprio in "pixels+proprio"."""
+    """`EnvSpec.observation_parts` of a pixel mode: the uint8 image, the float32 proprio in "pixels+proprio", and
+    the float32 [privileged_size] state observation unless `privileged_size` is None."""
     parts = {IMAGE: jax.ShapeDtypeStruct(image_shape, jnp.uint8)}
     if obs_mode == "pixels+proprio":
         parts[PROPRIO] = jax.ShapeDtypeStruct((proprio_size,), jnp.float32)
+    if privileged_size is not None:
+        parts[PRIVILEGED] = jax.ShapeDtypeStruct((privileged_size,), jnp.float32)
     return parts
 
 
-def pixel_observation(obs_mode: str, image: jax.Array, proprio: jax.Array) -> Mapping[str, jax.Array]:
-    """The dict observation of a pixel mode from its image and proprio (dropped in "pixels")."""
+def pixel_observation(
+    obs_mode: str, image: jax.Array, proprio: jax.Array, privileged: jax.Array | None = None
+) -> Mapping[str, jax.Array]:
+    """The dict observation of a pixel mode from its image and proprio (dropped in "pixels"), with the state
+    observation `privileged` unless None."""
+    obs = {IMAGE: image}
     if obs_mode == "pixels+proprio":
-        return {IMAGE: image, PROPRIO: proprio}
-    return {IMAGE: image}
+        obs[PROPRIO] = proprio
+    if privileged is not None:
+        obs[PRIVILEGED] = privileged
+    return obs
+
+
+def actor_observation(obs: Any) -> Any:
+    """What a policy may read of an observation (batched or not): all of it but the privileged part."""
+    if not isinstance(obs, Mapping):
+        return obs
+    return {name: part for name, part in obs.items() if name != PRIVILEGED}
 
 
 def with_image(obs: Mapping[str, jax.Array], image: jax.Array) -> dict[str, jax.Array]:

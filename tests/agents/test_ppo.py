@@ -1,6 +1,7 @@
 """PPO: whole-run compilation, vmap over seeds × hyper-parameters, probe envs, and a small solve on arm2d."""
 
 import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -10,6 +11,7 @@ import pytest
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import make_chunk_runner, make_train
 from jaxarm.agents.ppo import PPOConfig, make_networks, make_trainer
+from jaxarm.envs.observation import PRIVILEGED, actor_observation
 from tests.agents.probe_envs import ConstantRewardEnv, ImageTargetEnv, TargetActionEnv
 
 TINY = PPOConfig(
@@ -143,6 +145,50 @@ def test_camera_frames_stay_uint8_in_the_rollout_and_the_normaliser_sees_only_pr
     state, metrics = jax.jit(trainer.update)(state, config.hparams())
     assert state.normalizer.mean.shape == (4,) and float(state.normalizer.std.min()) > 0
     assert np.isfinite(float(metrics.loss.value_loss))
+
+
+ASYMMETRIC = dataclasses.replace(
+    TINY,
+    env="arm2d_pixels_proprio",
+    env_kwargs=(("resolution", 16), ("privileged", True)),
+    encoder="patches",
+    encoder_features=8,
+    asymmetric=True,
+)
+
+
+def test_an_asymmetric_critic_reads_the_privileged_state_and_the_policy_never_does():
+    trainer = make_trainer(ASYMMETRIC)
+    hparams = ASYMMETRIC.hparams()
+    state = jax.jit(trainer.init)(jax.random.PRNGKey(0), hparams)
+    state, metrics = jax.jit(trainer.update)(state, hparams)
+    assert np.isfinite(float(metrics.loss.value_loss)) and np.isfinite(float(metrics.loss.policy_loss))
+    # The critic: an MLP on the 9 state inputs with statistics of its own; the policy: image and 4 proprio inputs.
+    value_kernels = [layer["kernel"].shape for layer in state.params.value["params"].values()]
+    assert value_kernels[0] == (9, 16) and "encoder" not in state.params.value["params"]
+    assert state.critic_normalizer.mean.shape == (9,) and float(state.critic_normalizer.std.min()) > 0
+    assert state.normalizer.mean.shape == (4,)
+    policy_shapes = {leaf.shape for leaf in jax.tree.leaves(state.params.policy)}
+    assert not any(9 in shape for shape in policy_shapes), policy_shapes
+    # `act` takes the actor's observation alone (the exported form lowers from its structure), and ignores a
+    # privileged part given to it.
+    obs = state.env_state.obs
+    actor = actor_observation(obs)
+    assert set(actor) == {"image", "proprio"}
+    actor_structure = jax.tree.map(lambda part: jax.ShapeDtypeStruct(part.shape, part.dtype), actor)
+    exported = jax.export.export(jax.jit(functools.partial(trainer.act, state)))(actor_structure)
+    assert exported.in_tree.num_leaves == 2
+    actions = trainer.act(state, actor)
+    np.testing.assert_array_equal(trainer.act(state, {**obs, PRIVILEGED: obs[PRIVILEGED] + 100.0}), actions)
+
+
+def test_an_asymmetric_critic_needs_an_env_that_observes_its_privileged_state():
+    with pytest.raises(ValueError, match="env_kwargs.privileged=true"):
+        make_trainer(dataclasses.replace(ASYMMETRIC, env_kwargs=(("resolution", 16),)))
+    with pytest.raises(ValueError, match="no encoder to share"):
+        dataclasses.replace(ASYMMETRIC, shared_encoder=True).validate()
+    with pytest.raises(ValueError, match="privileged=True adds the state observation to a pixel obs_mode"):
+        dataclasses.replace(ASYMMETRIC, env="arm2d", env_kwargs=(("privileged", True),)).validate()
 
 
 @pytest.mark.slow

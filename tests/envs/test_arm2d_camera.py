@@ -97,6 +97,21 @@ def test_sim_is_unchanged_by_the_observation_mode():
     jax.tree.map(np.testing.assert_array_equal, state_sim, pixel_sim)
 
 
+@pytest.mark.parametrize("obs_mode", ["pixels", "pixels+proprio"])
+def test_a_privileged_camera_env_observes_the_state_observation_of_the_same_step(obs_mode):
+    plain, privileged = Arm2d(), Arm2d(obs_mode=obs_mode, resolution=16, privileged=True)
+    params = plain.default_params()
+    assert privileged.spec.observation["privileged"] == jax.ShapeDtypeStruct((9,), jnp.float32)
+    state, camera = plain.reset(jax.random.key(2), params), privileged.reset(jax.random.key(2), params)
+    for action in ([0.0, 0.0], [1.0, -0.5], [-1.0, 1.0]):
+        np.testing.assert_array_equal(camera.obs["privileged"], state.obs)
+        state = plain.step(state, jnp.array(action), params)
+        camera = privileged.step(camera, jnp.array(action), params)
+    assert "privileged" not in Arm2d(obs_mode=obs_mode).spec.observation
+    with pytest.raises(ValueError, match='"state" observes it alone'):
+        Arm2d(privileged=True)
+
+
 def test_video_frames_show_the_camera_beside_the_scene():
     env = Arm2d(obs_mode="pixels", resolution=RESOLUTION)
     params = env.default_params()

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from jaxarm.envs.panda.camera import AMBIENT, FAR, Camera, Scene, ray_directions, render
+from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.peg_insert import PegInsert
 
 HEIGHT = 1.0
@@ -132,3 +133,11 @@ def test_a_state_env_resolves_no_camera_and_says_so_when_asked_for_an_image():
     assert env.cameras == ()
     with pytest.raises(ValueError, match="pixel obs_mode"):
         env.camera_image(env.mjx_model, None)
+
+
+def test_a_privileged_sorter_declares_its_state_observation_beside_the_cameras():
+    # Its values come from the same `_observe` as the state env's (see PandaSort._observe); stepping it would
+    # compile MJX, minutes on a CPU.
+    spec = PandaSort(obs_mode="pixels+proprio", resolution=16, privileged=True).spec
+    assert set(spec.observation) == {"image", "proprio", "privileged"}
+    assert spec.observation["privileged"].shape == PandaSort().spec.observation_shape

@@ -23,6 +23,10 @@ class PPOConfig(RunConfig):
         `jaxarm.agents.common.encoders.ENCODERS`; unused for flat observations.
       encoder_features: width of the encoder's dense output layer.
       shared_encoder: one encoder (the policy's) feeds both heads, trained by both losses; else one each.
+      asymmetric: asymmetric actor-critic: the value MLP reads the env's privileged state observation
+        (obs["privileged"] of an env built with `env_kwargs.privileged=true`, with its own running normaliser),
+        while the policy reads only the rest (images and proprio), all a robot has; off, both read the policy's
+        input. Only the critic, used in training alone, sees the privileged part: `act` and exports never do.
       normalize_observations: keep running mean/std of observations in the learner state (of a camera
         observation, its proprio part only).
       normalize_advantages: standardise advantages per minibatch.
@@ -47,6 +51,7 @@ class PPOConfig(RunConfig):
     encoder: str = static("nature", ENCODER)
     encoder_features: int = static(256, COUNT)
     shared_encoder: bool = False
+    asymmetric: bool = False
     normalize_observations: bool = True
     normalize_advantages: bool = True
     anneal_learning_rate: bool = True
@@ -73,8 +78,11 @@ class PPOConfig(RunConfig):
         return self.env_steps_per_update // self.num_minibatches
 
     def validate(self) -> None:
-        """RunConfig's checks, and that each rollout splits into whole minibatches."""
+        """RunConfig's checks, that each rollout splits into whole minibatches, and that an asymmetric critic has
+        no encoder to share."""
         super().validate()
+        if self.asymmetric and self.shared_encoder:
+            raise ValueError("asymmetric=true gives the critic the privileged state, not images: no encoder to share")
         if self.env_steps_per_update % self.num_minibatches:
             raise ValueError(
                 f"rollout_length*num_envs={self.env_steps_per_update} must divide by "

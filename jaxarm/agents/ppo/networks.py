@@ -4,7 +4,8 @@ Both read raw observations through the learner's running normaliser (brax's), wh
 a camera observation, its proprio part only). The policy is brax's tanh-squashed Gaussian, whose parameters an
 MLP computes. A camera observation passes through a conv encoder first (`encoders.PixelEncoder`): one per
 network, or with `shared_encoder` the policy's alone, whose features the value head reads too (the value
-loss then trains the encoder as well).
+loss then trains the encoder as well). With `asymmetric`, the value MLP reads the observation's privileged part
+(the env's state) through a normaliser of its own, and the policy never sees that part (`actor_observation`).
 """
 
 import dataclasses
@@ -21,6 +22,7 @@ from jaxarm.agents.common.encoders import EncodedMLP, PixelEncoder
 from jaxarm.agents.common.networks import MLP, apply_module
 from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.envs import EnvSpec, Observation
+from jaxarm.envs.observation import PRIVILEGED, actor_observation
 
 
 class NetworkParams(struct.PyTreeNode):
@@ -41,6 +43,7 @@ class PPONetworks:
       value_net: from a normalised observation to V [B, 1]; with a shared encoder, from the encoder's features.
       shared_encoder: the policy's encoder, which the value head reads through; None where each network has
         its own or there is none (flat observations).
+      asymmetric: the value MLP reads obs[PRIVILEGED] alone, normalised by the critic's own normaliser.
       normalize_observations: read observations through the running normaliser (else raw).
       scale_offset: added to the policy's raw scale; brax maps the raw scale through softplus, so this sets the
         initial standard deviation (pre-tanh) to exp(`initial_log_std`).
@@ -52,31 +55,47 @@ class PPONetworks:
     shared_encoder: PixelEncoder | None
     normalize_observations: bool
     scale_offset: float
+    asymmetric: bool = False
 
     def init(self, policy_key: jax.Array, value_key: jax.Array, spec: EnvSpec) -> NetworkParams:
         """Fresh parameters for `spec`'s observations."""
         dummy = spec.zero_observation((1,))
-        policy = self.policy_net.init(policy_key, dummy)
-        value_input = dummy
-        if self.shared_encoder is not None:
-            value_input = shared_features(self.shared_encoder, policy, dummy)
+        policy = self.policy_net.init(policy_key, actor_observation(dummy))
+        if self.asymmetric:
+            value_input = dummy[PRIVILEGED]
+        elif self.shared_encoder is not None:
+            value_input = shared_features(self.shared_encoder, policy, actor_observation(dummy))
+        else:
+            value_input = actor_observation(dummy)
         return NetworkParams(policy=policy, value=self.value_net.init(value_key, value_input))
+
+    def init_critic_normalizer(self, spec: EnvSpec) -> observation_normalizer.Normalizer | None:
+        """Fresh statistics of the privileged part of `spec`'s observations where `asymmetric`, else None."""
+        if not self.asymmetric:
+            return None
+        privileged = spec.observation[PRIVILEGED]
+        return observation_normalizer.init(EnvSpec(observation_shape=privileged.shape, action_shape=spec.action_shape))
 
     def normalize(self, normalizer: observation_normalizer.Normalizer, obs: Observation) -> Observation:
         """Observations [B, ...] as the networks see them (a camera observation's proprio part normalised)."""
         return observation_normalizer.normalize(normalizer, self.normalize_observations, obs)
 
     def policy_params(self, params: NetworkParams, normalizer, obs: Observation) -> jax.Array:
-        """The action distribution's parameters [B, 2A] at observations [B, ...]."""
-        out = apply_module(self.policy_net, params.policy, self.normalize(normalizer, obs))
+        """The action distribution's parameters [B, 2A] at observations [B, ...] (their privileged part, if any,
+        unread)."""
+        out = apply_module(self.policy_net, params.policy, self.normalize(normalizer, actor_observation(obs)))
         loc, raw_scale = jnp.split(out, 2, axis=-1)
         return jnp.concatenate([loc, raw_scale + self.scale_offset], axis=-1)
 
-    def value(self, params: NetworkParams, normalizer, obs: Observation) -> jax.Array:
-        """V [B] at observations [B, ...]."""
-        inputs = self.normalize(normalizer, obs)
-        if self.shared_encoder is not None:
-            inputs = shared_features(self.shared_encoder, params.policy, inputs)
+    def value(self, params: NetworkParams, normalizer, obs: Observation, critic_normalizer=None) -> jax.Array:
+        """V [B] at observations [B, ...]; where `asymmetric`, of their privileged part, through `critic_normalizer`
+        (`init_critic_normalizer`)."""
+        if self.asymmetric:
+            inputs = observation_normalizer.normalize(critic_normalizer, self.normalize_observations, obs[PRIVILEGED])
+        else:
+            inputs = self.normalize(normalizer, actor_observation(obs))
+            if self.shared_encoder is not None:
+                inputs = shared_features(self.shared_encoder, params.policy, inputs)
         return apply_module(self.value_net, params.value, inputs)[..., 0]
 
     def deterministic_action(self, params: NetworkParams, normalizer, obs: Observation) -> jax.Array:
@@ -103,7 +122,7 @@ def make_networks(config: PPOConfig, action_size: int, camera: bool = False) -> 
         policy_net = EncodedMLP(policy_encoder, policy_head)
         if config.shared_encoder:
             shared_encoder = policy_encoder
-        else:
+        elif not config.asymmetric:  # an asymmetric critic reads the flat privileged state: no encoder
             value_net = EncodedMLP(PixelEncoder(config.encoder, config.encoder_features), value_head)
     return PPONetworks(
         action_dist=action_dist,
@@ -112,4 +131,5 @@ def make_networks(config: PPOConfig, action_size: int, camera: bool = False) -> 
         shared_encoder=shared_encoder,
         normalize_observations=config.normalize_observations,
         scale_offset=float(jnp.log(jnp.expm1(jnp.exp(config.initial_log_std)))),
+        asymmetric=config.asymmetric,
     )

@@ -6,6 +6,10 @@ termination), and runs `num_epochs` × `num_minibatches` clipped-surrogate steps
 functions are `PPONetworks` (networks.py); the tanh-squashed Gaussian and running statistics are brax's. The
 three phases run under the named scopes `collect`, `advantages` and `sgd`, which profiles show in every op's
 name (`python -m experiments.bench profile` sums time by them).
+
+With `asymmetric`, the env observes its privileged state beside the policy's input in the same step; rollouts,
+GAE and the value loss carry it for the critic (bootstrapping from the final observation's privileged part),
+while the policy, `act` and exports read only the rest.
 """
 
 import jax
@@ -23,6 +27,7 @@ from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.agents.ppo.networks import NetworkParams, PPONetworks, make_networks
 from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
+from jaxarm.envs.observation import PRIVILEGED
 from jaxarm.export.numpy_policy import NumpyPolicy
 
 SGD_STEPS_UNROLLED = 4
@@ -44,6 +49,8 @@ class PPOState(struct.PyTreeNode):
       key: PRNG key (raw uint32[2]).
       updates: [] int32, updates done so far (env steps: `updates × env_steps_per_update`, counted on the host,
         where they may pass int32).
+      critic_normalizer: running mean/std of the privileged observation the asymmetric critic reads; None (no
+        leaves) otherwise.
     """
 
     params: NetworkParams
@@ -52,6 +59,7 @@ class PPOState(struct.PyTreeNode):
     env_state: EnvState
     key: jax.Array
     updates: jax.Array
+    critic_normalizer: observation_normalizer.Normalizer | None = None
 
 
 @struct.dataclass
@@ -94,9 +102,17 @@ def make_optimizer(hparams: HParams, learning_rate) -> optax.GradientTransformat
 
 
 def minibatch_loss(
-    config: PPOConfig, networks: PPONetworks, params, normalizer, batch: Samples, hparams: HParams, key
+    config: PPOConfig,
+    networks: PPONetworks,
+    params,
+    normalizer,
+    batch: Samples,
+    hparams: HParams,
+    key,
+    critic_normalizer=None,
 ) -> tuple[jax.Array, losses.LossTerms]:
-    """PPO's loss on one minibatch (clipped surrogate, value error, entropy bonus) and its terms."""
+    """PPO's loss on one minibatch (clipped surrogate, value error, entropy bonus) and its terms
+    (`critic_normalizer`: the asymmetric critic's, `PPOState.critic_normalizer`)."""
     action_dist = networks.action_dist
     dist_params = networks.policy_params(params, normalizer, batch.obs)
     log_prob = action_dist.log_prob(dist_params, batch.raw_action)
@@ -106,7 +122,7 @@ def minibatch_loss(
     policy_loss, approx_kl, clip_fraction = losses.clipped_policy_loss(
         log_prob, batch.log_prob, advantages, hparams.clip_epsilon
     )
-    value_loss = losses.value_loss(networks.value(params, normalizer, batch.obs), batch.target)
+    value_loss = losses.value_loss(networks.value(params, normalizer, batch.obs, critic_normalizer), batch.target)
     entropy = jnp.mean(action_dist.entropy(dist_params, key))
     total = policy_loss + hparams.value_coef * value_loss - hparams.entropy_coef * entropy
     return total, losses.LossTerms(policy_loss, value_loss, entropy, approx_kl, clip_fraction)
@@ -123,9 +139,11 @@ def sgd_epochs(
     learning_rate,
     key,
     unroll: int = SGD_STEPS_UNROLLED,
+    critic_normalizer=None,
 ):
     """`num_epochs` passes of `num_minibatches` clipped-surrogate steps over freshly shuffled `samples`
-    ([T·B, ...] per field), `unroll` steps per iteration of each epoch's loop.
+    ([T·B, ...] per field), `unroll` steps per iteration of each epoch's loop (`critic_normalizer`: as
+    `minibatch_loss`'s).
 
     Returns ((params, opt_state), (loss terms, grad norms)), the last two [num_epochs, num_minibatches].
     """
@@ -135,7 +153,7 @@ def sgd_epochs(
         params, opt_state = carry
         minibatch, key = minibatch_and_key
         grads, terms = jax.grad(minibatch_loss, argnums=2, has_aux=True)(
-            config, networks, params, normalizer, minibatch, hparams, key
+            config, networks, params, normalizer, minibatch, hparams, key, critic_normalizer
         )
         updates, opt_state = optimizer.update(grads, opt_state, params)
         return (optax.apply_updates(params, updates), opt_state), (terms, optax.global_norm(grads))
@@ -159,6 +177,11 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
     if env is None:
         env, env_params = config.make_env()
     batch_env = VmapEnv(AutoReset(env), config.num_envs)
+    if config.asymmetric and PRIVILEGED not in (env.spec.observation_parts or {}):
+        raise ValueError(
+            f"asymmetric=true needs an env that observes its privileged state: {config.env} with a pixel obs_mode "
+            "and env_kwargs.privileged=true"
+        )
     networks = make_networks(config, env.spec.action_size, camera=not env.spec.flat_observation)
     action_dist = networks.action_dist
 
@@ -172,6 +195,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
             env_state=batch_env.reset(env_key, env_params),
             key=run_key,
             updates=jnp.zeros((), jnp.int32),
+            critic_normalizer=networks.init_critic_normalizer(env.spec),
         )
 
     def collect(state: PPOState, key) -> tuple[EnvState, Rollout, EpisodeSummary]:
@@ -197,10 +221,16 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         return env_state, rollout, summarise_episodes(states)
 
     def advantage_samples(state: PPOState, rollout: Rollout, hparams: HParams):
-        """(normaliser updated with the rollout's observations, [T·B] training samples with GAE targets)."""
+        """(normaliser and critic normaliser updated with the rollout's observations, [T·B] training samples with
+        GAE targets)."""
         normalizer = observation_normalizer.update(state.normalizer, config.normalize_observations, rollout.obs)
-        values = networks.value(state.params, normalizer, rollout.obs)
-        next_values = networks.value(state.params, normalizer, rollout.final_obs)
+        critic_normalizer = state.critic_normalizer
+        if config.asymmetric:
+            critic_normalizer = observation_normalizer.update(
+                critic_normalizer, config.normalize_observations, rollout.obs[PRIVILEGED]
+            )
+        values = networks.value(state.params, normalizer, rollout.obs, critic_normalizer)
+        next_values = networks.value(state.params, normalizer, rollout.final_obs, critic_normalizer)
         advantages, targets = losses.gae(
             rollout.reward * hparams.reward_scale,
             values,
@@ -211,14 +241,15 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
             hparams.gae_lambda,
         )
         samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets)
-        return normalizer, jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
+        flat_samples = jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
+        return normalizer, critic_normalizer, flat_samples
 
     def update(state: PPOState, hparams: HParams) -> tuple[PPOState, PPOMetrics]:
         collect_key, shuffle_key, next_key = jax.random.split(state.key, 3)
         with jax.named_scope("collect"):
             env_state, rollout, episodes = collect(state, collect_key)
         with jax.named_scope("advantages"):
-            normalizer, samples = advantage_samples(state, rollout, hparams)
+            normalizer, critic_normalizer, samples = advantage_samples(state, rollout, hparams)
         progress = state.updates.astype(jnp.float32) / config.num_updates
         learning_rate = hparams.learning_rate * (1.0 - progress if config.anneal_learning_rate else 1.0)
         with jax.named_scope("sgd"):
@@ -232,6 +263,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
                 hparams,
                 learning_rate,
                 shuffle_key,
+                critic_normalizer=critic_normalizer,
             )
         new_state = PPOState(
             params=params,
@@ -240,6 +272,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
             env_state=env_state,
             key=next_key,
             updates=state.updates + 1,
+            critic_normalizer=critic_normalizer,
         )
         metrics = PPOMetrics(
             episodes=episodes,
@@ -250,7 +283,8 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         return new_state, metrics
 
     def act(state: PPOState, obs):
-        """Deterministic action: tanh of the Gaussian's mean."""
+        """Deterministic action: tanh of the Gaussian's mean, of the policy's input alone (an observation's
+        privileged part, given or not, is never read)."""
         return networks.deterministic_action(state.params, state.normalizer, obs)
 
     def numpy_policy(state: PPOState) -> NumpyPolicy:

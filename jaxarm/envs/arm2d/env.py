@@ -9,7 +9,8 @@ position / (world/2), then every (goal − link end) / world, then on_goal. For 
 
 `obs_mode` "pixels" observes a top-down grayscale image of links and goal instead (`camera.py`,
 {"image": uint8 [R, R, 1]}); "pixels+proprio" adds the link ends' positions / (world/2) ({"proprio": [2N]}),
-so that the goal is seen only in the image.
+so that the goal is seen only in the image. With `privileged`, a pixel mode's observation also holds the state
+observation ({"privileged": [4N + 1]}, for a learner's critic: `jaxarm.envs.observation`).
 """
 
 import jax
@@ -41,20 +42,25 @@ class Arm2dInfo:
 
 class Arm2d(Env[Arm2dParams, Arm2dSim]):
     """N-link planar reaching arm. Constructor args are static: `num_links` fixes the shapes, `obs_mode`
-    ("state", "pixels", "pixels+proprio") what is observed, `resolution` the camera image's side in pixels."""
+    ("state", "pixels", "pixels+proprio") what is observed, `resolution` the camera image's side in pixels,
+    `privileged` whether a pixel mode's observation also holds the state observation."""
 
-    def __init__(self, num_links: int = 2, obs_mode: str = "state", resolution: int = 64):
+    def __init__(self, num_links: int = 2, obs_mode: str = "state", resolution: int = 64, privileged: bool = False):
         if num_links < 1:
             raise ValueError(f"num_links must be >= 1, got {num_links}")
-        check_obs_mode(obs_mode, resolution)
+        check_obs_mode(obs_mode, resolution, privileged)
         self.num_links = num_links
         self.obs_mode = obs_mode
         self.resolution = resolution
+        self.privileged = privileged
         action_shape = (num_links,)
+        state_size = 4 * num_links + 1
         if obs_mode == "state":
-            self.spec = EnvSpec(observation_shape=(4 * num_links + 1,), action_shape=action_shape)
+            self.spec = EnvSpec(observation_shape=(state_size,), action_shape=action_shape)
         else:
-            parts = observation_parts(obs_mode, (resolution, resolution, 1), 2 * num_links)
+            parts = observation_parts(
+                obs_mode, (resolution, resolution, 1), 2 * num_links, state_size if privileged else None
+            )
             self.spec = EnvSpec(observation_parts=parts, action_shape=action_shape)
 
     def default_params(self) -> Arm2dParams:
@@ -86,12 +92,12 @@ class Arm2d(Env[Arm2dParams, Arm2dSim]):
 
     def _observe(self, sim: Arm2dSim, params: Arm2dParams) -> Observation:
         ends = link_end_positions(sim.angles, params)
-        if self.obs_mode != "state":
-            return pixel_observation(self.obs_mode, self.blank_image(), (ends / (params.world_size / 2)).ravel())
+        proprio = (ends / (params.world_size / 2)).ravel()
         on_goal = (sim.hold_count > 0).astype(jnp.float32)[None]
-        return jnp.concatenate(
-            [(ends / (params.world_size / 2)).ravel(), ((sim.goal - ends) / params.world_size).ravel(), on_goal]
-        )
+        state = jnp.concatenate([proprio, ((sim.goal - ends) / params.world_size).ravel(), on_goal])
+        if self.obs_mode == "state":
+            return state
+        return pixel_observation(self.obs_mode, self.blank_image(), proprio, state if self.privileged else None)
 
     def _info(self, sim: Arm2dSim, params: Arm2dParams, on_goal: jax.Array) -> Arm2dInfo:
         finger = link_end_positions(sim.angles, params)[-1]
