@@ -11,6 +11,7 @@ import pytest
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import make_chunk_runner, make_train
 from jaxarm.agents.ppo import PPOConfig, make_networks, make_trainer
+from jaxarm.agents.ppo.distill import teacher_input
 from jaxarm.envs.observation import PRIVILEGED, actor_observation
 from tests.agents.probe_envs import ConstantRewardEnv, ImageTargetEnv, TargetActionEnv
 
@@ -115,6 +116,26 @@ def test_policy_learns_an_observation_dependent_action():
     state, _ = jax.jit(make_train(trainer))(jax.random.PRNGKey(0), PROBE.hparams())
     targets = jnp.linspace(-0.5, 0.5, 11)[:, None]
     np.testing.assert_allclose(trainer.act(state, targets), targets, atol=0.1)
+
+
+@pytest.mark.parametrize(("imitation_only", "teacher_sign"), [(True, -1.0), (False, 1.0)])
+def test_a_student_distilled_from_a_scripted_teacher_takes_its_actions(imitation_only, teacher_sign):
+    # Alone, distillation teaches the teacher's actions even against the reward (−target where the reward's
+    # optimum is +target); added to PPO's loss, with a teacher that agrees with the reward, both fall together.
+    env = TargetActionEnv()
+    config = dataclasses.replace(PROBE, teacher="scripted", imitation_only=imitation_only)
+    trainer = make_trainer(config, env, env.default_params(), teacher=lambda obs: teacher_sign * obs)
+    state, metrics = jax.jit(make_train(trainer))(jax.random.PRNGKey(0), config.hparams())
+    targets = jnp.linspace(-0.5, 0.5, 11)[:, None]
+    np.testing.assert_allclose(trainer.act(state, targets), teacher_sign * targets, atol=0.1)
+    imitation = np.asarray(metrics.loss.imitation)
+    assert imitation[-1] < 0.05 * imitation[0], (imitation[0], imitation[-1])
+
+
+def test_a_teacher_reads_the_privileged_state_of_a_camera_observation():
+    obs = {"image": jnp.zeros((2, 8, 8, 1), jnp.uint8), "privileged": jnp.ones((2, 9))}
+    np.testing.assert_array_equal(teacher_input(obs), obs["privileged"])
+    np.testing.assert_array_equal(teacher_input(obs["privileged"]), obs["privileged"])
 
 
 CAMERA_PROBE = dataclasses.replace(PROBE, encoder="patches", encoder_features=16)

@@ -10,12 +10,14 @@ import sys
 import time
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from experiments import configs, run
 from experiments import eval as eval_cli
 from jaxarm.agents.common import checkpoint
+from jaxarm.agents.ppo.distill import load_teacher
 from jaxarm.agents.ppo.warm_start import warm_start
 from jaxarm.runner import loop, rundir
 
@@ -275,3 +277,18 @@ def test_a_ten_billion_step_budget_runs_resumes_and_counts_past_int32(tmp_path):
     # The host counts env steps in Python ints: rows of a run far past int32 carry exact counts.
     far = next(loop.metric_rows({"loss": np.zeros(1)}, 3_000_000, 1024, 0.0, 1.0))
     assert far["env_steps"] == 3_000_001 * 1024
+
+
+def test_a_teacher_loads_from_a_finished_run_and_labels_a_students_rollouts(finished_run):
+    config, _ = rundir.read_config(finished_run)
+    trained = final_params(finished_run)
+    teacher = load_teacher(finished_run)
+    obs = jax.random.normal(jax.random.PRNGKey(7), (16, 9))
+    expected = configs.make_trainer(config).act(trained, obs)
+    np.testing.assert_array_equal(teacher(obs), expected)
+    np.testing.assert_array_equal(teacher({"image": jnp.zeros((16, 8, 8, 1), jnp.uint8), "privileged": obs}), expected)
+    student = dataclasses.replace(config, teacher=str(finished_run), num_envs=16, rollout_length=4)
+    trainer = configs.make_trainer(student)
+    state = jax.jit(trainer.init)(jax.random.PRNGKey(0), student.hparams())
+    _, metrics = jax.jit(trainer.update)(state, student.hparams())
+    assert float(metrics.loss.imitation) > 0 and np.isfinite(float(metrics.loss.imitation))

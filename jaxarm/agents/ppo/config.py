@@ -23,6 +23,14 @@ class PPOConfig(RunConfig):
         `jaxarm.agents.common.encoders.ENCODERS`; unused for flat observations.
       encoder_features: width of the encoder's dense output layer.
       shared_encoder: one encoder (the policy's) feeds both heads, trained by both losses; else one each.
+      teacher: run directory of a finished run (any learner) whose deterministic policy the policy is distilled
+        from, DAgger-style: the student drives the rollouts and each observation is labelled with the teacher's
+        action, read from the observation's privileged part where it has one (a state teacher for a camera
+        student: `env_kwargs.privileged=true`), else from the observation; "" for none.
+      imitation_coef: weight of the distillation loss (squared distance between the student's mean action and
+        the teacher's); used with `teacher`.
+      imitation_only: with `teacher`, the policy learns from the teacher alone (the distillation loss and the
+        value loss, so the critic is ready for PPO afterwards); off, PPO's loss is added.
       asymmetric: asymmetric actor-critic: the value MLP reads the env's privileged state observation
         (obs["privileged"] of an env built with `env_kwargs.privileged=true`, with its own running normaliser),
         while the policy reads only the rest (images and proprio), all a robot has; off, both read the policy's
@@ -52,6 +60,8 @@ class PPOConfig(RunConfig):
     encoder_features: int = static(256, COUNT)
     shared_encoder: bool = False
     asymmetric: bool = False
+    teacher: str = ""
+    imitation_only: bool = True
     normalize_observations: bool = True
     normalize_advantages: bool = True
     anneal_learning_rate: bool = True
@@ -64,6 +74,7 @@ class PPOConfig(RunConfig):
     value_coef: float = dynamic(0.5, POSITIVE)
     max_grad_norm: float = dynamic(0.5, POSITIVE)
     reward_scale: float = dynamic(1.0, POSITIVE)
+    imitation_coef: float = dynamic(1.0, NON_NEGATIVE)
 
     @property
     def env_steps_per_update(self) -> int:

@@ -40,6 +40,7 @@ class LossTerms:
     entropy: jax.Array
     approx_kl: jax.Array
     clip_fraction: jax.Array
+    imitation: jax.Array
 
 
 def clipped_policy_loss(log_prob, old_log_prob, advantages, clip_epsilon):
@@ -57,6 +58,12 @@ def clipped_policy_loss(log_prob, old_log_prob, advantages, clip_epsilon):
 def value_loss(values, targets):
     """Half mean squared error. values, targets: [N]."""
     return 0.5 * jnp.mean(jnp.square(values - targets))
+
+
+def imitation_loss(student_actions, teacher_actions):
+    """Mean over N of the squared distance between actions [N, A]: the student's mean action against its
+    teacher's (distillation's regression target)."""
+    return jnp.mean(jnp.sum(jnp.square(student_actions - teacher_actions), axis=-1))
 
 
 def normalize(advantages):

@@ -9,8 +9,11 @@ name (`python -m experiments.bench profile` sums time by them).
 
 With `asymmetric`, the env observes its privileged state beside the policy's input in the same step; rollouts,
 GAE and the value loss carry it for the critic (bootstrapping from the final observation's privileged part),
-while the policy, `act` and exports read only the rest.
+while the policy, `act` and exports read only the rest. With a `teacher` (distill.py), each sample is labelled
+with the teacher's action and the policy regresses onto it.
 """
+
+import pathlib
 
 import jax
 import jax.numpy as jnp
@@ -25,6 +28,7 @@ from jaxarm.agents.common.permutation import random_permutation
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig
+from jaxarm.agents.ppo.distill import Teacher, load_teacher
 from jaxarm.agents.ppo.networks import NetworkParams, PPONetworks, make_networks
 from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
 from jaxarm.envs.observation import PRIVILEGED
@@ -74,13 +78,14 @@ class PPOMetrics:
 
 @struct.dataclass
 class Samples:
-    """Flattened training samples, [N, ...] per field."""
+    """Flattened training samples, [N, ...] per field; `teacher_action` [N, A] only when distilling."""
 
     obs: Observation
     raw_action: jax.Array
     log_prob: jax.Array
     advantage: jax.Array
     target: jax.Array
+    teacher_action: jax.Array | None = None
 
 
 @struct.dataclass
@@ -112,7 +117,8 @@ def minibatch_loss(
     critic_normalizer=None,
 ) -> tuple[jax.Array, losses.LossTerms]:
     """PPO's loss on one minibatch (clipped surrogate, value error, entropy bonus) and its terms
-    (`critic_normalizer`: the asymmetric critic's, `PPOState.critic_normalizer`)."""
+    (`critic_normalizer`: the asymmetric critic's, `PPOState.critic_normalizer`). With teacher actions in
+    `batch`, the distillation loss is added, to the value loss alone where `config.imitation_only`."""
     action_dist = networks.action_dist
     dist_params = networks.policy_params(params, normalizer, batch.obs)
     log_prob = action_dist.log_prob(dist_params, batch.raw_action)
@@ -125,7 +131,12 @@ def minibatch_loss(
     value_loss = losses.value_loss(networks.value(params, normalizer, batch.obs, critic_normalizer), batch.target)
     entropy = jnp.mean(action_dist.entropy(dist_params, key))
     total = policy_loss + hparams.value_coef * value_loss - hparams.entropy_coef * entropy
-    return total, losses.LossTerms(policy_loss, value_loss, entropy, approx_kl, clip_fraction)
+    imitation = jnp.zeros(())
+    if batch.teacher_action is not None:
+        imitation = losses.imitation_loss(action_dist.mode(dist_params), batch.teacher_action)
+        reinforced = hparams.value_coef * value_loss if config.imitation_only else total
+        total = reinforced + hparams.imitation_coef * imitation
+    return total, losses.LossTerms(policy_loss, value_loss, entropy, approx_kl, clip_fraction, imitation)
 
 
 def sgd_epochs(
@@ -171,9 +182,12 @@ def sgd_epochs(
     return jax.lax.scan(epoch, (params, opt_state), jax.random.split(key, config.num_epochs))
 
 
-def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
-    """PPO for `config` (see the module docstring). `env`, `env_params` replace the config's env (probes)."""
+def make_trainer(config: PPOConfig, env=None, env_params=None, teacher: Teacher | None = None) -> Trainer:
+    """PPO for `config` (see the module docstring). `env`, `env_params` replace the config's env (probes);
+    `teacher` the policy loaded from `config.teacher` (a scripted one, in tests)."""
     config.validate()
+    if teacher is None and config.teacher:
+        teacher = load_teacher(pathlib.Path(config.teacher))
     if env is None:
         env, env_params = config.make_env()
     batch_env = VmapEnv(AutoReset(env), config.num_envs)
@@ -242,6 +256,8 @@ def make_trainer(config: PPOConfig, env=None, env_params=None) -> Trainer:
         )
         samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets)
         flat_samples = jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
+        if teacher is not None:
+            flat_samples = flat_samples.replace(teacher_action=teacher(flat_samples.obs))
         return normalizer, critic_normalizer, flat_samples
 
     def update(state: PPOState, hparams: HParams) -> tuple[PPOState, PPOMetrics]:
