@@ -61,6 +61,7 @@ def learner_for(config: RunConfig) -> Learner:
     return LEARNERS[name_of(config)]
 
 
-def make_trainer(config: RunConfig) -> Trainer:
-    """The trainer of the learner `config` configures, on the config's env."""
-    return learner_for(config).make_trainer(config)
+def make_trainer(config: RunConfig, **extras: Any) -> Trainer:
+    """The trainer of the learner `config` configures, on the config's env; `extras` go to the learner's own
+    `make_trainer` (PPO's loaded `teacher`)."""
+    return learner_for(config).make_trainer(config, **extras)

@@ -27,7 +27,6 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh
 
-from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
@@ -214,7 +213,7 @@ def _train_locked(
     config: RunConfig, preset: str, run_dir: pathlib.Path, resume: bool, options: Options, overrides: Sequence[str] = ()
 ) -> dict:
     """`train`, with the lock held; a resume's `overrides` are recorded once its checkpoint is restored."""
-    trainer = registry.make_trainer(config)
+    trainer = rundir.make_trainer(config)
     if processes.is_primary():
         progress.explain_slow_compiles(config.make_env(randomized=False)[0])
     run_steps = config.num_updates * config.env_steps_per_update
@@ -471,4 +470,4 @@ def diverged_message(bad: tuple[int, str] | None, done_updates: int, count: int,
 def load_run(run_dir: pathlib.Path) -> tuple[RunConfig, Any]:
     """(config, latest learner state) of the run in `run_dir`, for notebooks and scripts."""
     config, _ = rundir.read_config(run_dir)
-    return config, rundir.restore_state(run_dir, registry.make_trainer(config), config)
+    return config, rundir.restore_state(run_dir, rundir.make_trainer(config), config)

@@ -41,6 +41,7 @@ from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
+from jaxarm.agents.ppo.distill import teacher_input
 from jaxarm.runner import provenance
 
 PROVENANCE_FILE = "provenance.json"
@@ -288,6 +289,25 @@ def read_config(run_dir: pathlib.Path, path: pathlib.Path | None = None) -> tupl
     return config, preset
 
 
+def make_trainer(config: RunConfig):
+    """The trainer of `config`'s learner, with its teacher's policy loaded from the run in `config.teacher` where it
+    names one (distillation, `jaxarm.agents.ppo.distill`)."""
+    teacher = getattr(config, "teacher", "")
+    if not teacher:
+        return registry.make_trainer(config)
+    return registry.make_trainer(config, teacher=load_teacher(pathlib.Path(teacher)))
+
+
+def load_teacher(run_dir: pathlib.Path):
+    """The deterministic policy of the run in `run_dir` (its latest checkpoint), reading `teacher_input`: obs
+    [N, ...] -> actions [N, A]; its arrays become constants of the program that calls it. RunDirError or
+    CheckpointError for a run that cannot be read."""
+    config, _ = read_config(run_dir)
+    trainer = make_trainer(config)
+    state = restore_state(run_dir, trainer, config)
+    return lambda obs: trainer.act(state, teacher_input(obs))
+
+
 def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig, best: bool = False, shardings=None):
     """The latest checkpointed learner state of `run_dir`, or with `best` the one that scored best in evaluation
     during training (CheckpointError if none or mismatched), placed with `shardings` (a pytree like the state;
@@ -310,7 +330,7 @@ def warm_starter(config: RunConfig) -> Callable[[Any], Any]:
             f"init_from: warm starts exist for {', '.join(with_warm_starts)} only, from a run of the same learner "
             f"({source_dir} is {registry.name_of(source)}, this run {registry.name_of(config)})"
         )
-    trained = restore_state(source_dir, learner.make_trainer(source), source)
+    trained = restore_state(source_dir, make_trainer(source), source)
     index = config.make_env()[0].observation_source_index(source.make_env()[0])
     return lambda state: warm_start(state, trained, index)
 

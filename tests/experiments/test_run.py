@@ -17,7 +17,6 @@ import pytest
 from experiments import configs, run
 from experiments import eval as eval_cli
 from jaxarm.agents.common import checkpoint
-from jaxarm.agents.ppo.distill import load_teacher
 from jaxarm.agents.ppo.warm_start import warm_start
 from jaxarm.runner import loop, rundir
 
@@ -282,7 +281,7 @@ def test_a_ten_billion_step_budget_runs_resumes_and_counts_past_int32(tmp_path):
 def test_a_teacher_loads_from_a_finished_run_and_labels_a_students_rollouts(finished_run):
     config, _ = rundir.read_config(finished_run)
     trained = final_params(finished_run)
-    teacher = load_teacher(finished_run)
+    teacher = rundir.load_teacher(finished_run)
     obs = jax.random.normal(jax.random.PRNGKey(7), (16, 9))
     expected = configs.make_trainer(config).act(trained, obs)
     np.testing.assert_array_equal(teacher(obs), expected)

@@ -3,10 +3,10 @@
 The student drives its own rollouts (DAgger: it is labelled where it goes, not where the teacher would have gone),
 and every observation of a rollout is labelled with the teacher's action inside the same compiled update
 (`PPOConfig.teacher`, `imitation_coef`, `imitation_only`). A teacher reads the observation's privileged part
-where it has one (a state policy teaching a camera policy), else the observation itself.
+where it has one (a state policy teaching a camera policy), else the observation itself. A teacher run is loaded
+by the runner (`jaxarm.runner.rundir.make_trainer`), which knows every learner; PPO takes the loaded policy.
 """
 
-import pathlib
 from collections.abc import Callable, Mapping
 
 import jax
@@ -23,17 +23,3 @@ def teacher_input(obs: Observation) -> Observation:
     if isinstance(obs, Mapping) and PRIVILEGED in obs:
         return obs[PRIVILEGED]
     return obs
-
-
-def load_teacher(run_dir: pathlib.Path) -> Teacher:
-    """The deterministic policy of the run in `run_dir` (its latest checkpoint), reading `teacher_input`; its
-    arrays become constants of the program that calls it. RunDirError or CheckpointError for a run that cannot
-    be read."""
-    # The runner imports every learner (agents.registry): imported here, when a teacher is loaded, not with PPO.
-    from jaxarm.agents import registry
-    from jaxarm.runner.rundir import read_config, restore_state
-
-    config, _ = read_config(run_dir)
-    trainer = registry.make_trainer(config)
-    state = restore_state(run_dir, trainer, config)
-    return lambda obs: trainer.act(state, teacher_input(obs))

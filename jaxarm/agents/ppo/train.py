@@ -13,8 +13,6 @@ while the policy, `act` and exports read only the rest. With a `teacher` (distil
 with the teacher's action and the policy regresses onto it.
 """
 
-import pathlib
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -28,7 +26,7 @@ from jaxarm.agents.common.permutation import random_permutation
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig
-from jaxarm.agents.ppo.distill import Teacher, load_teacher
+from jaxarm.agents.ppo.distill import Teacher
 from jaxarm.agents.ppo.networks import NetworkParams, PPONetworks, make_networks
 from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
 from jaxarm.envs.observation import PRIVILEGED
@@ -184,10 +182,14 @@ def sgd_epochs(
 
 def make_trainer(config: PPOConfig, env=None, env_params=None, teacher: Teacher | None = None) -> Trainer:
     """PPO for `config` (see the module docstring). `env`, `env_params` replace the config's env (probes);
-    `teacher` the policy loaded from `config.teacher` (a scripted one, in tests)."""
+    `teacher` is the policy of `config.teacher`'s run (`jaxarm.runner.rundir.make_trainer` loads it; a scripted
+    one in tests)."""
     config.validate()
-    if teacher is None and config.teacher:
-        teacher = load_teacher(pathlib.Path(config.teacher))
+    if config.teacher and teacher is None:
+        raise ValueError(
+            f"teacher={config.teacher}: build this trainer with jaxarm.runner.rundir.make_trainer, which loads the "
+            "teacher's run"
+        )
     if env is None:
         env, env_params = config.make_env()
     batch_env = VmapEnv(AutoReset(env), config.num_envs)
