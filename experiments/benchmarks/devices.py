@@ -12,7 +12,6 @@ start (compilation included) to the first evaluation at that success rate.
 
 import argparse
 import dataclasses
-import functools
 import pathlib
 import tempfile
 import time
@@ -22,11 +21,9 @@ import jax
 
 from experiments import configs
 from experiments.benchmarks.record import add_out_argument, write_record
-from experiments.benchmarks.timing import timed
+from experiments.benchmarks.scaling import ppo_seconds
 from jaxarm import runner
 from jaxarm.agents.common.config import RunConfig
-from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
-from jaxarm.agents.common.trainer import run_updates
 
 
 def parse_counts(text: str) -> list[int]:
@@ -45,25 +42,9 @@ def scaled_config(preset: str, devices: int, envs_per_device: int | None) -> Run
 
 
 def steady_rate(config: RunConfig, devices: Sequence[jax.Device], updates: int) -> tuple[float, float]:
-    """(env steps/s of `updates` PPO updates on `devices`, compile seconds), best of two timed calls."""
-    trainer = configs.make_trainer(config)
-    hparams = config.hparams()
-    mesh = data_mesh(devices)
-    with envs_split_over(mesh):
-        like = jax.eval_shape(trainer.init, jax.random.PRNGKey(config.seed), hparams)
-        shardings = state_shardings(like, mesh)
-        state = jax.jit(trainer.init, out_shardings=shardings)(jax.random.PRNGKey(config.seed), hparams)
-        start = time.perf_counter()
-        program = jax.jit(
-            functools.partial(run_updates, trainer, num_updates=updates),
-            out_shardings=(shardings, None),
-            compiler_options=trainer.compiler_options,
-        )
-        compiled = program.lower(state, hparams).compile()
-        compile_seconds = time.perf_counter() - start
-        timed(compiled, state, hparams)  # warm-up: Warp loads its kernels on the first call
-        seconds = min(timed(compiled, state, hparams) for _ in range(2))
-    return updates * trainer.env_steps_per_update / seconds, compile_seconds
+    """(env steps/s of `updates` updates on `devices`, compile seconds), best of two timed calls."""
+    seconds, compile_seconds = ppo_seconds(config, config.num_envs, updates, devices)
+    return updates * config.env_steps_per_update / seconds, compile_seconds
 
 
 def time_to_success(

@@ -30,7 +30,7 @@ from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import compile_updates, env_seconds, timed
 from experiments.benchmarks.training import base_ppo_config
 from jaxarm import envs
-from jaxarm.agents.common.config import with_pair
+from jaxarm.agents.common.config import RunConfig, with_pair
 from jaxarm.agents.ppo import PPOConfig, make_trainer
 
 
@@ -62,10 +62,13 @@ def scaling_config(env_name: str, impl: str, max_envs: int) -> PPOConfig:
     return dataclasses.replace(config, env_kwargs=kwargs)
 
 
-def ppo_seconds(base: PPOConfig, num_envs: int, num_updates: int) -> tuple[float, float]:
-    """(seconds of `num_updates` PPO updates, compile seconds) of `base` at `num_envs` envs."""
+def ppo_seconds(
+    base: RunConfig, num_envs: int, num_updates: int, devices: Sequence[jax.Device] | None = None
+) -> tuple[float, float]:
+    """(seconds of `num_updates` learner updates, best of two calls after a warm-up; compile seconds) of `base` at
+    `num_envs` envs, split over `devices` (None: the default device alone)."""
     config = dataclasses.replace(base, num_envs=num_envs)
-    compiled, state, hparams, compile_seconds = compile_updates(config, num_updates)
+    compiled, state, hparams, compile_seconds = compile_updates(config, num_updates, devices)
     timed(compiled, state, hparams)  # warm-up
     seconds = min(timed(compiled, state, hparams) for _ in range(2))
     return seconds, compile_seconds

@@ -1,8 +1,9 @@
 """Timing of jitted functions for the benchmark suites."""
 
+import contextlib
 import functools
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -11,6 +12,7 @@ import numpy as np
 from experiments import configs
 from jaxarm import envs
 from jaxarm.agents.common.config import RunConfig
+from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
 from jaxarm.agents.common.trainer import run_updates
 
 
@@ -38,23 +40,28 @@ ACTION_POOL_SIZE = 16
 """Distinct action sets `env_seconds` cycles through."""
 
 
-def compile_updates(config: RunConfig, num_updates: int):
+def compile_updates(config: RunConfig, num_updates: int, devices: Sequence[jax.Device] | None = None):
     """(compiled program, initial state, hparams, compile seconds) of `num_updates` updates of `config`'s learner.
 
     One program compiled ahead of time as the runner compiles a chunk (with `Trainer.compiler_options`), but
-    without donating its state, so that the same state can be run again and again.
+    without donating its state, so that the same state can be run again and again. Given `devices`, the state is
+    placed over them and each steps its share of the envs, as the runner does (`jaxarm.agents.common.sharding`);
+    else everything runs on the default device.
     """
     trainer = configs.make_trainer(config)
     hparams = config.hparams()
-    state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed), hparams)
-    start = time.perf_counter()
-    compiled = (
-        jax.jit(
-            functools.partial(run_updates, trainer, num_updates=num_updates), compiler_options=trainer.compiler_options
+    key = jax.random.PRNGKey(config.seed)
+    mesh = None if devices is None else data_mesh(devices)
+    with contextlib.nullcontext() if mesh is None else envs_split_over(mesh):
+        shardings = None if mesh is None else state_shardings(jax.eval_shape(trainer.init, key, hparams), mesh)
+        state = jax.jit(trainer.init, out_shardings=shardings)(key, hparams)
+        start = time.perf_counter()
+        program = jax.jit(
+            functools.partial(run_updates, trainer, num_updates=num_updates),
+            out_shardings=None if shardings is None else (shardings, None),
+            compiler_options=trainer.compiler_options,
         )
-        .lower(state, hparams)
-        .compile()
-    )
+        compiled = program.lower(state, hparams).compile()
     return compiled, state, hparams, time.perf_counter() - start
 
 
