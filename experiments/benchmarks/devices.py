@@ -2,7 +2,8 @@
 
 Weak scaling, as a user scales out: each device keeps the preset's env count (`--envs-per-device` to change it),
 so the run on D devices steps D times the envs, with Warp's buffers still sized for one device's share. For every
-preset (default: `ppo_sorter_warp`, Warp, and `ppo_sorter` on MJX-JAX's implementation) and device count, the
+preset (default: `ppo_sorter`), MJX implementation (default: `auto`, Warp on an NVIDIA GPU, and `jax`) and device
+count, the
 steady rate of whole PPO updates (rollout, GAE, epochs × minibatches) is timed in one program compiled ahead of
 time over the first D devices, as the runner compiles a chunk, compile excluded; the ratios are against one
 device in the same call. With `--train-to SUCCESS`, each preset also trains (`jaxarm.runner.train`) on each count
@@ -30,15 +31,27 @@ def parse_counts(text: str) -> list[int]:
     return sorted({int(part) for part in text.split(",") if part})
 
 
-def scaled_config(preset: str, devices: int, envs_per_device: int | None) -> RunConfig:
+def scaled_config(preset: str, devices: int, envs_per_device: int | None, impl: str | None = None) -> RunConfig:
     """`preset` with `envs_per_device` envs (default: the preset's) on each of `devices` devices; Warp's buffers
-    (`max_envs`, where the preset sets it) hold one device's share."""
+    (`max_envs`, where the preset sets it) hold one device's share; `impl`, where given, the MJX implementation."""
     config = configs.get(preset)
     per_device = envs_per_device or config.num_envs
     kwargs = dict(config.env_kwargs)
     if "max_envs" in kwargs:
         kwargs["max_envs"] = per_device
+    if impl is not None:
+        kwargs["impl"] = impl
     return dataclasses.replace(config, num_envs=per_device * devices, env_kwargs=tuple(kwargs.items()))
+
+
+def variants(presets: Sequence[str], impls: Sequence[str]) -> list[tuple[str, str, str | None]]:
+    """(label, preset, impl) for every preset, once per implementation in `impls` where it runs on MJX (its
+    env_kwargs name an `impl`), once otherwise."""
+    return [
+        (f"{name} impl={impl}" if impl else name, name, impl)
+        for name in presets
+        for impl in (impls if "impl" in dict(configs.get(name).env_kwargs) else [None])
+    ]
 
 
 def steady_rate(config: RunConfig, devices: Sequence[jax.Device], updates: int) -> tuple[float, float]:
@@ -72,7 +85,8 @@ def time_to_success(
 
 def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench devices", description=__doc__.splitlines()[0])
-    parser.add_argument("--configs", default="ppo_sorter_warp,ppo_sorter", help="PPO presets, comma-separated")
+    parser.add_argument("--configs", default="ppo_sorter", help="PPO presets, comma-separated")
+    parser.add_argument("--impls", default="auto,jax", help="MJX implementations of MJX presets, comma-separated")
     parser.add_argument("--devices", default="1,2,4", help="device counts; those beyond the host's are skipped")
     parser.add_argument("--envs-per-device", type=int, help="envs on each device (default: the preset's num_envs)")
     parser.add_argument("--updates", type=int, default=10, help="PPO updates per timed call")
@@ -90,14 +104,15 @@ def main(argv: Sequence[str]) -> None:
     device = available[0].device_kind
     print(f"device: {device} x {len(available)}; jax {jax.__version__}; device counts {counts}", flush=True)
 
-    rows = []
-    for name in presets:
+    runs = variants(presets, [impl for impl in args.impls.split(",") if impl])
+    rows: list[dict] = []
+    for label, name, impl in runs:
         for count in counts:
-            config = scaled_config(name, count, args.envs_per_device)
+            config = scaled_config(name, count, args.envs_per_device, impl)
             rate, compile_seconds = steady_rate(config, available[:count], args.updates)
-            rows.append({"config": name, "devices": count, "envs": config.num_envs, "env_steps_per_second": rate})
+            rows.append({"config": label, "devices": count, "envs": config.num_envs, "env_steps_per_second": rate})
             rows[-1]["compile_seconds"] = compile_seconds
-            print(f"  {name} on {count}: {config.num_envs:,} envs, {rate:,.0f} env steps/s", flush=True)
+            print(f"  {label} on {count}: {config.num_envs:,} envs, {rate:,.0f} env steps/s", flush=True)
     print(f"\n| preset | devices | envs | env steps/s | over 1 device | compile s |  ({device})")
     print("|---|---:|---:|---:|---:|---:|")
     for row in rows:
@@ -111,10 +126,10 @@ def main(argv: Sequence[str]) -> None:
     trainings = []
     if args.train_to is not None:
         train_counts = parse_counts(args.train_devices) or counts[-1:]
-        for name in presets:
+        for label, name, impl in runs:
             for count in (count for count in train_counts if count <= len(available)):
-                config = scaled_config(name, count, args.envs_per_device)
+                config = scaled_config(name, count, args.envs_per_device, impl)
                 result = time_to_success(config, available[:count], args.train_to, args.eval_every, args.train_minutes)
-                trainings.append({"config": name, "devices": count, "envs": config.num_envs, **result})
-                print(f"  {name} on {count} to {args.train_to:.0%}: {trainings[-1]}", flush=True)
+                trainings.append({"config": label, "devices": count, "envs": config.num_envs, **result})
+                print(f"  {label} on {count} to {args.train_to:.0%}: {trainings[-1]}", flush=True)
     write_record(args.out, "devices", argv, rows, trainings=trainings, device_count=len(available))

@@ -64,12 +64,18 @@ def ppo_arm2d_pixels() -> PPOConfig:
 
 
 # The sorter presets fill one GPU; on a CPU, shrink them with overrides, e.g.
-#   python -m experiments.run --config ppo_sorter num_envs=32 rollout_length=8 num_minibatches=4 \
-#       total_env_steps=20000 eval_episodes=8
+#   python -m experiments.run --config ppo_sorter num_envs=16 rollout_length=8 num_minibatches=4 \
+#       total_env_steps=2048 eval_episodes=8
+# The nominal-arm recipe the sorter had before Franka's arm and Warp (BENCHMARKS.md names its overrides) is
+# ppo_sorter with env_kwargs.impl=jax env_kwargs.dynamics=nominal env_kwargs.running_target=false
+# env_params.ee_step=0.02 num_envs=4096 num_minibatches=16 anneal_learning_rate=true total_env_steps=60000000.
 SORTER_ENV_PARAMS = (
-    # 250 steps of 0.04 s: the scripted pick-and-place needs ~170 (the arm moves ~6.5 mm per step at the
-    # default 2 cm command, the fastest at which every object stays in the grip).
+    # 250 steps of 0.04 s: the scripted pick-and-place needs ~170 (the arm moves ~6.5 mm per step at a
+    # 2 cm command without the running target, the fastest at which every object stays in the grip).
     ("max_episode_steps", 250),
+    # With the running target (FRANKA_ARM) the tool moves the whole ee_step per step: 1 cm, about 1.5x the
+    # ~6.5 mm a 2 cm command gave without it.
+    ("ee_step", 0.01),
     # A small time cost (the default 1 makes pushing the object off the table, −50, the cheapest ending).
     ("step_reward", -0.1),
     # Shaping pays potential changes (no reward for lingering: with per-step shaping the policy learnt to hover
@@ -89,28 +95,39 @@ SORTER_ENV_PARAMS = (
 )
 SORTER_EVAL_ENV_PARAMS = (("held_start_prob", 0.0), ("ready_start_prob", 0.0), ("presorted_prob", 0.0))
 """Every evaluation runs the real task: the curricula's starts switched off."""
+FRANKA_ARM = (("dynamics", "franka"), ("running_target", True))
+"""env_kwargs of the Panda nearer the real arm: Franka's own link inertials and joint friction, and actions that
+move the target the servos chase, so a policy gets the motion it asks for."""
+SORTER_ENGINE = (("impl", "auto"), ("max_envs", 8192))
+"""MJX Warp on an NVIDIA GPU where warp-lang imports, MJX-JAX elsewhere; Warp's buffers sized for 8,192 envs."""
 SORTER_PPO = PPOConfig(
     env="panda_sort",
+    env_kwargs=(*SORTER_ENGINE, *FRANKA_ARM),
     env_params=SORTER_ENV_PARAMS,
     eval_env_params=SORTER_EVAL_ENV_PARAMS,
-    num_envs=4096,
+    # Warp's physics steps more envs per second as the batch grows (MJX-JAX's does not): 8,192 envs step 1.5x
+    # faster than 4,096, which learn more per sample; 8 steps per rollout or 16,384 envs learnt much less per
+    # sample (BENCHMARKS.md#sorter). 32 minibatches: each sample takes 4 gradient steps of 4,096.
+    num_envs=8192,
     rollout_length=16,
-    num_minibatches=16,
+    num_minibatches=32,
     num_epochs=4,
-    # Wider nets than arm2d's: the observation mixes object and gripper state (47 values for one object).
+    # Wider nets than arm2d's: the observation mixes object and gripper state (54 values for one object).
     policy_hidden_sizes=(256, 256),
     value_hidden_sizes=(256, 256, 256),
     activation="swish",
-    # ~170k env steps/s on one H200 at 4,096 envs (2026-11-22): 60M fits in the 8-minute budget.
-    total_env_steps=60_000_000,
+    # ~4.5e5 env steps/s on one H100: about 2.5 minutes.
+    total_env_steps=64_000_000,
     learning_rate=3e-4,
+    # Constant: annealed to 0 over 60M env steps, one seed of three found the task late and placed 85%.
+    anneal_learning_rate=False,
     gamma=0.97,
     # 3e-3 let the policy's spread collapse before any object was placed (2026-11-22 run 2).
     entropy_coef=1e-2,
     # Rewards span −50 … +500 per step; scaled so value targets stay near unit size.
     reward_scale=0.01,
     updates_per_chunk=10,
-    # A checkpoint (5.8 MB of learner and env state at 4,096 envs) every ~30 s on an H100, not every chunk:
+    # A checkpoint (~12 MB of learner and env state at 8,192 envs) every ~30 s on an H100, not every chunk:
     # with a save every chunk, Warp runs sustained 10-16% less than their steady chunk rate (H100, 2026-11-24),
     # and ppo_arm2d with a save every chunk trained in 7.3 s instead of 3.9 (2-core CPU, 1.3M env steps).
     # A stop, Ctrl-C or the end of the budget still saves.
@@ -119,46 +136,16 @@ SORTER_PPO = PPOConfig(
 )
 
 
-@preset("PPO on the Panda sorter, 1 object (one GPU; a CPU: num_envs=16 rollout_length=8 total_env_steps=2048)")
+@preset("PPO on the Panda sorter, 1 object, Franka's arm (one NVIDIA GPU: MJX Warp; elsewhere MJX-JAX)")
 def ppo_sorter() -> PPOConfig:
     return SORTER_PPO
-
-
-FRANKA_ARM = (("dynamics", "franka"), ("running_target", True))
-"""env_kwargs of the Panda nearer the real arm: Franka's own link inertials and joint friction, and actions that
-move the target the servos chase, so a policy gets the motion it asks for."""
-FRANKA_ARM_SORTER_PARAMS = with_pair(SORTER_ENV_PARAMS, "ee_step", 0.01)
-"""With the running target the tool moves the whole ee_step per step: 1 cm, about 1.5x the ~6.5 mm a 2 cm
-command gave without it."""
-
-
-@preset("PPO on the Panda sorter on MJX Warp, Franka's dynamics, 1 object (one NVIDIA GPU; MJX-JAX elsewhere)")
-def ppo_sorter_warp() -> PPOConfig:
-    # Warp's physics steps more envs per second as the batch grows (it does not on MJX-JAX), so twice ppo_sorter's
-    # envs at the same 16 steps and minibatch size: 32 minibatches, so each sample still takes 4 gradient steps
-    # of 4,096. A constant learning rate: annealed to 0 over 60M env steps, seed 0 found the task late and placed
-    # 85.3% (seed 1: 97.4%); constant, on the nominal arm, seeds 0-2 placed 94.1-97.8%. With FRANKA_ARM and 1 cm
-    # steps seeds 0-2 placed 99.8%, 99.6% and 99.9% after 64.2M env steps in 184, 205 and 174 s (one H100,
-    # 2026-11-25, 1,000 fresh episodes, compilation included, 4.0-4.2e5 env steps/s steady).
-    # 4,096 envs learn more per sample but step 1.5x slower; 8 steps per rollout or 16,384 envs learnt much less
-    # per sample (BENCHMARKS.md).
-    return dataclasses.replace(
-        SORTER_PPO,
-        env_kwargs=(("impl", "auto"), ("max_envs", 8192), *FRANKA_ARM),
-        env_params=FRANKA_ARM_SORTER_PARAMS,
-        num_envs=8192,
-        num_minibatches=32,
-        anneal_learning_rate=False,
-        total_env_steps=64_000_000,
-    )
 
 
 @preset("PPO on the Panda sorter, 3 objects (one GPU; warm-start it: init_from=<a ppo_sorter run>)")
 def ppo_sorter3() -> PPOConfig:
     # From scratch it learns too slowly (H100, 2026-11-23: objects in fixed slots, 0% after 56M env steps;
-    # target first, ≤ 3% of training episodes after 23M). Warm-started from a 7-minute ppo_sorter run
-    # (`init_from`), 12 more minutes sorted all three objects in 89.9% of fresh episodes (seed 0), 6.6-6.7 more
-    # minutes in 91.5% and 93.0% (seeds 1 and 2).
+    # target first, ≤ 3% of training episodes after 23M); warm-started from a ppo_sorter run (`init_from`) it
+    # sorts all three in minutes (BENCHMARKS.md#sorter3).
     # Three objects take three pick-and-places: episodes three times as long. A curriculum over object count
     # (training only): each object but the curricula's focus starts already sorted with chance 0.5, so a
     # quarter of the episodes are the one-object task ppo_sorter solves in minutes, half have two objects
@@ -171,7 +158,7 @@ def ppo_sorter3() -> PPOConfig:
 
 @preset("PPO on the Panda sorter with a blocker bar, 1 object (one GPU)")
 def ppo_sorter_blocker() -> PPOConfig:
-    return dataclasses.replace(SORTER_PPO, env="panda_sort_blocker")
+    return dataclasses.replace(SORTER_PPO, env="panda_sort_blocker", total_env_steps=120_000_000)
 
 
 TOSS_CHANGES = (
@@ -207,18 +194,14 @@ TOSS_CHANGES = (
 TOSS_ENV_PARAMS = with_pairs(SORTER_ENV_PARAMS, TOSS_CHANGES)
 
 
-@preset("PPO throwing objects into bins beyond the arm's reach (one NVIDIA GPU)")
+@preset("PPO throwing objects into bins beyond the arm's reach, Franka's arm (one NVIDIA GPU)")
 def ppo_sorter_toss() -> PPOConfig:
     # The tosser in joint mode with the running target, the control the scripted throw uses within Franka's
-    # joint speed limits (tests/envs/test_panda_sort_tosser.py); ppo_sorter_warp's learner. Seeds 0-2, sharing
-    # one H100 (Warp, 8,192 envs, 1.3-1.4e5 env steps/s each), threw 93.1%, 97.7% and 95.0% of fresh episodes'
-    # objects into their bins after 983, 1,085 and 985 s of training (90M, 123M and 90M env steps; seed 1
-    # alone for its last 99 s), and passed 80% after 760, 1,068 and 643 s. Seed 0 alone (3.79e5 env steps/s)
-    # passed 80% after 301 s (65.5M env steps) and placed 96.6% after 380 s (docs/benchmarks-log.md).
+    # joint speed limits (tests/envs/test_panda_sort_tosser.py); ppo_sorter's learner (BENCHMARKS.md#tosser).
     return dataclasses.replace(
-        ppo_sorter_warp(),
+        SORTER_PPO,
         env="panda_sort_tosser",
-        env_kwargs=(("impl", "auto"), ("max_envs", 8192), ("control_mode", "joint"), ("running_target", True)),
+        env_kwargs=(*SORTER_ENGINE, *FRANKA_ARM, ("control_mode", "joint")),
         env_params=TOSS_ENV_PARAMS,
         # The plain task: the sorter's evaluation, and the floor's full penalty.
         eval_env_params=(*SORTER_EVAL_ENV_PARAMS, ("floor_reward", -50.0)),
@@ -239,12 +222,10 @@ SORTER_RANDOMIZE = (
 )
 
 
-@preset("PPO on the Panda sorter under randomised physics and sensing, Franka's dynamics (one NVIDIA GPU)")
+@preset("PPO on the Panda sorter under randomised physics and sensing, Franka's arm (one NVIDIA GPU)")
 def ppo_sorter_dr() -> PPOConfig:
-    # ppo_sorter_warp drawing SORTER_RANDOMIZE per env at every reset. Seeds 0-2 placed 99.9%, 100.0% and 99.5% at
-    # nominal params and at least 98.9% under each single change of the grid after 151M, 147M and 151M env
-    # steps in 404, 421 and 439 s (one H100, 2026-11-25, 1,000 fresh episodes per row, BENCHMARKS.md).
-    return dataclasses.replace(ppo_sorter_warp(), randomize=SORTER_RANDOMIZE, total_env_steps=150_000_000)
+    # ppo_sorter drawing SORTER_RANDOMIZE per env at every reset (BENCHMARKS.md#randomised-sorter).
+    return dataclasses.replace(SORTER_PPO, randomize=SORTER_RANDOMIZE, total_env_steps=150_000_000)
 
 
 @preset("PPO inserting a peg into a hole shifted at random (one GPU; on a CPU, num_envs=128)")

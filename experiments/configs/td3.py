@@ -2,7 +2,7 @@
 
 import dataclasses
 
-from experiments.configs.ppo import SORTER_ENV_PARAMS, SORTER_EVAL_ENV_PARAMS
+from experiments.configs.ppo import FRANKA_ARM, SORTER_ENV_PARAMS, SORTER_EVAL_ENV_PARAMS
 from experiments.configs.registry import preset
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
@@ -133,18 +133,17 @@ def td3_peg_pixels() -> TD3Config:
     )
 
 
-@preset("TD3 on the Panda sorter, 1 object, with C51 critics and a spread of exploration noise (one GPU)")
+@preset("TD3 on the Panda sorter, 1 object, Franka's arm, C51 critics and a spread of exploration noise (one GPU)")
 def td3_sorter() -> TD3Config:
     # The env settings and training-only curricula of ppo_sorter (experiments/configs/ppo.py says why);
     # rewards scaled as there; observations standardised as PPO's are. At GPU scale: 4,096 envs (Warp on an
     # NVIDIA GPU) x 4 steps per update, 8 gradient steps of 8,192 (each transition replayed 4 times), 3-step
     # returns. C51 critics on [-2, 8] (the scaled returns lie in about [-0.5, 6]), exploration std spread over
-    # the envs from 0.4/4096 to 0.4, and fast targets (tau 0.1). So, on one H100 (2026-11-25), seed 0 placed
-    # 91.2% of 1,000 fresh episodes after 29.5M env steps (257 s) and 95.6% after 59M (465 s); with none of the
-    # three, 0.3% after 75-88M (BENCHMARKS.md has the ablation).
+    # the envs from 0.4/4096 to 0.4, and fast targets (tau 0.1): without the three, 0.3% after 75-88M env steps
+    # (BENCHMARKS.md#td3-sorter has the ablation).
     return TD3Config(
         env="panda_sort",
-        env_kwargs=(("impl", "auto"), ("max_envs", 4096)),
+        env_kwargs=(("impl", "auto"), ("max_envs", 4096), *FRANKA_ARM),
         normalize_observations=True,
         env_params=SORTER_ENV_PARAMS,
         eval_env_params=SORTER_EVAL_ENV_PARAMS,

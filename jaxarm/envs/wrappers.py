@@ -156,7 +156,7 @@ def over_env_batch(batched_fn: Callable, num_envs: int, batched_args: Sequence[b
 
     Envs of a batch are independent, so each device steps its own without any communication. Left to XLA's
     partitioner, a foreign call inside the step (MJX Warp's FFI) cannot be split: it gathers the whole batch onto
-    every device and runs it there (ppo_sorter_warp scaled 1.29x on 2 GPUs and 1.49x on 4).
+    every device and runs it there (the Warp sorter scaled 1.29x on 2 GPUs and 1.49x on 4).
     """
     mesh = _SPLIT_OVER.get()
     if mesh is None:

@@ -129,8 +129,9 @@ def test_scaling_suite_writes_its_curves(tmp_path):
 
 @pytest.mark.slow
 def test_devices_suite_scales_the_env_batch_and_times_training_to_a_target(tmp_path):
-    scaled = devices.scaled_config("ppo_sorter_warp", 4, None)
+    scaled = devices.scaled_config("ppo_sorter", 4, None, "jax")
     assert scaled.num_envs == 4 * 8192 and dict(scaled.env_kwargs)["max_envs"] == 8192  # one device's share
+    assert dict(scaled.env_kwargs)["impl"] == "jax"
     argv = ["--configs", "ppo_arm2d", "--devices", "1,2", "--envs-per-device", "16", "--updates", "1"]
     argv += ["--train-to", "0.0", "--eval-every", "1", "--train-minutes", "0", "--out", str(tmp_path)]
     devices.main(argv)

@@ -170,7 +170,7 @@ def silence_overflow_warnings(model: mjx.Model) -> mjx.Model:
 
     By default every Warp world prints a line from the GPU whenever its solver stops at its iteration limit,
     which the Panda scenes' 4 Newton iterations reach by design: thousands of lines per substep in training.
-    Without them a ppo_sorter_warp update (8,192 envs x 16 steps, H100) took 289 ms instead of 393. The bits
+    Without them a ppo_sorter update (8,192 envs x 16 steps, H100) took 289 ms instead of 393. The bits
     that matter, dropped contacts or constraint rows, still raise in `check_no_overflow`.
     """
     options = model.opt._impl.replace(warn_overflow=0)  # type: ignore[union-attr]  # Warp's own Option fields
