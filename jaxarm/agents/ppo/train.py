@@ -13,6 +13,8 @@ while the policy, `act` and exports read only the rest. With a `teacher` (distil
 with the teacher's action and the policy regresses onto it.
 """
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -28,7 +30,7 @@ from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.agents.ppo.distill import Teacher
 from jaxarm.agents.ppo.networks import NetworkParams, PPONetworks, make_networks
-from jaxarm.envs import AutoReset, EnvState, Observation, VmapEnv, compiler_options
+from jaxarm.envs import AutoReset, EnvSpec, EnvState, Observation, VmapEnv, compiler_options
 from jaxarm.envs.observation import PRIVILEGED
 from jaxarm.export.numpy_policy import NumpyPolicy
 
@@ -180,6 +182,158 @@ def sgd_epochs(
     return jax.lax.scan(epoch, (params, opt_state), jax.random.split(key, config.num_epochs))
 
 
+def init_state(networks: PPONetworks, batch_env: VmapEnv, env_params, key: jax.Array, hparams: HParams) -> PPOState:
+    """A fresh learner: initialised networks and Adam state, empty normalisers, [num_envs] reset envs."""
+    spec = batch_env.spec
+    policy_key, value_key, env_key, run_key = jax.random.split(key, 4)
+    params = networks.init(policy_key, value_key, spec)
+    return PPOState(
+        params=params,
+        opt_state=make_optimizer(hparams, hparams.learning_rate).init(params),
+        normalizer=observation_normalizer.init(spec),
+        env_state=batch_env.reset(env_key, env_params),
+        key=run_key,
+        updates=jnp.zeros((), jnp.int32),
+        critic_normalizer=networks.init_critic_normalizer(spec),
+    )
+
+
+def collect(
+    config: PPOConfig, networks: PPONetworks, batch_env: VmapEnv, env_params, state: PPOState, key: jax.Array
+) -> tuple[EnvState, Rollout, EpisodeSummary]:
+    """Steps the envs `rollout_length` times with the stochastic policy.
+
+    Returns (env state [B], the rollout [T, B, ...], a summary of the episodes that finished).
+    """
+    action_dist = networks.action_dist
+
+    def env_step(env_state, step_key):
+        dist_params = networks.policy_params(state.params, state.normalizer, env_state.obs)
+        raw_action = action_dist.sample_no_postprocessing(dist_params, step_key)
+        log_prob = action_dist.log_prob(dist_params, raw_action)
+        next_state = batch_env.step(env_state, action_dist.postprocess(raw_action), env_params)
+        step = Rollout(
+            obs=env_state.obs,
+            raw_action=raw_action,
+            log_prob=log_prob,
+            reward=next_state.reward,
+            terminated=next_state.terminated.astype(jnp.float32),
+            done=next_state.done.astype(jnp.float32),
+            final_obs=next_state.final_obs,
+        )
+        return next_state, (step, next_state)
+
+    env_state, (rollout, states) = jax.lax.scan(env_step, state.env_state, jax.random.split(key, config.rollout_length))
+    return env_state, rollout, summarise_episodes(states)
+
+
+def advantage_samples(
+    config: PPOConfig,
+    networks: PPONetworks,
+    teacher: Teacher | None,
+    state: PPOState,
+    rollout: Rollout,
+    hparams: HParams,
+):
+    """(normaliser and critic normaliser updated with the rollout's observations, [T·B] training samples with
+    GAE targets, labelled with the teacher's actions where there is one)."""
+    normalizer = observation_normalizer.update(state.normalizer, config.normalize_observations, rollout.obs)
+    critic_normalizer = state.critic_normalizer
+    if config.asymmetric:
+        critic_normalizer = observation_normalizer.update(
+            critic_normalizer, config.normalize_observations, rollout.obs[PRIVILEGED]
+        )
+    values = networks.value(state.params, normalizer, rollout.obs, critic_normalizer)
+    next_values = networks.value(state.params, normalizer, rollout.final_obs, critic_normalizer)
+    advantages, targets = losses.gae(
+        rollout.reward * hparams.reward_scale,
+        values,
+        next_values,
+        rollout.terminated,
+        rollout.done,
+        hparams.gamma,
+        hparams.gae_lambda,
+    )
+    samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets)
+    flat_samples = jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
+    if teacher is not None:
+        flat_samples = flat_samples.replace(teacher_action=teacher(flat_samples.obs))
+    return normalizer, critic_normalizer, flat_samples
+
+
+def learning_rate_at(config: PPOConfig, hparams: HParams, updates: jax.Array) -> jax.Array:
+    """The step size after `updates` updates: annealed linearly to 0 over the run, or constant."""
+    progress = updates.astype(jnp.float32) / config.num_updates
+    return hparams.learning_rate * (1.0 - progress if config.anneal_learning_rate else 1.0)
+
+
+def update(
+    config: PPOConfig,
+    networks: PPONetworks,
+    batch_env: VmapEnv,
+    env_params,
+    teacher: Teacher | None,
+    state: PPOState,
+    hparams: HParams,
+) -> tuple[PPOState, PPOMetrics]:
+    """One update (the module docstring): collect, advantages, then the SGD epochs, each under its named scope."""
+    collect_key, shuffle_key, next_key = jax.random.split(state.key, 3)
+    with jax.named_scope("collect"):
+        env_state, rollout, episodes = collect(config, networks, batch_env, env_params, state, collect_key)
+    with jax.named_scope("advantages"):
+        normalizer, critic_normalizer, samples = advantage_samples(config, networks, teacher, state, rollout, hparams)
+    learning_rate = learning_rate_at(config, hparams, state.updates)
+    with jax.named_scope("sgd"):
+        (params, opt_state), (terms, grad_norms) = sgd_epochs(
+            config,
+            networks,
+            state.params,
+            state.opt_state,
+            normalizer,
+            samples,
+            hparams,
+            learning_rate,
+            shuffle_key,
+            critic_normalizer=critic_normalizer,
+        )
+    new_state = PPOState(
+        params=params,
+        opt_state=opt_state,
+        normalizer=normalizer,
+        env_state=env_state,
+        key=next_key,
+        updates=state.updates + 1,
+        critic_normalizer=critic_normalizer,
+    )
+    metrics = PPOMetrics(
+        episodes=episodes,
+        loss=jax.tree.map(jnp.mean, terms),
+        learning_rate=learning_rate,
+        grad_norm=jnp.mean(grad_norms),
+    )
+    return new_state, metrics
+
+
+def numpy_policy(config: PPOConfig, spec: EnvSpec, state: PPOState) -> NumpyPolicy:
+    """The deterministic policy as arrays: the policy MLP (its first A outputs are the Gaussian's mean) and the
+    normaliser."""
+    if not spec.flat_observation:
+        raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
+    kernels, biases = mlp_layers(state.params.policy)
+    mean, std = observation_normalizer.numpy_mean_std(
+        state.normalizer, config.normalize_observations, spec.observation_size
+    )
+    return NumpyPolicy(
+        kernels=kernels,
+        biases=biases,
+        activation=config.activation,
+        obs_mean=mean,
+        obs_std=std,
+        action_offset=np.zeros(spec.action_size, np.float32),
+        action_scale=np.ones(spec.action_size, np.float32),
+    )
+
+
 def make_trainer(config: PPOConfig, env=None, env_params=None, teacher: Teacher | None = None) -> Trainer:
     """PPO for `config` (see the module docstring). `env`, `env_params` replace the config's env (probes);
     `teacher` is the policy of `config.teacher`'s run (`jaxarm.runner.rundir.make_trainer` loads it; a scripted
@@ -199,137 +353,18 @@ def make_trainer(config: PPOConfig, env=None, env_params=None, teacher: Teacher 
             "and env_kwargs.privileged=true"
         )
     networks = make_networks(config, env.spec.action_size, camera=not env.spec.flat_observation)
-    action_dist = networks.action_dist
-
-    def init(key, hparams: HParams) -> PPOState:
-        policy_key, value_key, env_key, run_key = jax.random.split(key, 4)
-        params = networks.init(policy_key, value_key, env.spec)
-        return PPOState(
-            params=params,
-            opt_state=make_optimizer(hparams, hparams.learning_rate).init(params),
-            normalizer=observation_normalizer.init(env.spec),
-            env_state=batch_env.reset(env_key, env_params),
-            key=run_key,
-            updates=jnp.zeros((), jnp.int32),
-            critic_normalizer=networks.init_critic_normalizer(env.spec),
-        )
-
-    def collect(state: PPOState, key) -> tuple[EnvState, Rollout, EpisodeSummary]:
-        def env_step(env_state, step_key):
-            dist_params = networks.policy_params(state.params, state.normalizer, env_state.obs)
-            raw_action = action_dist.sample_no_postprocessing(dist_params, step_key)
-            log_prob = action_dist.log_prob(dist_params, raw_action)
-            next_state = batch_env.step(env_state, action_dist.postprocess(raw_action), env_params)
-            step = Rollout(
-                obs=env_state.obs,
-                raw_action=raw_action,
-                log_prob=log_prob,
-                reward=next_state.reward,
-                terminated=next_state.terminated.astype(jnp.float32),
-                done=next_state.done.astype(jnp.float32),
-                final_obs=next_state.final_obs,
-            )
-            return next_state, (step, next_state)
-
-        env_state, (rollout, states) = jax.lax.scan(
-            env_step, state.env_state, jax.random.split(key, config.rollout_length)
-        )
-        return env_state, rollout, summarise_episodes(states)
-
-    def advantage_samples(state: PPOState, rollout: Rollout, hparams: HParams):
-        """(normaliser and critic normaliser updated with the rollout's observations, [T·B] training samples with
-        GAE targets)."""
-        normalizer = observation_normalizer.update(state.normalizer, config.normalize_observations, rollout.obs)
-        critic_normalizer = state.critic_normalizer
-        if config.asymmetric:
-            critic_normalizer = observation_normalizer.update(
-                critic_normalizer, config.normalize_observations, rollout.obs[PRIVILEGED]
-            )
-        values = networks.value(state.params, normalizer, rollout.obs, critic_normalizer)
-        next_values = networks.value(state.params, normalizer, rollout.final_obs, critic_normalizer)
-        advantages, targets = losses.gae(
-            rollout.reward * hparams.reward_scale,
-            values,
-            next_values,
-            rollout.terminated,
-            rollout.done,
-            hparams.gamma,
-            hparams.gae_lambda,
-        )
-        samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets)
-        flat_samples = jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
-        if teacher is not None:
-            flat_samples = flat_samples.replace(teacher_action=teacher(flat_samples.obs))
-        return normalizer, critic_normalizer, flat_samples
-
-    def update(state: PPOState, hparams: HParams) -> tuple[PPOState, PPOMetrics]:
-        collect_key, shuffle_key, next_key = jax.random.split(state.key, 3)
-        with jax.named_scope("collect"):
-            env_state, rollout, episodes = collect(state, collect_key)
-        with jax.named_scope("advantages"):
-            normalizer, critic_normalizer, samples = advantage_samples(state, rollout, hparams)
-        progress = state.updates.astype(jnp.float32) / config.num_updates
-        learning_rate = hparams.learning_rate * (1.0 - progress if config.anneal_learning_rate else 1.0)
-        with jax.named_scope("sgd"):
-            (params, opt_state), (terms, grad_norms) = sgd_epochs(
-                config,
-                networks,
-                state.params,
-                state.opt_state,
-                normalizer,
-                samples,
-                hparams,
-                learning_rate,
-                shuffle_key,
-                critic_normalizer=critic_normalizer,
-            )
-        new_state = PPOState(
-            params=params,
-            opt_state=opt_state,
-            normalizer=normalizer,
-            env_state=env_state,
-            key=next_key,
-            updates=state.updates + 1,
-            critic_normalizer=critic_normalizer,
-        )
-        metrics = PPOMetrics(
-            episodes=episodes,
-            loss=jax.tree.map(jnp.mean, terms),
-            learning_rate=learning_rate,
-            grad_norm=jnp.mean(grad_norms),
-        )
-        return new_state, metrics
 
     def act(state: PPOState, obs):
         """Deterministic action: tanh of the Gaussian's mean, of the policy's input alone (an observation's
         privileged part, given or not, is never read)."""
         return networks.deterministic_action(state.params, state.normalizer, obs)
 
-    def numpy_policy(state: PPOState) -> NumpyPolicy:
-        """`act` as arrays: the policy MLP (its first A outputs are the Gaussian's mean) and the normaliser."""
-        if not env.spec.flat_observation:
-            raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
-        kernels, biases = mlp_layers(state.params.policy)
-        mean, std = observation_normalizer.numpy_mean_std(
-            state.normalizer, config.normalize_observations, env.spec.observation_size
-        )
-        action_size = env.spec.action_size
-        return NumpyPolicy(
-            kernels=kernels,
-            biases=biases,
-            activation=config.activation,
-            obs_mean=mean,
-            obs_std=std,
-            action_offset=np.zeros(action_size, np.float32),
-            action_scale=np.ones(action_size, np.float32),
-        )
-
     return Trainer(
-        init=init,
-        update=update,
+        init=functools.partial(init_state, networks, batch_env, env_params),
+        update=functools.partial(update, config, networks, batch_env, env_params, teacher),
         act=act,
         num_updates=config.num_updates,
         env_steps_per_update=config.env_steps_per_update,
         compiler_options=compiler_options(env),
-        numpy_policy=numpy_policy,
+        numpy_policy=functools.partial(numpy_policy, config, env.spec),
     )
