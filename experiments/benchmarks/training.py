@@ -363,7 +363,7 @@ def format_table(ours: Result, brax: Result) -> str:
     return "\n".join(lines)
 
 
-def main(argv: Sequence[str]) -> None:
+def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench training", description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="arm2d", help=f"registered env name ({', '.join(envs.names())})")
     parser.add_argument("--env-steps", type=int, help="env-step budget of each learner (default: the preset's)")
@@ -398,18 +398,20 @@ def main(argv: Sequence[str]) -> None:
         help="run one learner alone (its line, no table): for budgets one call cannot hold both",
     )
     add_out_argument(parser)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def config_from_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> PPOConfig:
+    """The config both learners map from; bad arguments end the process through `parser.error`."""
     if args.env not in envs.names():
         parser.error(f"unknown env {args.env!r}; registered: {', '.join(envs.names())}")
     if args.eval_episodes < 0:
         parser.error(f"--eval-episodes must be 0 or more, not {args.eval_episodes}")
+    num_envs, env_steps = args.num_envs, args.env_steps
     if args.quick:
-        args.num_envs = args.num_envs or QUICK_NUM_ENVS
-        args.env_steps = args.env_steps or QUICK_ENV_STEPS
+        num_envs, env_steps = num_envs or QUICK_NUM_ENVS, env_steps or QUICK_ENV_STEPS
     try:
-        config = dataclasses.replace(
-            ppo_config(args.env, args.num_envs, args.env_steps, args.overrides), seed=args.seed
-        )
+        config = dataclasses.replace(ppo_config(args.env, num_envs, env_steps, args.overrides), seed=args.seed)
     except ValueError as error:
         parser.error(str(error))
     if args.impl != "jax":
@@ -420,34 +422,52 @@ def main(argv: Sequence[str]) -> None:
             config.validate()
         except ValueError as error:
             parser.error(f"--impl {args.impl}: {error}")
-    import brax
+    return config
 
+
+def print_setup(config: PPOConfig, impl: str, brax_learning_rate: float, brax_version: str) -> None:
+    """What the run compares, printed before it starts: the device and versions, the env and both learners."""
     schedule = "linear decay" if config.anneal_learning_rate else "constant"
     print(
         f"device: {jax.devices()[0].device_kind} (1 of {jax.device_count()} used by each learner); "
-        f"jax {jax.__version__}, brax {brax.__version__}"
+        f"jax {jax.__version__}, brax {brax_version}"
     )
     print(
-        f"env {config.env} ({args.impl}) {dict(config.env_params)}; {config.num_envs:,} envs × "
+        f"env {config.env} ({impl}) {dict(config.env_params)}; {config.num_envs:,} envs × "
         f"{config.rollout_length} steps per update, {config.num_updates} updates, {config.num_minibatches} "
         f"minibatches × {config.num_epochs} epochs, MLPs {config.policy_hidden_sizes}/{config.value_hidden_sizes} "
         f"{config.activation}, γ {config.gamma}; "
-        f"lr ours {config.learning_rate:g} ({schedule}), brax {args.brax_learning_rate:g} (constant)",
+        f"lr ours {config.learning_rate:g} ({schedule}), brax {brax_learning_rate:g} (constant)",
         flush=True,
     )
-    learners = {
-        "jaxarm": lambda: run_ours(config, args.eval_episodes),
-        "brax": lambda: run_brax(config, args.brax_learning_rate, args.eval_episodes),
+
+
+def run_learners(config: PPOConfig, learners: str, brax_learning_rate: float, eval_episodes: int) -> dict[str, Result]:
+    """Runs "both" learners (ours first) or the one named, printing each one's line as it ends."""
+    runs = {
+        "jaxarm": lambda: run_ours(config, eval_episodes),
+        "brax": lambda: run_brax(config, brax_learning_rate, eval_episodes),
     }
     results = {}
-    for name in learners if args.learners == "both" else [args.learners]:
-        result = results[name] = learners[name]()
+    for name in runs if learners == "both" else [learners]:
+        result = results[name] = runs[name]()
         print(
             f"{name} PPO: {result.total_seconds:.1f} s, parts {format_parts(result)}, "
             f"{result.steps_per_second:,.0f} env steps/s at the steady rate, success {result.success_rate:.1%}, "
             f"return {result.return_mean:.1f}",
             flush=True,
         )
+    return results
+
+
+def main(argv: Sequence[str]) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    config = config_from_args(parser, args)
+    import brax
+
+    print_setup(config, args.impl, args.brax_learning_rate, brax.__version__)
+    results = run_learners(config, args.learners, args.brax_learning_rate, args.eval_episodes)
     ceiling = {}
     if len(results) == 2:
         ours, brax_result = results["jaxarm"], results["brax"]
