@@ -1,10 +1,26 @@
 """The command-line options that make a command one of several processes (`jax.distributed`), shared by run
 and sweep: on SLURM the processes find each other alone; elsewhere `--coordinator`, `--num-processes` and
-`--process-id` say how."""
+`--process-id` say how; `--local-processes N` starts N of them on this host, one GPU each.
+
+One process per GPU is how Warp's own multi-GPU examples run; BENCHMARKS.md#scale-out compares it with one process
+driving every GPU.
+"""
 
 import argparse
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
 
 import jax
+
+LOCAL_PROCESSES = "--local-processes"
+STOP_GRACE_S = 60.0
+"""How long the others get to checkpoint and stop once one local process has failed (then they are killed)."""
+POLL_S = 0.2
 
 
 def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
@@ -18,6 +34,13 @@ def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
     parser.add_argument("--coordinator", metavar="HOST:PORT", help="with --distributed: process 0's address")
     parser.add_argument("--num-processes", type=int, help="with --distributed: how many processes in all")
     parser.add_argument("--process-id", type=int, help="with --distributed: this process's index, from 0")
+    parser.add_argument(
+        LOCAL_PROCESSES,
+        type=int,
+        metavar="N",
+        help="start N processes of this command on this host, one GPU each (CUDA_VISIBLE_DEVICES), joined as "
+        "--distributed: the way MJX Warp uses several GPUs",
+    )
 
 
 def check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
@@ -25,6 +48,8 @@ def check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -
     joining = (args.coordinator, args.num_processes, args.process_id)
     if any(option is not None for option in joining) and not args.distributed:
         parser.error("--coordinator, --num-processes and --process-id go with --distributed")
+    if args.local_processes is not None and (args.distributed or args.local_processes < 1):
+        parser.error(f"{LOCAL_PROCESSES} takes a count of 1 or more, without --distributed (it adds it)")
 
 
 def join(args: argparse.Namespace) -> None:
@@ -39,3 +64,72 @@ def join(args: argparse.Namespace) -> None:
             f"--distributed could not join the other processes ({first_line}); outside SLURM give --coordinator "
             "HOST:PORT, --num-processes N and --process-id I"
         ) from None
+
+
+def free_port() -> int:
+    """A TCP port on this host that nothing listens on now."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def without_local_processes(argv: Sequence[str]) -> list[str]:
+    """`argv` less `--local-processes N` (or `--local-processes=N`)."""
+    kept: list[str] = []
+    skip = False
+    for arg in argv:
+        if skip:
+            skip = False
+        elif arg == LOCAL_PROCESSES:
+            skip = True
+        elif not arg.startswith(LOCAL_PROCESSES + "="):
+            kept.append(arg)
+    return kept
+
+
+def local_gpus(count: int) -> list[str]:
+    """The GPU each of `count` local processes sees: the first `count` of CUDA_VISIBLE_DEVICES (default 0 …);
+    ValueError where fewer are visible."""
+    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
+    gpus = [gpu for gpu in visible.split(",") if gpu] if visible is not None else [str(i) for i in range(count)]
+    if len(gpus) < count:
+        raise ValueError(f"{LOCAL_PROCESSES} {count}: CUDA_VISIBLE_DEVICES={visible} names only {len(gpus)}")
+    return gpus[:count]
+
+
+def spawn(module: str, argv: Sequence[str], count: int) -> int:
+    """Runs `python -m MODULE ARGV` as `count` processes of one job on this host (process i sees the i-th GPU)
+    and waits for them. SIGINT and SIGTERM are passed on once to every process (each checkpoints and stops);
+    where one fails, the others get SIGTERM, and SIGKILL after STOP_GRACE_S (a process waiting in a collective
+    for a dead peer never reaches its checkpoint). Returns the first non-zero exit code, else 0."""
+    gpus = local_gpus(count)
+    coordinator = f"127.0.0.1:{free_port()}"
+    base = [sys.executable, "-m", module, *without_local_processes(argv), "--distributed"]
+    base += ["--coordinator", coordinator, "--num-processes", str(count)]
+    # Their own process group: a Ctrl-C at the terminal reaches this process alone, which passes it on once (a
+    # second SIGINT would make each child exit without its checkpoint).
+    children = [
+        subprocess.Popen(
+            [*base, "--process-id", str(index)], env=dict(os.environ, CUDA_VISIBLE_DEVICES=gpu), process_group=0
+        )
+        for index, gpu in enumerate(gpus)
+    ]
+
+    def forward(signum, frame):
+        for child in children:
+            if child.poll() is None:
+                child.send_signal(signum)
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, forward)
+    failed_at = None
+    while any(child.poll() is None for child in children):
+        if failed_at is None and any(child.returncode not in (None, 0) for child in children):
+            failed_at = time.monotonic()
+            forward(signal.SIGTERM, None)
+        if failed_at is not None and time.monotonic() - failed_at > STOP_GRACE_S:
+            for child in children:
+                if child.poll() is None:
+                    child.kill()
+        time.sleep(POLL_S)
+    return next((child.returncode for child in children if child.returncode != 0), 0)

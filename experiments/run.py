@@ -85,8 +85,9 @@ def parse_args(argv):
     if args.resume and args.config:
         parser.error("--resume takes the config saved in the run directory; give no --config")
     distributed.check_arguments(parser, args)
-    if args.distributed and args.config and not args.out and not (args.list or args.show):
-        parser.error("with --distributed give --out: every process must write to the same run directory")
+    several = args.distributed or args.local_processes is not None
+    if several and args.config and not args.out and not (args.list or args.show):
+        parser.error("with --distributed or --local-processes give --out: every process writes to one run directory")
     return args
 
 
@@ -119,6 +120,8 @@ def main(argv=None) -> int:
 
 def _main(argv) -> int:
     args = parse_args(argv)
+    if args.local_processes is not None and not (args.list or args.show):
+        return distributed.spawn("experiments.run", argv, args.local_processes)
     if args.distributed:
         try:
             distributed.join(args)

@@ -12,6 +12,7 @@ import jax
 import numpy as np
 import pytest
 
+from experiments import distributed
 from jaxarm.runner import load_run, read_metrics
 
 OVERRIDES = [
@@ -85,7 +86,8 @@ def test_two_processes_compute_one_process_run_and_resume_across(tmp_path):
 
     one_then_two = tmp_path / "one_then_two"
     assert_codes(run_processes(1, ["--config", "ppo_arm2d", "--out", str(one_then_two), *OVERRIDES, *stop_first]), 0)
-    assert_codes(run_processes(2, ["--resume", str(one_then_two)]), 0)
+    # Resumed by two processes that the command starts itself (one GPU each on a GPU host).
+    assert_codes(run_processes(1, ["--resume", str(one_then_two), "--local-processes", "2"]), 0)
 
     updates = [row["updates"] for row in read_metrics(one)]
     for run in (two_then_one, one_then_two):
@@ -103,6 +105,26 @@ def test_distributed_without_its_processes_is_one_line(tmp_path):
     )
     assert result.returncode == 2
     assert result.stderr.strip().splitlines()[-1].startswith("error: --distributed could not join")
+
+
+def test_local_processes_are_checked_and_leave_the_children_their_arguments(monkeypatch):
+    assert distributed.without_local_processes(["--resume", "r", "--local-processes", "2", "x=1"]) == [
+        "--resume",
+        "r",
+        "x=1",
+    ]
+    assert distributed.without_local_processes(["--local-processes=4", "--out", "o"]) == ["--out", "o"]
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "3,5")
+    assert distributed.local_gpus(2) == ["3", "5"]
+    with pytest.raises(ValueError, match="names only 2"):
+        distributed.local_gpus(4)
+    result = subprocess.run(
+        [sys.executable, "-m", "experiments.run", "--config", "ppo_arm2d", "--local-processes", "2", "--distributed"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 2 and "--local-processes takes a count of 1 or more" in result.stderr
 
 
 def sweep_results(out, device_count: int) -> list[dict]:
