@@ -51,6 +51,7 @@ def hand_placed_sorter(env: PandaSort, rng: np.random.Generator) -> PandaSortSim
         potential=jnp.zeros(5),
         queued_actions=env.initial_action_queue(),
         noise_key=jax.random.key(0),
+        pose_error=jnp.zeros((2, 3)),
     )
 
 
@@ -136,6 +137,7 @@ def test_the_peg_observes_and_acts_as_the_env():
         distance=jnp.array(0.2),
         queued_actions=env.initial_action_queue(),
         noise_key=jax.random.key(0),
+        hole_error=jnp.zeros(3),
     )
     actions = rng.uniform(-1.0, 1.0, (ACTIONS, 3)).astype(np.float32)
 

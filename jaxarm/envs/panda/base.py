@@ -106,7 +106,8 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       resolution: side of the square camera images, pixels.
       cameras: names of the MJCF cameras (mode "fixed") stacked in `camera_image`.
       max_action_latency: the most control steps of action latency the params may ask for (`action_latency` of
-        `RobotParams`); the state queues that many actions (`initial_action_queue`).
+        `RobotParams`); the state queues that many actions (`initial_action_queue`). Two by default: the
+        randomised presets draw up to two.
 
     Attributes:
       mj_model: the compiled scene as built (drawing poses a copy of it).
@@ -134,7 +135,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         obs_mode: str = "state",
         resolution: int = 64,
         cameras: tuple[str, ...] = CAMERAS,
-        max_action_latency: int = 1,
+        max_action_latency: int = 2,
     ):
         check_obs_mode(obs_mode, resolution)
         if max_action_latency < 0:

@@ -42,7 +42,7 @@ from jaxarm.envs.panda.robot import (
     yaw_of_quaternion,
     yaw_of_rotation,
 )
-from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
+from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_robot_params
 from jaxarm.envs.panda_sort.curriculum import draw_start, place_in_hand, wound_up_posture
 from jaxarm.envs.panda_sort.layout import make_layout
 from jaxarm.envs.panda_sort.model import ModelIds, build_model, resolve_ids
@@ -136,7 +136,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         blocker: bool = False,
         tosser: bool = False,
         target_first: bool = False,
-        max_action_latency: int = 1,
+        max_action_latency: int = 2,
         impl: str = Impl.JAX,
         max_envs: int = 4096,
         contacts_per_env: int | None = None,
@@ -210,7 +210,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
 
     def episode_model(self, sim: PandaSortSim, params: PandaSortParams) -> mjx.Model:
         """The mjx.Model with this episode's object shapes and sizes and the params' randomisation (objects'
-        masses and friction, the arm servos' gains and damping)."""
+        masses and friction, the robot's `RobotParams`)."""
         ids, model = self.ids, self.mjx_model
         geom_ids = ids.object_geom.ravel()
         sizes = object_geom_sizes(sim.shape, sim.size).reshape(-1, 3)
@@ -221,7 +221,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         invweight = jnp.stack([1.0 / mass, jnp.mean(1.0 / inertia, axis=-1)], -1)
         friction = model.pair_friction.at[ids.finger_pair, :2].set(params.finger_friction)
         friction = friction.at[ids.object_pair, :2].set(params.object_friction)
-        model = with_servo_scales(model, ids.robot, params.servo_gain_scale, params.joint_damping_scale)
+        model = with_robot_params(model, ids.robot, params)
         return with_geom_sizes(model, geom_ids, sizes, rbound).replace(
             body_mass=model.body_mass.at[ids.object_body].set(mass),
             body_inertia=model.body_inertia.at[ids.object_body].set(inertia),
@@ -292,14 +292,15 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         centre position 3, orientation quaternion 4, linear and angular velocity 6, finger width 1, and the 7
         arm joint angles (the arm is redundant, so the tool pose alone does not tell its posture or nearness
         to joint limits); with `running_target`, then each arm joint's servo target minus its angle (7). Robot
-        quantities come from `data`, object quantities from `sim`; `key` draws the params' object-pose and
-        observation noise.
+        quantities come from `data`, object quantities from `sim`, the objects' positions off by the episode's
+        pose-estimate error; `key` draws the params' object-pose and observation noise.
         """
         robot = self.ids.robot
         pose_key, objects_key, tool_key = jax.random.split(key, 3)
         in_play = (sim.outcome == IN_PLAY)[:, None]
         pose = sim.qpos[pose_index(self.ids)]
-        pose = pose.at[:, :3].set(with_noise(pose[:, :3], pose_key, params.object_pose_noise))
+        estimate = pose[:, :3] + params.object_pose_bias * sim.pose_error
+        pose = pose.at[:, :3].set(with_noise(estimate, pose_key, params.object_pose_noise))
         velocity = sim.qvel[velocity_index(self.ids)]
         tcp = data.site_xpos[robot.tcp_site]
         relative_yaw = yaw_of_quaternion(pose[:, 3:]) - yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
@@ -390,6 +391,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             potential=jnp.zeros(len(SHAPING_TERMS), jnp.float32),
             queued_actions=self.initial_action_queue(),
             noise_key=jax.random.fold_in(key, 2),
+            # A stream of its own, so every other draw of the episode stays as it was.
+            pose_error=jax.random.normal(jax.random.fold_in(key, 3), (n, 3)),
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)

@@ -19,7 +19,8 @@ class PandaSortParams(RobotParams):
     """Task, action and randomisation parameters (scalars unless noted).
 
     Each field declares its allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all are finite.
-    The robot's own (action latency, servo gain and damping scales) are `RobotParams`', documented there.
+    The robot's own (action latency; servo gain, damping, friction, force limit and control period scales) are
+    `RobotParams`', documented there.
 
     The shaping terms pay changes of potentials (see reward.py), so their weights set how strongly each stage
     pulls without creating any reward for lingering; by default one object's stages are worth 1 each.
@@ -90,9 +91,12 @@ class PandaSortParams(RobotParams):
       home_noise: half-width of the uniform noise on the arm's initial joint angles (radians).
       obs_noise: standard deviation of Gaussian noise added to every observation entry each step (in its own
         units: metres, radians, m/s), as a sensor would.
-      object_pose_noise: standard deviation of Gaussian noise on each object's observed position (metres), as
-        an object detector would; what the observation derives from it (offsets to the tool and the bin)
-        follows the noisy position.
+      object_pose_noise: standard deviation of Gaussian noise on each object's observed position (metres), drawn
+        every step, as an object detector would; what the observation derives from it (offsets to the tool and the
+        bin) follows the noisy position.
+      object_pose_bias: standard deviation of a Gaussian error on each object's observed position (metres) drawn
+        once per episode and kept, as a pose estimator's calibration would err (`object_pose_noise` is drawn
+        afresh every step); the derived offsets follow it too.
     """
 
     max_episode_steps: jax.Array = ranged(COUNT)
@@ -133,6 +137,7 @@ class PandaSortParams(RobotParams):
     home_noise: jax.Array = ranged(NON_NEGATIVE)
     obs_noise: jax.Array = ranged(NON_NEGATIVE)
     object_pose_noise: jax.Array = ranged(NON_NEGATIVE)
+    object_pose_bias: jax.Array = ranged(NON_NEGATIVE)
 
     ORDERED: ClassVar = (("size_scale_low", "size_scale_high"),)
     """(low, high) pairs of fields that must satisfy low <= high."""
@@ -183,5 +188,6 @@ def default_params() -> PandaSortParams:
         home_noise=f32(0.02),
         obs_noise=f32(0.0),
         object_pose_noise=f32(0.0),
+        object_pose_bias=f32(0.0),
         **robot_defaults(),
     )

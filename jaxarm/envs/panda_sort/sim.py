@@ -24,6 +24,8 @@ class PandaSortSim(struct.PyTreeNode):
       queued_actions: [L, A] the last L actions, newest first, not yet all applied (L = the env's
         `max_action_latency`; `action_latency` picks which one the servos receive).
       noise_key: PRNG key of the observation noise.
+      pose_error: [N, 3] each object's position-estimate error per metre of `object_pose_bias` (standard normal),
+        drawn at reset and kept for the episode.
     """
 
     qpos: jax.Array
@@ -39,3 +41,4 @@ class PandaSortSim(struct.PyTreeNode):
     potential: jax.Array
     queued_actions: jax.Array
     noise_key: jax.Array
+    pose_error: jax.Array

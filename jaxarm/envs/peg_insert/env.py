@@ -30,7 +30,7 @@ from jaxarm.envs.panda.base import CAMERAS, PandaBase
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, with_geom_sizes
 from jaxarm.envs.panda.robot import advanced_target
-from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
+from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_robot_params
 from jaxarm.envs.peg_insert.model import (
     HOLE_FLOOR,
     HOLE_NOMINAL,
@@ -64,6 +64,8 @@ class PegInsertSim(struct.PyTreeNode):
       distance: [] tip-to-hole-bottom distance after the last step.
       queued_actions: [L, 3] the last L actions, newest first (L = the env's `max_action_latency`).
       noise_key: PRNG key of the observation noise.
+      hole_error: [3] the hole's position-estimate error per metre of `hole_pose_bias` (standard normal), drawn at
+        reset and kept for the episode.
     """
 
     qpos: jax.Array
@@ -76,6 +78,7 @@ class PegInsertSim(struct.PyTreeNode):
     distance: jax.Array
     queued_actions: jax.Array
     noise_key: jax.Array
+    hole_error: jax.Array
 
 
 class PegInsertInfo(struct.PyTreeNode):
@@ -100,7 +103,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
 
     def __init__(
         self,
-        max_action_latency: int = 1,
+        max_action_latency: int = 2,
         impl: str = Impl.JAX,
         max_envs: int = 4096,
         contacts_per_env: int | None = None,
@@ -135,9 +138,9 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     # --- physics ------------------------------------------------------------------------------------
 
     def episode_model(self, sim: PegInsertSim, params: PegInsertParams) -> mjx.Model:
-        """The mjx.Model with this episode's hole position and the params' clearance, friction and servo scales."""
+        """The mjx.Model with this episode's hole position and the params' clearance, friction and robot params."""
         ids = self.ids
-        model = with_servo_scales(self.mjx_model, ids.robot, params.servo_gain_scale, params.joint_damping_scale)
+        model = with_robot_params(self.mjx_model, ids.robot, params)
         centres, halves = hole_walls(params.clearance)
         block_pos = jnp.concatenate([sim.hole, jnp.zeros(1)])
         model = with_geom_sizes(model, ids.wall_geoms, halves, jnp.linalg.norm(halves, axis=-1))
@@ -177,13 +180,14 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         self, model: mjx.Model, data: mjx.Data, sim: PegInsertSim, params: PegInsertParams, key: jax.Array
     ) -> Observation:
         """The observation (the module docstring says what each mode holds); `key` draws the params' noise on the
-        tip's position and velocity and on the hole's position."""
+        tip's position and velocity and on the hole's position (beside the episode's error in estimating it)."""
         tip_key, velocity_key, hole_key = jax.random.split(key, 3)
         exact_tip = self.peg_tip(data)
         jacp, _ = mjx.jac(model, data, exact_tip, self.ids.robot.hand_body)
         tip = with_noise(exact_tip, tip_key, params.obs_noise)
         tip_velocity = with_noise(jacp.T @ sim.qvel, velocity_key, params.obs_noise)
-        hole_bottom = with_noise(self.hole_bottom(sim), hole_key, params.hole_pose_noise)
+        estimate = self.hole_bottom(sim) + params.hole_pose_bias * sim.hole_error
+        hole_bottom = with_noise(estimate, hole_key, params.hole_pose_noise)
         nominal = jnp.array([*HOLE_NOMINAL, HOLE_FLOOR])
         lead = (sim.tcp_target - data.site_xpos[self.ids.robot.tcp_site]) / params.max_lead
         if self.obs_mode != "state":
@@ -219,6 +223,8 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             distance=zero,
             queued_actions=self.initial_action_queue(),
             noise_key=jax.random.fold_in(key, 2),
+            # A stream of its own, so every other draw of the episode stays as it was.
+            hole_error=jax.random.normal(jax.random.fold_in(key, 3), (3,)),
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)

@@ -20,7 +20,8 @@ class PegInsertParams(RobotParams):
     """Task, action and randomisation parameters (scalars, float32 unless noted).
 
     Each field declares its allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all are finite.
-    The robot's own (action latency, servo gain and damping scales) are `RobotParams`', documented there.
+    The robot's own (action latency; servo gain, damping, friction, force limit and control period scales) are
+    `RobotParams`', documented there.
 
     Attributes:
       max_episode_steps: time limit (truncation), int32, in env steps of 0.04 s.
@@ -41,6 +42,8 @@ class PegInsertParams(RobotParams):
         (m/s), drawn every step, as sensors would give them.
       hole_pose_noise: standard deviation of Gaussian noise on the observed hole position (metres), drawn every
         step, as a detector would give it.
+      hole_pose_bias: standard deviation of a Gaussian error on the observed hole position (metres) drawn once per
+        episode and kept, as a pose estimator's calibration would err.
     """
 
     max_episode_steps: jax.Array = ranged(COUNT)
@@ -58,6 +61,7 @@ class PegInsertParams(RobotParams):
     friction: jax.Array = ranged(NON_NEGATIVE)
     obs_noise: jax.Array = ranged(NON_NEGATIVE)
     hole_pose_noise: jax.Array = ranged(NON_NEGATIVE)
+    hole_pose_bias: jax.Array = ranged(NON_NEGATIVE)
 
     ORDERED: ClassVar = (("insert_distance", "max_distance"),)
     """(low, high) pairs of fields that must satisfy low <= high."""
@@ -85,5 +89,6 @@ def default_params() -> PegInsertParams:
         friction=f32(0.5),
         obs_noise=f32(0.0),
         hole_pose_noise=f32(0.0),
+        hole_pose_bias=f32(0.0),
         **robot_defaults(),
     )
