@@ -5,8 +5,10 @@ Loads the run's config and latest checkpoint (or the best one from evaluation du
 deterministic policy on N fresh episodes, prints the result and writes it to its own file,
 eval-<episodes>-<seed>-<update>.json (eval-<episodes>-<seed>-best.json with --best; training's eval.json is kept).
 With --video it writes video.gif or video.mp4 of a few episodes drawn without a window. With --perturb it evaluates
-the policy under single changes of the eval env's params instead (each param's values in one compiled program,
-beside the nominal params) and writes a robustness table and plot (robustness-<episodes>-<seed>.json, .md and .png).
+the policy under changes of the eval env's params instead: NAME=V1,V2 changes one param to each value in turn (all
+values in one compiled program), NAME=V+NAME=V changes several together; --randomized-ends adds each param the run
+randomises at both ends of its range. Beside the nominal params, it writes a robustness table and plot
+(robustness-<episodes>-<seed>.json, .md and .png).
 The run directory is locked while this writes.
 """
 
@@ -45,7 +47,14 @@ def main(argv=None) -> int:
         "--perturb",
         nargs="+",
         metavar="NAME=V1,V2",
-        help="evaluate under each value of each env param (e.g. finger_friction=0.8,1.5 mass_scale=0.5,3)",
+        default=[],
+        help="evaluate under each value of each env param (e.g. finger_friction=0.8,1.5 mass_scale=0.5,3), or "
+        "under several changed together (e.g. finger_friction=1.0+mass_scale=2)",
+    )
+    parser.add_argument(
+        "--randomized-ends",
+        action="store_true",
+        help="also evaluate each env param the run randomises at both ends of its range",
     )
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     began = time.perf_counter()
@@ -60,7 +69,7 @@ def main(argv=None) -> int:
         trainer = configs.make_trainer(config)
         with rundir.locked(run_dir):
             state = rundir.restore_state(run_dir, trainer, config, best=args.best)
-            if args.perturb:
+            if args.perturb or args.randomized_ends:
                 write_robustness(run_dir, config, trainer, state, args)
                 return 0
             start = time.perf_counter()
@@ -92,12 +101,24 @@ def main(argv=None) -> int:
 
 
 def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> None:
-    """Evaluates `state` under `args.perturb`, prints the table and writes it with its rows and plot."""
-    perturbations = dict(robustness.parse_perturbation(text) for text in args.perturb)
+    """Evaluates `state` under `args.perturb` and `args.randomized_ends`, prints the table and writes it with its rows
+    and plot."""
     env, env_params = config.make_eval_env()
+    perturbations: dict[str, list[float]] = {}
+    if args.randomized_ends:
+        if not config.randomize:
+            raise ValueError("--randomized-ends: the run randomises no env param")
+        perturbations = robustness.range_ends(dict(config.randomize), env_params)
+    combined = [robustness.parse_combined(text) for text in args.perturb if "+" in text]
+    for text in args.perturb:
+        if "+" not in text:
+            name, values = robustness.parse_perturbation(text)
+            perturbations[name] = [*perturbations.get(name, []), *values]
     key = jax.random.PRNGKey(args.seed)
     start = time.perf_counter()
-    rows = robustness.evaluate_perturbations(env, env_params, trainer.act, state, key, args.episodes, perturbations)
+    rows = robustness.evaluate_perturbations(
+        env, env_params, trainer.act, state, key, args.episodes, perturbations, combined
+    )
     text = robustness.table(rows)
     print(f"{text}\n({args.episodes} episodes a row, {time.perf_counter() - start:.1f} s with compilation)")
     stem = run_dir / f"robustness-{args.episodes}-{args.seed}"

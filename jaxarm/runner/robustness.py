@@ -1,7 +1,9 @@
-"""Robustness tables: a saved policy evaluated under single perturbations of its eval env's params.
+"""Robustness tables: a saved policy evaluated under perturbations of its eval env's params.
 
+A perturbation changes one param (each of several values) or several params together (one combined change).
 `evaluate_perturbations` runs, for each perturbed param, every value in one compiled program (the episodes of all
-values vmapped together), beside the nominal params; `table` and `plot` write what it found.
+values vmapped together), and all combined changes in one more, beside the nominal params; `table` and `plot`
+write what it found. `range_ends` turns a run's randomisation into the single changes that test its edges.
 """
 
 import ast
@@ -15,6 +17,7 @@ import numpy as np
 
 from jaxarm import envs
 from jaxarm.agents.common.evaluate import evaluate
+from jaxarm.envs.randomize import parse_ranges
 from jaxarm.runner import plots
 
 TABLE_COLUMNS = ("success_rate", "return_mean")
@@ -33,6 +36,34 @@ def parse_perturbation(text: str) -> tuple[str, list[float]]:
     return name, parsed
 
 
+def parse_combined(text: str) -> dict[str, float]:
+    """'NAME=V+NAME=V+...' -> {NAME: V, ...}: one change of several params together; ValueError otherwise."""
+    combined = {}
+    for part in text.split("+"):
+        name, values = parse_perturbation(part)
+        if len(values) != 1 or name in combined:
+            raise ValueError(f"--perturb takes NAME=V+NAME=V+... (one value each, each name once), got {text!r}")
+        combined[name] = values[0]
+    return combined
+
+
+def combined_label(change: Mapping[str, float]) -> str:
+    """The table's name of a combined change: 'NAME=V+NAME=V+...'."""
+    return "+".join(f"{name}={value:g}" for name, value in change.items())
+
+
+def range_ends(randomize: Mapping[str, str], env_params) -> dict[str, list[float]]:
+    """{param: [low, high]}: each randomised param (`randomize`, as a config holds it) at both ends of its range,
+    integer params at the whole numbers they draw."""
+    ends = {}
+    for name, drawn in parse_ranges(randomize).items():
+        low, high = drawn.low, drawn.high
+        if np.issubdtype(np.asarray(getattr(env_params, name)).dtype, np.integer):
+            low, high = int(np.ceil(low)), int(np.floor(high))
+        ends[name] = [low, high]
+    return ends
+
+
 def check_perturbations(env_params, perturbations: Mapping[str, Sequence[float]]) -> None:
     """ValueError for a name that is not an env param, a value outside its declared range, or a param that sets
     the rollout's length (all of a run's rows share one length)."""
@@ -47,27 +78,52 @@ def check_perturbations(env_params, perturbations: Mapping[str, Sequence[float]]
 
 
 def evaluate_perturbations(
-    env, env_params, act, state, key: jax.Array, episodes: int, perturbations: Mapping[str, Sequence[float]]
+    env,
+    env_params,
+    act,
+    state,
+    key: jax.Array,
+    episodes: int,
+    perturbations: Mapping[str, Sequence[float]],
+    combined: Sequence[Mapping[str, float]] = (),
 ) -> list[dict]:
     """Rows {"param", "value", success_rate, return_mean, final_info/...}: the nominal params first ("param"
-    "nominal"), then each value of each perturbed param with every other param nominal. `act(state, obs)` is the
-    deterministic policy; every row evaluates the same `episodes` episodes (same key)."""
+    "nominal"), then each value of each perturbed param with every other param nominal, then each `combined`
+    change ("param" its `combined_label`, "value" None). `act(state, obs)` is the deterministic policy; every row
+    evaluates the same `episodes` episodes (same key)."""
     check_perturbations(env_params, perturbations)
-    nominal = jax.jit(lambda learner: evaluate(env, env_params, lambda obs: act(learner, obs), key, episodes))
+    for change in combined:
+        check_perturbations(env_params, {name: [value] for name, value in change.items()})
+
+    def at_values(learner, values: dict[str, jax.Array]):
+        params = env_params.replace(**values)
+        return evaluate(env, params, lambda obs: act(learner, obs), key, episodes)
+
+    nominal = jax.jit(lambda learner: at_values(learner, {}))
     rows = [{"param": "nominal", "value": None, **nominal(state).summary()}]
-    for name, values in perturbations.items():
-        dtype = jnp.asarray(getattr(env_params, name)).dtype
-        batch = jnp.asarray(values).astype(dtype)
-
-        def at_value(learner, value, name=name):
-            params = env_params.replace(**{name: value})
-            return evaluate(env, params, lambda obs: act(learner, obs), key, episodes)
-
-        results = jax.jit(jax.vmap(at_value, in_axes=(None, 0)))(state, batch)
-        for index, value in enumerate(values):
+    batches: list[tuple[str | None, Sequence[Mapping[str, float]]]] = [
+        (name, [{name: value} for value in values]) for name, values in perturbations.items()
+    ]
+    if combined:
+        batches.append((None, combined))
+    for name, changes in batches:
+        results = jax.jit(jax.vmap(at_values, in_axes=(None, 0)))(state, _batched_values(env_params, changes))
+        for index, change in enumerate(changes):
             result = jax.tree.map(lambda leaf, index=index: leaf[index], results)
-            rows.append({"param": name, "value": value, **result.summary()})
+            label, value = (name, change[name]) if name else (combined_label(change), None)
+            rows.append({"param": label, "value": value, **result.summary()})
     return rows
+
+
+def _batched_values(env_params, changes: Sequence[Mapping[str, float]]) -> dict[str, jax.Array]:
+    """{param: [C] its value in each change, nominal where a change leaves it}, for every param some change sets,
+    in the param's dtype; only these are vmapped, the other params stay constants of the program."""
+    names = list(dict.fromkeys(name for change in changes for name in change))
+    nominal = {name: np.asarray(getattr(env_params, name)) for name in names}
+    return {
+        name: jnp.asarray([change.get(name, nominal[name]) for change in changes]).astype(nominal[name].dtype)
+        for name in names
+    }
 
 
 def table(rows: Sequence[dict]) -> str:
@@ -84,9 +140,10 @@ def table(rows: Sequence[dict]) -> str:
 
 
 def plot(rows: Sequence[dict], path: pathlib.Path, title: str) -> None:
-    """Success rate against each perturbed param's value, one panel a param, the nominal success dashed."""
+    """Success rate against each perturbed param's value, one panel a param, the nominal success dashed (combined
+    changes are in the table alone)."""
     nominal = next(row for row in rows if row["param"] == "nominal")
-    names = list(dict.fromkeys(row["param"] for row in rows if row["param"] != "nominal"))
+    names = list(dict.fromkeys(row["param"] for row in rows if row["value"] is not None))
     fig, axes = plots.figure(3.2 * max(len(names), 1), 3.2, columns=max(len(names), 1))
     for ax, name in zip(np.atleast_1d(axes), names, strict=False):
         points = [(row["value"], row["success_rate"]) for row in rows if row["param"] == name]

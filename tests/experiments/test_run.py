@@ -16,9 +16,10 @@ import pytest
 
 from experiments import configs, run
 from experiments import eval as eval_cli
+from jaxarm import envs
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.ppo.warm_start import warm_start
-from jaxarm.runner import loop, rundir
+from jaxarm.runner import loop, robustness, rundir
 
 SMALL = [
     "num_envs=64",
@@ -249,6 +250,34 @@ def test_robustness_rows_vmap_each_params_values_and_match_the_nominal(finished_
     assert (finished_run / "robustness-12-12345.png").stat().st_size > 1000
 
 
+def test_robustness_rows_of_params_changed_together(finished_run):
+    together = ["action_scale=0.1+goal_size=40", "action_scale=0.002+goal_size=30"]
+    assert eval_cli.main([str(finished_run), "--episodes", "12", "--perturb", "action_scale=0.002", *together]) == 0
+    rows = json.loads((finished_run / "robustness-12-12345.json").read_text())["rows"]
+    assert [(row["param"], row["value"]) for row in rows] == [
+        ("nominal", None),
+        ("action_scale", 0.002),
+        ("action_scale=0.1+goal_size=40", None),
+        ("action_scale=0.002+goal_size=30", None),
+    ]
+    nominal, frozen, same, frozen_smaller = rows
+    # Both nominal values together reproduce the nominal episodes; a frozen arm with smaller goals reaches few.
+    assert same["return_mean"] == nominal["return_mean"] and same["success_rate"] == nominal["success_rate"]
+    assert max(frozen["success_rate"], frozen_smaller["success_rate"]) < 0.5 * nominal["success_rate"]
+    assert "| action_scale=0.002+goal_size=30 |  |" in (finished_run / "robustness-12-12345.md").read_text()
+
+
+def test_a_runs_randomised_ranges_give_their_ends():
+    params = envs.make("panda_sort").default_params()
+    ends = robustness.range_ends({"action_latency": "0..2.5", "mass_scale": "log:0.5..3"}, params)
+    assert ends == {"action_latency": [0, 2], "mass_scale": [0.5, 3.0]}
+
+
+def test_the_ends_of_no_randomisation_are_refused(finished_run, capsys):
+    assert eval_cli.main([str(finished_run), "--episodes", "4", "--randomized-ends"]) == 2
+    assert "randomises no env param" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize(
     ("perturb", "message"),
     [
@@ -257,6 +286,9 @@ def test_robustness_rows_vmap_each_params_values_and_match_the_nominal(finished_
         ("action_scael=0.1", "action_scale"),
         ("action_scale=0", "must be > 0"),
         ("max_episode_steps=5", "rollout's length"),
+        ("action_scale=0.1,0.2+goal_size=40", "one value each"),
+        ("action_scale=0.1+action_scale=0.2", "each name once"),
+        ("action_scale=0.1+goal_size=-1", "goal_size"),
     ],
 )
 def test_bad_perturbations_are_refused_in_one_line(finished_run, capsys, perturb, message):
