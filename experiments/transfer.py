@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 from scipy import stats
 
+from jaxarm import headless
 from jaxarm.deploy import from_env, scoring
 from jaxarm.deploy.loop import DeploymentLoop
 from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
@@ -280,7 +281,7 @@ def main(argv=None) -> int:
     parser.add_argument("--model", choices=MODELS, default="jaxarm", help="whose Panda the scene holds")
     parser.add_argument("--episodes", type=int, default=200)
     parser.add_argument("--seed", type=int, default=12345)
-    parser.add_argument("--video", nargs="?", const="gif", choices=video.FORMATS, help="write the first episode")
+    parser.add_argument("--video", nargs="?", const="gif", choices=headless.FORMATS, help="write the first episode")
     parser.add_argument("--no-clip", action="store_true", help="count commands beyond Franka's limits, send them")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     run_dir = pathlib.Path(args.run_dir)

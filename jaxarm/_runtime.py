@@ -14,6 +14,8 @@ compile the way that suits them.
 import importlib.metadata
 import os
 
+from jaxarm.headless import GL_HINT, GLImportError
+
 CPU_FUSION_FLAG = "--xla_cpu_use_fusion_emitters"
 CPU_FUSION_OPTION = CPU_FUSION_FLAG.removeprefix("--")
 
@@ -70,20 +72,13 @@ def compiler_options(env) -> dict[str, bool]:
     return fusion_emitter_options(_cpu_flag_applied, getattr(env, "unwrapped", env).uses_mjx)
 
 
-GL_HINT = (
-    "headless rendering needs an offscreen GL: MUJOCO_GL=egl with Mesa's libegl1 libegl-mesa0 libgl1-mesa-dri "
-    "on a CPU machine (apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri), or a GPU driver's EGL"
-)
-"""What to do when MuJoCo cannot draw (the README's words); `jaxarm.runner.video` and `import_mjx_quietly` give it."""
-
-
 def import_mjx_quietly() -> None:
     """Imports mujoco.mjx (and jax with it) without the "Failed to import warp: ..." lines it prints on stdout
     where warp-lang is not installed: Warp is optional here, and `impl="warp"` names what to install when it is
     asked for. Called first by the packages whose modules import mujoco.mjx or brax (which imports it).
 
     mujoco loads the GL platform MUJOCO_GL names when it is imported, and fails there when it cannot (osmesa
-    without libOSMesa, a misspelt value): that failure is raised as one ImportError ending with `GL_HINT`."""
+    without libOSMesa, a misspelt value): that failure is raised as one `GLImportError` ending with `GL_HINT`."""
     import contextlib
     import io
 
@@ -95,4 +90,4 @@ def import_mjx_quietly() -> None:
         if not gl:
             raise
         reason = " ".join(f"{type(error).__name__}: {error}".split())
-        raise ImportError(f"mujoco cannot load MUJOCO_GL={gl} ({reason}); {GL_HINT}") from None
+        raise GLImportError(f"mujoco cannot load MUJOCO_GL={gl} ({reason}); {GL_HINT}") from None

@@ -88,6 +88,11 @@ def uses_mjx(name: str) -> bool:
     return entry(name).env_class().uses_mjx
 
 
+def draws_with_gl(name: str) -> bool:
+    """Whether the env `name` draws with MuJoCo's OpenGL renderer (`Env.draws_with_gl`), read from its class."""
+    return entry(name).env_class().draws_with_gl
+
+
 def make(name: str, **kwargs):
     """The registered env `name`; `kwargs` override its static constructor arguments.
 

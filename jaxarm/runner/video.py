@@ -2,8 +2,9 @@
 
 GIF needs nothing more; mp4 needs imageio-ffmpeg (`pip install jaxarm[video]`, which brings its own ffmpeg).
 Panda envs draw with MuJoCo's renderer, which needs an offscreen GL platform on a machine without a display:
-`GL_HINT`. `check_can_draw` tries it before anything compiles, so a missing GL fails in seconds, not after the
-rollout's compilation (9.5 minutes for a Panda env on a CPU).
+`jaxarm.headless.GL_HINT`. `experiments.eval` tries it (`jaxarm.headless.gl_problem`) before it imports the
+learners or builds anything, so a missing GL fails in seconds, not after the rollout's compilation (9.5 minutes for
+a Panda env on a CPU).
 """
 
 import operator
@@ -14,42 +15,15 @@ import imageio.v2 as imageio
 import jax
 import numpy as np
 
-from jaxarm._runtime import GL_HINT
 from jaxarm.agents.common.evaluate import rollout_episodes
 from jaxarm.envs.observation import with_camera_views
+from jaxarm.headless import no_gl_message
 
-FORMATS = ("gif", "mp4")
 FRAME_SECONDS = 0.04
 
 
 class RenderError(RuntimeError):
     """The env cannot draw here (no GL platform) or the video cannot be written; the message says what to do."""
-
-
-def probe_gl() -> None:
-    """Draws one 8x8 frame of an empty scene with MuJoCo's renderer; raises whatever the GL platform raises."""
-    import mujoco
-
-    renderer = mujoco.Renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), height=8, width=8)
-    try:
-        renderer.render()
-    finally:
-        renderer.close()
-
-
-def check_can_draw(env) -> None:
-    """RenderError with `GL_HINT` where `env` draws with OpenGL (`draws_with_gl`) and no GL platform works here."""
-    if not getattr(env, "unwrapped", env).draws_with_gl:
-        return
-    try:
-        probe_gl()
-    except Exception as error:  # mujoco.FatalError, GL loaders' errors: no shared base class
-        raise RenderError(_no_gl_message(error)) from None
-
-
-def _no_gl_message(error: Exception) -> str:
-    reason = " ".join(f"{type(error).__name__}: {error}".split())
-    return f"cannot draw here ({reason}); {GL_HINT}"
 
 
 def episode_frames(env, env_params, trainer, state, key, episodes: int) -> list[np.ndarray]:
@@ -75,7 +49,7 @@ def episode_frames(env, env_params, trainer, state, key, episodes: int) -> list[
                 frames.append(with_camera_views(env.render(state_now, env_params), state_now.obs))
     except Exception as error:  # mujoco.FatalError and GL loaders' errors share no base class
         if "gl" in str(error).lower() or "display" in str(error).lower():
-            raise RenderError(_no_gl_message(error)) from None
+            raise RenderError(no_gl_message(error)) from None
         raise
     return frames
 

@@ -14,6 +14,7 @@ import pytest
 from experiments import bench, compare, configs, run, sweep
 from experiments import eval as eval_cli
 from experiments.configs.td3 import td3_peg
+from jaxarm import headless
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.runner import cache, rundir, sinks, video
 
@@ -186,7 +187,7 @@ def test_a_missing_gl_platform_gets_a_one_line_hint():
     trainer = types.SimpleNamespace(act=lambda learner, obs: np.zeros((obs.shape[0], 2), np.float32))
     with pytest.raises(video.RenderError) as raised:
         video.episode_frames(Headless(), params, trainer, None, jax.random.PRNGKey(0), 1)
-    assert str(raised.value).endswith(video.GL_HINT) and "\n" not in str(raised.value)
+    assert str(raised.value).endswith(headless.GL_HINT) and "\n" not in str(raised.value)
 
 
 def test_a_mujoco_gl_that_cannot_load_fails_at_import_with_the_readmes_hint():
@@ -194,8 +195,39 @@ def test_a_mujoco_gl_that_cannot_load_fails_at_import_with_the_readmes_hint():
     env = {**os.environ, "MUJOCO_GL": "bogus"}
     command = [sys.executable, "-m", "experiments.eval", "no-such-run", "--video"]
     done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
-    assert done.returncode != 0
-    assert done.stderr.strip().splitlines()[-1].endswith(video.GL_HINT) and "MUJOCO_GL=bogus" in done.stderr
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and done.stderr.strip().endswith(headless.GL_HINT)
+    assert "MUJOCO_GL=bogus" in done.stderr
+
+
+EVAL_RECORDING_COMPILES = """
+import json, sys
+import jax
+compiles = []
+jax.monitoring.register_event_duration_secs_listener(
+    lambda event, duration, **kwargs: compiles.append(event) if "compile" in event else None
+)
+from experiments import eval as eval_cli
+status = eval_cli.main(sys.argv[1:])
+heavy = [name for name in ("experiments.configs", "jaxarm.runner", "jaxarm.agents") if name in sys.modules]
+print(json.dumps({"status": status, "compiles": compiles, "imported": heavy}))
+"""
+
+
+def test_eval_video_of_a_panda_run_without_a_display_fails_before_the_learners_import(tmp_path):
+    """A real GL failure (GLFW with no display) of a Panda env's run, in a process of its own as a user meets it:
+    the hint, nothing compiled, and neither the presets nor the learners nor the runner imported (their imports
+    took most of the 14 s this failure took on the busy 2-core CPU)."""
+    run_dir = tmp_path / "peg"
+    run_dir.mkdir()
+    rundir.write_config(run_dir, apply_overrides(td3_peg(), ["num_envs=2"]), "td3_peg")
+    env = {name: value for name, value in os.environ.items() if name not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    command = [sys.executable, "-c", EVAL_RECORDING_COMPILES, str(run_dir), "--video"]
+    done = subprocess.run(command, env={**env, "MUJOCO_GL": "glfw"}, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == {"status": 2, "compiles": [], "imported": []}
+    assert done.stderr.count("\n") == 1 and done.stderr.strip().endswith(headless.GL_HINT)
+    assert done.stderr.startswith("error: cannot draw here (FatalError: ")
 
 
 def test_eval_video_without_gl_fails_at_once_with_the_readmes_hint(tmp_path, monkeypatch, capsys):
@@ -211,15 +243,14 @@ def test_eval_video_without_gl_fails_at_once_with_the_readmes_hint(tmp_path, mon
     run_dir.mkdir()
     config = apply_overrides(td3_peg(), ["num_envs=2"])
     rundir.write_config(run_dir, config, "td3_peg")
-    monkeypatch.setattr(video, "probe_gl", no_gl)
+    monkeypatch.setattr(headless, "probe_gl", no_gl)
     monkeypatch.setattr(rundir, "restore_state", never)
     start = time.perf_counter()
     assert eval_cli.main([str(run_dir), "--video"]) == 2
     error = capsys.readouterr().err
-    assert error.count("\n") == 1 and error.strip().endswith(video.GL_HINT) and "glGetError" in error
-    assert all(
-        part in README and part in video.GL_HINT for part in ("MUJOCO_GL=egl", "libegl1 libegl-mesa0 libgl1-mesa-dri")
-    )
+    assert error.count("\n") == 1 and error.strip().endswith(headless.GL_HINT) and "glGetError" in error
+    readme_words = ("MUJOCO_GL=egl", "libegl1 libegl-mesa0 libgl1-mesa-dri")
+    assert all(part in README and part in headless.GL_HINT for part in readme_words)
     assert time.perf_counter() - start < 10
 
 
