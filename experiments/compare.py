@@ -90,6 +90,11 @@ def value_at(run: RunCurves, values: np.ndarray, seconds: float) -> float:
     return float(values[reached[-1]]) if len(reached) else float("nan")
 
 
+def value_cell(value: float, spec: str) -> str:
+    """`value` formatted by `spec`, or "—" for NaN (a run that had logged nothing by then)."""
+    return "—" if np.isnan(value) else format(value, spec)
+
+
 def table(runs: list[RunCurves]) -> str:
     """Markdown: one row per run, with training success and return also at the wall clock every run reached."""
     common = min(run.wall_seconds[-1] for run in runs)
@@ -111,7 +116,8 @@ def table(runs: list[RunCurves]) -> str:
         lines.append(
             f"| {run.label} | {batch} | {run.steps_per_second:,.0f} | {run.env_steps[-1]:,.0f} | "
             f"{run.wall_seconds[-1]:.0f} | {run.success[-1]:.1%} | {run.returns[-1]:.1f} | "
-            f"{value_at(run, run.success, common):.1%} | {value_at(run, run.returns, common):.1f} | "
+            f"{value_cell(value_at(run, run.success, common), '.1%')} | "
+            f"{value_cell(value_at(run, run.returns, common), '.1f')} | "
             f"{best} | {evaluated} |"
         )
     return "\n".join(lines)

@@ -83,6 +83,14 @@ def test_the_table_compares_runs_at_the_wall_clock_all_of_them_reached(tmp_path)
     assert compare.device_name(runs, None) == "GPU X"
 
 
+def test_a_run_that_logged_nothing_by_the_common_wall_clock_shows_a_dash(tmp_path):
+    """A run whose first chunk (its compilation) ended after the other run had finished."""
+    quick = write_run(tmp_path / "quick", 64, [(10.0, 100.0, 2, 0.2, 1.0), (20.0, 100.0, 2, 0.4, 2.0)])
+    slow = write_run(tmp_path / "slow", 64, [(58.0, 100.0, 2, 0.1, 0.5), (80.0, 100.0, 2, 0.9, 9.5)])
+    row = compare.table([compare.load_run(quick), compare.load_run(slow)]).splitlines()[3]
+    assert "| 90.0% | 9.5 | — | — | — |" in row and "nan" not in row
+
+
 def test_the_cli_draws_the_figure_and_names_the_device_or_refuses(tmp_path, capsys):
     first = write_run(tmp_path / "first", 64, [(10.0, 100.0, 2, 0.2, 1.0), (20.0, 100.0, 2, 0.4, 2.0)])
     second = write_run(tmp_path / "second", 64, [(10.0, 100.0, 2, 0.2, 1.0)], evaluations={1: 0.5})
