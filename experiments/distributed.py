@@ -2,7 +2,7 @@
 and sweep: on SLURM the processes find each other alone; elsewhere `--coordinator`, `--num-processes` and
 `--process-id` say how; `--local-processes N` starts N of them on this host, one GPU each.
 
-One process per GPU is how Warp's own multi-GPU examples run; BENCHMARKS.md#scale-out compares it with one process
+One process per GPU is how Warp's own multi-GPU examples run; BENCHMARKS.md#devices compares it with one process
 driving every GPU.
 """
 
