@@ -1,9 +1,10 @@
 """Franka's datasheet limits on the arm's joint motion, and the clip that keeps a target path within them.
 
-Imports numpy alone: the deployment loop clips with it, and jaxarm's envs read the same arrays.
+Imports numpy alone: the deployment loop clips with it, and jaxarm's envs clip their servos' targets with the same
+function (`limit_targets` uses only array methods and operators, so it runs on numpy and JAX arrays alike).
 """
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -14,7 +15,7 @@ ARM_ACCELERATION_LIMITS = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0], np
 
 
 class LimitedTargets(NamedTuple):
-    """A tick's joint targets within the limits.
+    """A tick's joint targets within the limits (numpy or JAX arrays, as given).
 
     Attributes:
       targets: [7] the targets sent.
@@ -23,24 +24,22 @@ class LimitedTargets(NamedTuple):
       speed_clipped: [7] bool, joints whose rate (after the acceleration limit) was beyond the speed limit.
     """
 
-    targets: np.ndarray
-    velocity: np.ndarray
-    acceleration_clipped: np.ndarray
-    speed_clipped: np.ndarray
+    targets: Any
+    velocity: Any
+    acceleration_clipped: Any
+    speed_clipped: Any
 
 
-def limit_targets(
-    targets: np.ndarray, previous: np.ndarray, previous_velocity: np.ndarray, period: float
-) -> LimitedTargets:
+def limit_targets(targets: Any, previous: Any, previous_velocity: Any, period: float) -> LimitedTargets:
     """[7] asked `targets` -> the nearest targets whose path from `previous` [7], moving at `previous_velocity` [7],
-    keeps every joint within `ARM_SPEED_LIMITS` and `ARM_ACCELERATION_LIMITS` over one tick of `period` seconds."""
+    keeps every joint within `ARM_SPEED_LIMITS` and `ARM_ACCELERATION_LIMITS` over one tick of `period` seconds.
+
+    A path that a held action asks for and then stops asking for loses the distance the acceleration limit holds
+    back while speeding up and regains it while slowing down, so it ends where the action's steps add up to."""
     asked = (targets - previous) / period
-    reachable = np.clip(
-        asked,
-        previous_velocity - ARM_ACCELERATION_LIMITS * period,
-        previous_velocity + ARM_ACCELERATION_LIMITS * period,
-    )
-    velocity = np.clip(reachable, -ARM_SPEED_LIMITS, ARM_SPEED_LIMITS)
+    change = ARM_ACCELERATION_LIMITS * period
+    reachable = asked.clip(previous_velocity - change, previous_velocity + change)
+    velocity = reachable.clip(-ARM_SPEED_LIMITS, ARM_SPEED_LIMITS)
     return LimitedTargets(
         targets=previous + velocity * period,
         velocity=velocity,

@@ -3,6 +3,8 @@
 import subprocess
 import sys
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from jaxarm.deploy import limits
@@ -40,6 +42,18 @@ def test_targets_are_clipped_to_the_limits():
     limited = limits.limit_targets(np.full(7, 0.001), previous, np.full(7, 0.02), period)
     np.testing.assert_allclose(limited.targets, 0.001)
     assert not (limited.speed_clipped.any() or limited.acceleration_clipped.any())
+
+
+def test_the_envs_clip_their_targets_as_the_loop_does():
+    # Joint 1 within the limits, 2 and 3 beyond their acceleration's, 5 and 6 beyond their speed's.
+    previous, velocity = np.full(7, 0.3), np.array([0.0, 0.0, 0.0, 0.0, 2.6, 2.6, 0.0])
+    targets = previous + np.array([0.001, 0.1, -0.1, 0.01, 0.11, 0.2, 0.0])
+    ours = limits.limit_targets(targets, previous, velocity, 0.04)
+    as_jax = (jnp.asarray(value) for value in (targets, previous, velocity))
+    jitted = jax.jit(limits.limit_targets, static_argnums=3)(*as_jax, 0.04)
+    for expected, value in zip(ours, jitted, strict=True):
+        np.testing.assert_allclose(np.asarray(value), expected, atol=1e-6)
+    assert ours.acceleration_clipped.any() and not ours.acceleration_clipped.all() and ours.speed_clipped.any()
 
 
 class StepController:
