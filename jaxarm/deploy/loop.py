@@ -1,5 +1,8 @@
 """The deployment loop: each control tick, a robot's reading -> the env's observation -> the exported policy ->
-the env's controller -> servo targets within Franka's limits, timed. Imports numpy and mujoco alone."""
+the env's controller -> servo targets within Franka's limits, timed. Imports numpy and mujoco alone.
+
+The limits are the envs' own (`PandaBase.limited_ctrl` applies `limits.limit_targets` to the same targets), so with
+`clip` the robot gets the targets the env's servos got, and the counts tell how often the policy asked for more."""
 
 import dataclasses
 import time

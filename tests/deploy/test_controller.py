@@ -12,8 +12,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxarm.deploy import from_env, peg, sort
+from jaxarm.deploy import from_env, limits, peg, sort
 from jaxarm.deploy.reading import ArmReading, HoleEstimate, ObjectEstimate
+from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda_sort import IN_CORRECT_BIN, IN_PLAY, MODE_JOINT, PandaSort, PandaSortSim
 from jaxarm.envs.panda_sort.reward import next_outcome, next_target, shaping_potential
 from jaxarm.envs.peg_insert.env import PegInsert, PegInsertSim
@@ -42,6 +43,7 @@ def hand_placed_sorter(env: PandaSort, rng: np.random.Generator) -> PandaSortSim
         qvel=jnp.asarray(qvel),
         qacc_warmstart=jnp.zeros(model.nv),
         ctrl=jnp.asarray(ctrl),
+        target_velocity=jnp.asarray(rng.uniform(-2.0, 2.0, 7), jnp.float32),
         shape=jnp.array([1, 0], jnp.int32),
         size=jnp.array([0.02, 0.03]),
         colour=jnp.zeros((2, 3)),
@@ -57,9 +59,9 @@ def hand_placed_sorter(env: PandaSort, rng: np.random.Generator) -> PandaSortSim
 
 @functools.cache
 def sorter_case(control_mode: str):
-    """(env, params, sim, actions [B, A], the env's observation [O], ctrl [B, 9], outcome [N], target, potential [2, 5]
-    with each slot the target)
-    for a two-object target-first sorter with the running target."""
+    """(env, params, sim, actions [B, A], the env's observation [O], ctrl [B, 9] (the servo targets sent, within
+    Franka's limits), outcome [N], target, potential [2, 5] with each slot the target) for a two-object
+    target-first sorter with the running target."""
     env = PandaSort(objects_count=2, target_first=True, running_target=True, control_mode=control_mode)
     params = env.default_params()
     sim = hand_placed_sorter(env, np.random.default_rng(0))
@@ -73,7 +75,7 @@ def sorter_case(control_mode: str):
         model = env.episode_model(sim, params)
         data = env.kinematics(model, sim)
         obs = env._observe(model, data, sim, params, jax.random.key(1))
-        ctrl = jax.vmap(lambda action: env._ctrl(model, data, action, params))(actions)
+        ctrl = jax.vmap(lambda action: env.limited_ctrl(env._ctrl(model, data, action, params), sim)[0])(actions)
         positions = sim.qpos[env.ids.object_qpos[:, None] + np.arange(3)]
         outcome = next_outcome(sim.outcome, sim.shape, positions, env.layout)
         target = next_target(env.ids, data, sim.replace(outcome=outcome))
@@ -111,6 +113,8 @@ def test_the_sorter_observes_and_acts_as_the_env(control_mode):
     assert not np.any(ours[:26]) and np.any(ours[26:52])
     for action, expected in zip(actions, ctrl, strict=True):
         arm = sort.arm_targets(controller.task, controller.kinematics, pose, sim_ctrl, action.astype(np.float64))
+        # What the deployment loop sends: the same limits from the same targets and their rate.
+        arm = limits.limit_targets(arm, sim_ctrl[:7], np.asarray(sim.target_velocity, np.float64), CONTROL_DT).targets
         fingers = sort.finger_targets(controller.task, action)
         np.testing.assert_allclose(np.concatenate([arm, fingers]), expected, atol=TOLERANCE)
     # The actions move the targets: a test of a controller that ignores them would pass otherwise.
@@ -126,11 +130,13 @@ def test_the_peg_observes_and_acts_as_the_env():
     qvel = rng.normal(0.0, 0.3, env.mj_model.nv).astype(np.float32)
     hole = np.array([0.55, -0.04], np.float32)
     tcp_target = np.array([0.52, 0.01, 0.21], np.float32)
+    velocity = rng.uniform(-0.5, 0.5, 7).astype(np.float32)
     sim = PegInsertSim(
         qpos=jnp.asarray(qpos),
         qvel=jnp.asarray(qvel),
         qacc_warmstart=jnp.zeros(env.mj_model.nv),
         ctrl=jnp.asarray(np.r_[qpos[:7], 0.01, 0.01]),
+        target_velocity=jnp.asarray(velocity),
         tcp_target=jnp.asarray(tcp_target),
         hole=jnp.asarray(hole),
         initial_distance=jnp.array(0.2),
@@ -150,7 +156,8 @@ def test_the_peg_observes_and_acts_as_the_env():
 
         def ctrl(action):
             target = jnp.clip(sim.tcp_target + action * params.ee_step, tcp - params.max_lead, tcp + params.max_lead)
-            return env.ik_targets(model, data, target, env.home_tcp_rotation, params)
+            arm = env.ik_targets(model, data, target, env.home_tcp_rotation, params)
+            return env.limited_ctrl(jnp.concatenate([arm, sim.ctrl[7:]]), sim)[0][:7]
 
         return obs, jax.vmap(ctrl)(actions)
 
@@ -163,7 +170,8 @@ def test_the_peg_observes_and_acts_as_the_env():
     np.testing.assert_allclose(ours, obs, atol=TOLERANCE)
     for action, expected in zip(actions, arm, strict=True):
         target = peg.tcp_target_after(controller.task, pose, tcp_target.astype(np.float64), action)
-        np.testing.assert_allclose(
-            peg.arm_targets(controller.task, controller.kinematics, pose, target), expected, atol=TOLERANCE
-        )
+        arm = peg.arm_targets(controller.task, controller.kinematics, pose, target)
+        previous = np.asarray(sim.ctrl[:7], np.float64)
+        sent = limits.limit_targets(arm, previous, velocity.astype(np.float64), CONTROL_DT).targets
+        np.testing.assert_allclose(sent, expected, atol=TOLERANCE)
     assert np.ptp(arm, axis=0).max() > 1e-3

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from jaxarm.deploy.limits import limit_targets
 from jaxarm.envs.base import Env, EnvState, HasEpisodeLimit
 from jaxarm.envs.observation import check_obs_mode
 from jaxarm.envs.panda import camera
@@ -54,6 +55,9 @@ class PandaSimState(Protocol):
 
     @property
     def qacc_warmstart(self) -> jax.Array: ...
+
+    @property
+    def target_velocity(self) -> jax.Array: ...
 
 
 class IkParams(HasEpisodeLimit, Protocol):
@@ -234,6 +238,13 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         """`data` after `substeps` physics steps (one env step); raises if Warp dropped contacts on the way."""
         data = jax.lax.fori_loop(0, self.substeps, lambda _, d: mjx.step(model, d), data)
         return check_no_overflow(data)
+
+    def limited_ctrl(self, ctrl: jax.Array, sim: SimT) -> tuple[jax.Array, jax.Array]:
+        """Asked servo targets `ctrl` [9] -> (the targets sent [9], the arm's [7] rate of change, rad/s): the arm's
+        path from the sim's targets kept within Franka's speed and acceleration limits (`limit_targets`, which the
+        deployment loop applies to the same commands); the fingers' as asked."""
+        limited = limit_targets(ctrl[:7], sim.ctrl[:7], sim.target_velocity, CONTROL_DT)
+        return ctrl.at[:7].set(limited.targets), limited.velocity
 
     def ik_targets(
         self,

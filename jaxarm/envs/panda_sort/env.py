@@ -1,7 +1,8 @@
 """The Panda sorter: a Franka Panda puts cubes, cylinders and spheres into the bin of their shape, in MJX.
 
 One env step is `CONTROL_DT` = 0.04 s: the action becomes joint position targets (through damped
-least-squares IK in `ee` mode), then MJX takes several physics substeps. An object whose centre enters a bin
+least-squares IK in `ee` mode), moved within Franka's joint speed and acceleration limits
+(`PandaBase.limited_ctrl`), then MJX takes several physics substeps. An object whose centre enters a bin
 (inside its walls, below the rim) is scored: +500 in the bin of its shape, +200 in another. One that drops
 below the table top is penalised (-50). Either way it leaves play and is parked far away, at rest, for the
 rest of the episode, so it can never be scored twice or touch anything again. The episode terminates when
@@ -382,6 +383,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             qvel=qvel,
             qacc_warmstart=resting.qacc_warmstart,
             ctrl=jnp.concatenate([arm_q, jnp.full((2,), FINGER_OPEN)]),
+            target_velocity=jnp.zeros(7),
             shape=shape,
             size=size,
             colour=jax.random.uniform(colour_key, (n, 3), minval=0.15, maxval=0.95),
@@ -407,7 +409,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
         applied, queued = delayed_action(sim.queued_actions, action, params.action_latency)
-        data = data.replace(ctrl=self._ctrl(model, data, applied, params))
+        ctrl, target_velocity = self.limited_ctrl(self._ctrl(model, data, applied, params), sim)
+        data = data.replace(ctrl=ctrl)
         data = self.simulate(model, data)
         position = object_positions(self.ids, data.qpos)
         outcome = next_outcome(sim.outcome, sim.shape, position, self.layout)
@@ -419,6 +422,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             qvel=qvel,
             qacc_warmstart=data.qacc_warmstart,
             ctrl=data.ctrl,
+            target_velocity=target_velocity,
             outcome=outcome,
             exit_xy=jnp.where(leaving[:, None], position[:, :2], sim.exit_xy),
             queued_actions=queued,

@@ -12,6 +12,8 @@ class PandaSortSim(struct.PyTreeNode):
       qvel: [nv] generalized velocities (arm 7, fingers 2, then 6 per object: linear world, angular local).
       qacc_warmstart: [nv] the solver's warm start.
       ctrl: [9] actuator targets (arm joints, then the two fingers).
+      target_velocity: [7] the arm's targets' rate of change over the last step (rad/s), which Franka's
+        acceleration limits bound the next step's from (`PandaBase.limited_ctrl`).
       shape: [N] int32 SHAPE_* of each object.
       size: [N] half-size / radius of each object (metres).
       colour: [N, 3] RGB of each object; drawn only, never observed, unrelated to the shape.
@@ -32,6 +34,7 @@ class PandaSortSim(struct.PyTreeNode):
     qvel: jax.Array
     qacc_warmstart: jax.Array
     ctrl: jax.Array
+    target_velocity: jax.Array
     shape: jax.Array
     size: jax.Array
     colour: jax.Array

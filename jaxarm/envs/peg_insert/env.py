@@ -2,7 +2,8 @@
 
 One env step is `CONTROL_DT` = 0.04 s. The action [3] moves a tool-centre target by at most `ee_step` per
 axis; the target is held within `max_lead` of the measured tool centre (so a blocked peg presses with
-bounded force) and followed through damped least-squares IK with the tool pointing down. Reward:
+bounded force) and followed through damped least-squares IK with the tool pointing down, the joints' targets
+moved within Franka's speed and acceleration limits (`PandaBase.limited_ctrl`). Reward:
 `progress_weight` · (previous − current tip-to-hole-bottom distance) / initial distance, plus
 `success_bonus` every step the tip is within `insert_distance` of the hole bottom (inserted, a success).
 Terminated when the peg touches the table (its explicit contact pair reports penetration in any substep)
@@ -58,6 +59,7 @@ class PegInsertSim(struct.PyTreeNode):
       qvel: [nv] joint velocities.
       qacc_warmstart: [nv] the solver's warm start.
       ctrl: [9] actuator targets (arm joints, then the fingers).
+      target_velocity: [7] the arm's targets' rate of change over the last step (rad/s), as the sorter's.
       tcp_target: [3] where the tool centre is being driven.
       hole: [2] (x, y) of the hole's centre this episode.
       initial_distance: [] tip-to-hole-bottom distance at reset (metres).
@@ -72,6 +74,7 @@ class PegInsertSim(struct.PyTreeNode):
     qvel: jax.Array
     qacc_warmstart: jax.Array
     ctrl: jax.Array
+    target_velocity: jax.Array
     tcp_target: jax.Array
     hole: jax.Array
     initial_distance: jax.Array
@@ -217,6 +220,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             qvel=resting.qvel,
             qacc_warmstart=resting.qacc_warmstart,
             ctrl=jnp.concatenate([arm_q, fingers]),
+            target_velocity=jnp.zeros(7),
             tcp_target=jnp.zeros(3),
             hole=hole,
             initial_distance=zero,
@@ -248,7 +252,8 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         applied, queued = delayed_action(sim.queued_actions, action, params.action_latency)
         target = advanced_target(sim.tcp_target, applied * params.ee_step, tcp, params.max_lead)
         arm_ctrl = self.ik_targets(model, data, target, self.home_tcp_rotation, params)
-        data = data.replace(ctrl=jnp.concatenate([arm_ctrl, sim.ctrl[7:]]))
+        ctrl, target_velocity = self.limited_ctrl(jnp.concatenate([arm_ctrl, sim.ctrl[7:]]), sim)
+        data = data.replace(ctrl=ctrl)
 
         def substep(_, carry):
             data, touched = carry
@@ -263,6 +268,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             qvel=data.qvel,
             qacc_warmstart=data.qacc_warmstart,
             ctrl=data.ctrl,
+            target_velocity=target_velocity,
             tcp_target=target,
             queued_actions=queued,
             noise_key=noise_key,
