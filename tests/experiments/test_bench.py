@@ -8,7 +8,7 @@ import math
 import jax
 import pytest
 
-from experiments.benchmarks import arm2d, devices, learner, record, scaling, training
+from experiments.benchmarks import arm2d, camera, devices, learner, record, scaling, training
 from experiments.benchmarks.arm2d import default_max_env_steps, scan_length
 from experiments.benchmarks.training import PARTS, Result, ppo_config
 from jaxarm import envs
@@ -89,6 +89,18 @@ def test_arm2d_suite_writes_its_table_rows(capsys, tmp_path):
         assert row["env_steps_per_second"] > 0 and row["env_steps_per_second_without_auto_reset"] > 0
         assert f"| {row['envs']:,} | {row['env_steps_per_second']:,.3g} |" in out
     assert written["numpy_single_env_steps_per_second"] > 0
+
+
+@pytest.mark.slow
+def test_camera_suite_times_the_compile_of_a_pixel_learners_update(capsys, tmp_path):
+    argv = ["--envs", "", "--train-configs", "ppo_arm2d_pixels", "--out", str(tmp_path)]
+    argv += ["num_envs=2", "rollout_length=2", "num_minibatches=1", "num_epochs=1"]
+    camera.main(argv)
+    written = read_record(tmp_path, "camera", argv)
+    assert written["rows"] == [] and written["update_compile_seconds"]["ppo_arm2d_pixels"] > 0
+    assert "| ppo_arm2d_pixels |" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        camera.main(["--envs", "", "--train-configs", "ppo_arm2d_pixels", "num_env=2"])  # a typo
 
 
 def test_learner_suite_times_the_sgd_phase_per_unroll(tmp_path):
