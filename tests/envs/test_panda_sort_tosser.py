@@ -205,9 +205,10 @@ def test_the_arm_throws_held_objects_into_their_bins_within_franka_speed_limits(
     (0.1 rad: 2.5 rad/s at full action), aimed at each object's own bin: objects ride the wind-up and the swing,
     fly and score +500, with every arm joint under Franka's speed limits.
 
-    Measured (CPU, MJX-JAX, the tosser's firm grip): of 8 held starts released after step 82, 4 or 5 scored (the
-    count moves with the program's rounding), the fastest joint at 87% of its limit; the landing moves ~0.2 m per
-    step of release, more than a bin's width, so one release step does not serve every object size.
+    Measured (CPU, MJX-JAX, the tosser's firm grip, the wrist swinging at 0.55 of its limit): of 8 held starts
+    released after step 82, 7 scored, after 83 three (long), after 81 none (short), the fastest joint at 84% of its
+    limit; the landing moves 0.1-0.4 m per step of release, more than a bin's width, so one release step does not
+    serve every object size. Started a quarter or half step earlier or later (`swing_start`), 3-6 scored.
     """
     env = joint_tosser()
     params = env.default_params().replace(held_start_prob=jnp.float32(1.0))
@@ -227,9 +228,10 @@ def test_wound_up_starts_hold_the_object_facing_its_bin_and_their_swing_scores()
     """`wind_up_start_prob` starts a held object at the throw's wind-up posture, turned to its own bin: the
     object sits between the pads (the grasp term full), and the throw's swing alone, from rest there, scores.
 
-    Measured (CPU, MJX-JAX): of 8 wound-up starts swung from step 2, releasing at step 16 scored 3, at 15 two or
-    three (the count moves with the program's rounding), at 14 one, at 12 and 13 none (short), the fastest joint at
-    88% of its limit; swung on without a release, 2 of 8 objects slipped out after 30 steps.
+    Measured (CPU, MJX-JAX, the wrist swinging at 0.55 of its limit): of 8 wound-up starts swung from step 2,
+    releasing at step 15, 16 or 17 scored 4, at 14 three, the fastest joint at 86% of its limit; 3 of the others
+    flew 0.25-0.36 m long at each of those. Before the wrist's servo gains were lowered, swung on without a
+    release, 2 of 8 objects slipped out after 30 steps.
     """
     env = joint_tosser()
     params = env.default_params().replace(held_start_prob=jnp.float32(1.0), wind_up_start_prob=jnp.float32(1.0))

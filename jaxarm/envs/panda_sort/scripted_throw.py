@@ -8,7 +8,7 @@ wind-up facing the aimed bin (upper arm leaning back, hand raised behind), then 
 forward while the elbow and the wrist whip the hand over, each joint's target speeding up to a constant fraction of
 its limit (`ARM_SPEED_LIMITS`); at `release_step` the fingers open and the targets stop. The swing stays in the
 vertical plane through the base and the bin, so the release time alone sets the range: the caller chooses it (a
-landing moves ~0.2 m per step of release, so a fractional `swing_start` times it finer). Pure JAX: `throw_action`
+landing moves 0.1-0.4 m per step of release, so a fractional `swing_start` times it finer). Pure JAX: `throw_action`
 jits and scans; it reads only the observation and the step count.
 """
 
@@ -24,11 +24,12 @@ from jaxarm.envs.panda_sort.env import SERVO_LEAD_OBS_SIZE
 from jaxarm.envs.panda_sort.params import PandaSortParams
 
 OPEN, CLOSED = 1.0, -1.0
-SWING_DIRECTION = np.array([0.0, 1.0, 0.0, -1.0, 0.0, -1.0, 0.0], np.float32)
-"""Which way each joint turns in the swing: shoulder forward, elbow and wrist folding the hand over."""
-SWING_SPEED = 0.9
-"""Top speed of each swinging joint's target, as a fraction of its limit: at 0.8 held objects fell short of the
-bins, at 1.0 they flew past them (the joints overshooting to 96% of their limits)."""
+SWING_SPEEDS = np.array([0.0, 0.9, 0.0, -0.9, 0.0, -0.55, 0.0], np.float32)
+"""Top speed of each joint's target in the swing, as a signed fraction of its limit: the shoulder turning forward,
+the elbow and the wrist folding the hand over. Every joint at 0.9 scored 5 of 8 held throws while the wrist's servo
+saturated (panda.xml before its gains were lowered; 0.8 threw short, 1.0 long). With the wrist following its target
+as the shoulder does, 0.9 at the wrist threw all 8 long by 0.34-0.47 m (release at step 82), 0.5 short by
+0.03-0.16 m; 0.55 scores 7 (0.6: 8, but only 2 of 8 wound-up throws against 0.55's 4)."""
 SWING_RAMP_S = 0.3
 """Seconds over which the swing's target speeds rise from rest to the top: a step to full speed saturated
 the shoulder's servo, which then overshot to 2.85 rad/s against the 1.74 asked."""
@@ -65,7 +66,7 @@ def aimed_throw(start: np.ndarray, bin_xy: np.ndarray, swing_start: float, relea
     return Throw(
         start=jnp.asarray(start, jnp.float32),
         wind_up=wound_up_posture(jnp.asarray(bin_xy, jnp.float32)),
-        swing_velocity=jnp.asarray(SWING_SPEED * ARM_SPEED_LIMITS * SWING_DIRECTION),
+        swing_velocity=jnp.asarray(SWING_SPEEDS * ARM_SPEED_LIMITS),
         swing_start=jnp.float32(swing_start),
         release_step=jnp.int32(release_step),
     )
