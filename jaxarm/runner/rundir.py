@@ -57,7 +57,17 @@ RUN_FILES = (
 )
 """What training writes; with `OUTPUT_FILES`, what a run directory may hold."""
 OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock")
-OUTPUT_PATTERNS = ("eval-*.json", "robustness-*.json", "robustness-*.md", "robustness-*.png", "wandb", ".*.tmp")
+OUTPUT_PATTERNS = (
+    "eval-*.json",
+    "robustness-*.json",
+    "robustness-*.md",
+    "robustness-*.png",
+    "transfer-*.json",
+    "transfer-*.gif",
+    "transfer-*.mp4",
+    "wandb",
+    ".*.tmp",
+)
 
 
 class RunDirError(ValueError):
