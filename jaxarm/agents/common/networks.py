@@ -8,6 +8,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm.agents.common.normalizer import numpy_mean_std
+from jaxarm.envs import EnvSpec
+from jaxarm.export.numpy_policy import NumpyPolicy
 from jaxarm.ranges import Range
 
 ACTIVATIONS = {
@@ -54,4 +57,25 @@ def mlp_layers(variables: Mapping[str, Any]) -> tuple[tuple[np.ndarray, ...], tu
     return (
         tuple(np.asarray(tree[name]["kernel"], np.float32) for name in names),
         tuple(np.asarray(tree[name]["bias"], np.float32) for name in names),
+    )
+
+
+def numpy_mlp_policy(
+    variables: Mapping[str, Any], spec: EnvSpec, normalizer, normalize: bool, activation: str, offset, scale
+) -> NumpyPolicy:
+    """The `NumpyPolicy` of the MLP in `variables` (its first A outputs are the action's) for an env of `spec`:
+    observations standardised as `normalizer` does where the learner `normalize`s them, actions
+    `offset + scale * output` ([A] each). ValueError for an env whose observation is not flat (a camera's)."""
+    if not spec.flat_observation:
+        raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
+    kernels, biases = mlp_layers(variables)
+    mean, std = numpy_mean_std(normalizer, normalize, spec.observation_size)
+    return NumpyPolicy(
+        kernels=kernels,
+        biases=biases,
+        activation=activation,
+        obs_mean=mean,
+        obs_std=std,
+        action_offset=np.asarray(offset, np.float32),
+        action_scale=np.asarray(scale, np.float32),
     )

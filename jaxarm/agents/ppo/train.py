@@ -23,7 +23,7 @@ from flax import struct
 
 from jaxarm.agents.common import normalizer as observation_normalizer
 from jaxarm.agents.common.config import HParams
-from jaxarm.agents.common.networks import mlp_layers
+from jaxarm.agents.common.networks import numpy_mlp_policy
 from jaxarm.agents.common.permutation import random_permutation
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.ppo import losses
@@ -317,20 +317,14 @@ def update(
 def numpy_policy(config: PPOConfig, spec: EnvSpec, state: PPOState) -> NumpyPolicy:
     """The deterministic policy as arrays: the policy MLP (its first A outputs are the Gaussian's mean) and the
     normaliser."""
-    if not spec.flat_observation:
-        raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
-    kernels, biases = mlp_layers(state.params.policy)
-    mean, std = observation_normalizer.numpy_mean_std(
-        state.normalizer, config.normalize_observations, spec.observation_size
-    )
-    return NumpyPolicy(
-        kernels=kernels,
-        biases=biases,
-        activation=config.activation,
-        obs_mean=mean,
-        obs_std=std,
-        action_offset=np.zeros(spec.action_size, np.float32),
-        action_scale=np.ones(spec.action_size, np.float32),
+    return numpy_mlp_policy(
+        state.params.policy,
+        spec,
+        state.normalizer,
+        config.normalize_observations,
+        config.activation,
+        offset=np.zeros(spec.action_size),
+        scale=np.ones(spec.action_size),
     )
 
 

@@ -28,7 +28,7 @@ from jaxarm.agents.common import normalizer as observation_normalizer
 from jaxarm.agents.common import replay
 from jaxarm.agents.common.augment import shift_observation
 from jaxarm.agents.common.config import HParams
-from jaxarm.agents.common.networks import mlp_layers
+from jaxarm.agents.common.networks import numpy_mlp_policy
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
 from jaxarm.agents.td3.config import TD3Config
 from jaxarm.agents.td3.losses import (
@@ -391,21 +391,15 @@ def update(
 
 def numpy_policy(config: TD3Config, spec: EnvSpec, state: TD3State) -> NumpyPolicy:
     """The actor as arrays: its MLP, and the map of its tanh outputs onto the env's action bounds."""
-    if not spec.flat_observation:
-        raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
-    kernels, biases = mlp_layers(state.actor_params)
-    obs_mean, obs_std = observation_normalizer.numpy_mean_std(
-        state.normalizer, config.normalize_observations, spec.observation_size
-    )
     half_range = 0.5 * (spec.action_high - spec.action_low)
-    return NumpyPolicy(
-        kernels=kernels,
-        biases=biases,
-        activation=config.activation,
-        obs_mean=obs_mean,
-        obs_std=obs_std,
-        action_offset=np.full(spec.action_size, spec.action_low + half_range, np.float32),
-        action_scale=np.full(spec.action_size, half_range, np.float32),
+    return numpy_mlp_policy(
+        state.actor_params,
+        spec,
+        state.normalizer,
+        config.normalize_observations,
+        config.activation,
+        offset=np.full(spec.action_size, spec.action_low + half_range),
+        scale=np.full(spec.action_size, half_range),
     )
 
 
