@@ -180,6 +180,14 @@ def test_a_privileged_sorter_declares_its_state_observation_beside_the_cameras()
     assert spec.observation["privileged"].shape == PandaSort().spec.observation_shape
 
 
+def test_a_privileged_peg_declares_its_state_observation_beside_the_cameras():
+    spec = PegInsert(obs_mode="pixels", resolution=16, privileged=True).spec
+    assert set(spec.observation) == {"image", "privileged"}
+    assert spec.observation["privileged"].shape == PegInsert().spec.observation_shape
+    with pytest.raises(ValueError, match="privileged=True adds the state observation to a pixel obs_mode"):
+        PegInsert(privileged=True)
+
+
 def test_the_cast_program_does_not_grow_with_the_number_of_geoms():
     def equations(xml):
         model = mujoco.MjModel.from_xml_string(xml)

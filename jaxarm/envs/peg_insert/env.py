@@ -15,7 +15,8 @@ tool target − tool centre (÷ max_lead), tip − nominal hole bottom (÷ 0.1 m
 `obs_mode` "pixels" observes {"image": uint8 [R, R, 4]}, grayscale and depth of the fixed scene camera and of
 the wrist camera (`PandaBase.camera_image`); "pixels+proprio" adds the arm's own state, {"proprio": [9]}: the
 tip velocity, the tool's lead and the tip's offset from the nominal hole; where the hole is this episode shows
-only in the images.
+only in the images. With `privileged`, a pixel mode's observation also holds the state observation of the same
+step ({"privileged": [12]}, for a learner's critic: `jaxarm.envs.observation`).
 """
 
 import jax
@@ -26,7 +27,7 @@ from flax import struct
 from mujoco import mjx
 
 from jaxarm.envs.base import EnvSpec, Observation, Transition
-from jaxarm.envs.observation import observation_parts, pixel_observation
+from jaxarm.envs.observation import check_obs_mode, observation_parts, pixel_observation
 from jaxarm.envs.panda.base import CAMERAS, PandaBase
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, with_geom_sizes
@@ -49,6 +50,8 @@ START_TIP_HEIGHT = 0.15
 """The peg tip starts this high above the table (10 cm above the block), over the nominal hole."""
 POSITION_SCALE = 0.1
 """Metres per observation unit of positions and velocities (per second)."""
+STATE_OBS_SIZE = 12
+"""Values in the state observation (the module docstring lists them)."""
 
 
 class PegInsertSim(struct.PyTreeNode):
@@ -102,6 +105,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         (the module docstring says what each observation mode holds).
       dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
         published values, `jaxarm.envs.panda.franka_dynamics`).
+      privileged: a pixel mode's observation also holds the state observation of the same step.
     """
 
     def __init__(
@@ -114,7 +118,10 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         resolution: int = 64,
         cameras: tuple[str, ...] = CAMERAS,
         dynamics: str = NOMINAL,
+        privileged: bool = False,
     ):
+        check_obs_mode(obs_mode, resolution, privileged)
+        self.privileged = privileged
         mj_model = build_model(dynamics=dynamics)
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
         super().__init__(
@@ -130,9 +137,9 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             max_action_latency=max_action_latency,
         )
         if obs_mode == "state":
-            self.spec = EnvSpec(observation_shape=(12,), action_shape=(3,))
+            self.spec = EnvSpec(observation_shape=(STATE_OBS_SIZE,), action_shape=(3,))
         else:
-            parts = observation_parts(obs_mode, self.image_shape, 9)
+            parts = observation_parts(obs_mode, self.image_shape, 9, STATE_OBS_SIZE if privileged else None)
             self.spec = EnvSpec(observation_parts=parts, action_shape=(3,))
 
     def default_params(self) -> PegInsertParams:
@@ -193,10 +200,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         hole_bottom = with_noise(estimate, hole_key, params.hole_pose_noise)
         nominal = jnp.array([*HOLE_NOMINAL, HOLE_FLOOR])
         lead = (sim.tcp_target - data.site_xpos[self.ids.robot.tcp_site]) / params.max_lead
-        if self.obs_mode != "state":
-            proprio = jnp.concatenate([tip_velocity / POSITION_SCALE, lead, (tip - nominal) / POSITION_SCALE])
-            return pixel_observation(self.obs_mode, self.blank_image(), proprio.astype(jnp.float32))
-        return jnp.concatenate(
+        state = jnp.concatenate(
             [
                 (hole_bottom - tip) / POSITION_SCALE,
                 tip_velocity / POSITION_SCALE,
@@ -204,6 +208,12 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
                 (tip - nominal) / POSITION_SCALE,
             ]
         ).astype(jnp.float32)
+        if self.obs_mode == "state":
+            return state
+        # In a pixel mode without `privileged`, XLA drops the hole's part: nothing reads it.
+        proprio = jnp.concatenate([tip_velocity / POSITION_SCALE, lead, (tip - nominal) / POSITION_SCALE])
+        privileged = state if self.privileged else None
+        return pixel_observation(self.obs_mode, self.blank_image(), proprio.astype(jnp.float32), privileged)
 
     # --- the contract -------------------------------------------------------------------------------
 
