@@ -109,10 +109,14 @@ def test_scripted_straight_down_insertion_succeeds(env, params, reset, step):
 
 
 # The peg's tip is round (a capsule), so pressed down a few millimetres off it slides into the hole like a
-# chamfered peg: measured, 6 mm off still enters at 1 mm clearance, 9 mm does not; at 6 mm clearance 9 mm does.
-def test_a_peg_nine_mm_off_rests_on_the_block_and_never_enters(env, params, reset, step):
+# chamfered peg. Measured with the wrist's servos at kp 300, kv 30 (2026-11-26; at kp 2000, kv 200 it was 6 mm in,
+# 9 mm not): 9 mm off still enters at 1 mm clearance, 11 mm rests on the block; at 6 mm clearance 11 mm enters.
+OFF_THE_HOLE = 0.011
+
+
+def test_a_peg_eleven_mm_off_rests_on_the_block_and_never_enters(env, params, reset, step):
     state = with_hole(reset(jax.random.key(3), params), [0.48, 0.04])
-    state, infos = scripted_insertion(step, state, params, offset=(0.009, 0.0), steps=70)
+    state, infos = scripted_insertion(step, state, params, offset=(OFF_THE_HOLE, 0.0), steps=70)
     assert not np.any(infos.inserted) and not bool(state.terminated)
     # Only the round tip dips into the hole's mouth, jammed against its edge.
     assert tip_position(state)[2] > BLOCK_TOP - PEG_RADIUS, "the peg went through the block's top"
@@ -121,7 +125,7 @@ def test_a_peg_nine_mm_off_rests_on_the_block_and_never_enters(env, params, rese
 def test_a_wider_clearance_is_data_and_lets_the_same_peg_in(env, params, reset, step):
     wide = params.replace(clearance=jnp.float32(0.006))
     state = with_hole(reset(jax.random.key(3), wide), [0.48, 0.04])
-    state, infos = scripted_insertion(step, state, wide, offset=(0.009, 0.0), steps=70)
+    state, infos = scripted_insertion(step, state, wide, offset=(OFF_THE_HOLE, 0.0), steps=70)
     assert np.any(infos.inserted)
 
 

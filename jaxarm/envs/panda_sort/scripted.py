@@ -29,6 +29,11 @@ REACHED = 0.01
 """A target is reached within this distance (metres)."""
 CLOSE_STEPS = 8
 """Steps the fingers are given to close."""
+CARRY_SPEED = 0.6
+"""Default cap on each axis of the action (0..1). Since the wrist's servos follow their targets (kp 300, kv 30) and
+every target is held within Franka's limits, a 2.5 cm sphere carried at 0.8 slipped out of the grip where the path
+turns over the bins; at 0.6 the sphere, cube and cylinder of tests/envs/test_panda_sort.py are all placed, in
+212-217 steps (MJX-JAX, the nominal arm, 2026-11-26)."""
 
 
 @struct.dataclass
@@ -51,7 +56,12 @@ def script_start(env: PandaSort, state: EnvState) -> ScriptState:
 
 
 def scripted_action(
-    env: PandaSort, obs: jax.Array, script: ScriptState, params: PandaSortParams, bin_xy: jax.Array, speed: float = 0.8
+    env: PandaSort,
+    obs: jax.Array,
+    script: ScriptState,
+    params: PandaSortParams,
+    bin_xy: jax.Array,
+    speed: float = CARRY_SPEED,
 ) -> tuple[jax.Array, ScriptState]:
     """One step of the script for object 0: ([5] action, next script state). `speed` caps each axis (0..1)."""
     phase = script.phase
