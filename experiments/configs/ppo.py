@@ -158,6 +158,8 @@ def ppo_sorter3() -> PPOConfig:
 
 @preset("PPO on the Panda sorter with a blocker bar, 1 object (one GPU)")
 def ppo_sorter_blocker() -> PPOConfig:
+    # The bar in the way takes about twice the plain sorter's budget (the nominal-arm recipe placed 95.9% after
+    # 484 s, BENCHMARKS.md#sorter-blocker): ~4.5 minutes at Warp's 4.4e5 env steps/s; not yet run on Franka's arm.
     return dataclasses.replace(SORTER_PPO, env="panda_sort_blocker", total_env_steps=120_000_000)
 
 
