@@ -17,8 +17,8 @@ import numpy as np
 from mujoco import mjx
 
 from jaxarm.deploy.limits import limit_targets
-from jaxarm.envs.base import Env, EnvState, HasEpisodeLimit
-from jaxarm.envs.observation import check_obs_mode
+from jaxarm.envs.base import Env, EnvSpec, EnvState, HasEpisodeLimit, Observation
+from jaxarm.envs.observation import check_obs_mode, observation_parts, pixel_observation
 from jaxarm.envs.panda import camera
 from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, pose_fixed_geoms, put_scene, resolve_impl
 from jaxarm.envs.panda.render import Drawing
@@ -112,6 +112,8 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       max_action_latency: the most control steps of action latency the params may ask for (`action_latency` of
         `RobotParams`); the state queues that many actions (`initial_action_queue`). Two by default: the
         randomised presets draw up to two.
+      privileged: a pixel mode's observation also holds the state observation of the same step
+        ({"privileged": [S]}, for a learner's critic: `jaxarm.envs.observation`).
 
     Attributes:
       mj_model: the compiled scene as built (drawing poses a copy of it).
@@ -121,7 +123,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       mjx_model: `mj_model` on the device; tasks replace its per-episode fields in `episode_model`.
       home_tcp_rotation: [3, 3] tool-centre orientation at HOME_QPOS (pointing down, yaw 0).
       start_qpos: [7] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
-      obs_mode, resolution, max_action_latency: as given.
+      obs_mode, resolution, max_action_latency, privileged: as given.
       cameras: the `camera.Camera`s of `cameras`, resolved once (none in "state" mode).
     """
 
@@ -140,13 +142,15 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         resolution: int = 64,
         cameras: tuple[str, ...] = CAMERAS,
         max_action_latency: int = 2,
+        privileged: bool = False,
     ):
-        check_obs_mode(obs_mode, resolution)
+        check_obs_mode(obs_mode, resolution, privileged)
         if max_action_latency < 0:
             raise ValueError(f"max_action_latency must be >= 0, got {max_action_latency}")
         self.max_action_latency = max_action_latency
         self.obs_mode = obs_mode
         self.resolution = resolution
+        self.privileged = privileged
         # Resolved only where they are observed: a state-only scene need not declare cameras, nor keep to the
         # primitive geoms the caster draws.
         self.cameras: tuple[camera.Camera, ...] = ()
@@ -203,6 +207,24 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
     def image_shape(self) -> tuple[int, int, int]:
         """Shape of `camera_image`: [R, R, 2 per camera]."""
         return (self.resolution, self.resolution, 2 * len(self.cameras))
+
+    def observation_spec(self, state_size: int, proprio_size: int, action_size: int) -> EnvSpec:
+        """The task's `EnvSpec`: a flat [state_size] observation in "state" mode; in a pixel mode the image, the
+        [proprio_size] proprio ("pixels+proprio") and, with `privileged`, the [state_size] state observation."""
+        if self.obs_mode == "state":
+            return EnvSpec(observation_shape=(state_size,), action_shape=(action_size,))
+        privileged_size = state_size if self.privileged else None
+        parts = observation_parts(self.obs_mode, self.image_shape, proprio_size, privileged_size)
+        return EnvSpec(observation_parts=parts, action_shape=(action_size,))
+
+    def observation(self, state: jax.Array, proprio: jax.Array) -> Observation:
+        """The task's observation in its mode from its state observation [S] and its proprio [P]: the state
+        observation in "state" mode; else the pixel observation with `blank_image` (the base env draws it), and
+        with `privileged` the state observation (without, XLA drops what only that part reads)."""
+        if self.obs_mode == "state":
+            return state
+        privileged = state if self.privileged else None
+        return pixel_observation(self.obs_mode, self.blank_image(), proprio.astype(jnp.float32), privileged)
 
     @property
     def draws_images(self) -> bool:

@@ -29,8 +29,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from jaxarm.envs.base import Env, EnvSpec, Observation, Transition
-from jaxarm.envs.observation import check_obs_mode, observation_parts, pixel_observation
+from jaxarm.envs.base import Env, Observation, Transition
 from jaxarm.envs.panda.base import CAMERAS, PandaBase
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import Impl, with_geom_sizes
@@ -113,7 +112,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         repeated. With one object nothing changes.
       max_action_latency: the most steps of action latency the params may ask for, as `PandaBase`'s.
       impl, max_envs, contacts_per_env: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
-      obs_mode, resolution, cameras: the observation (the module docstring says what each mode holds), as
+      obs_mode, resolution, cameras, privileged: the observation (the module docstring says what each mode holds), as
         `PandaBase`'s.
       dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
         published values, `jaxarm.envs.panda.franka_dynamics`).
@@ -122,8 +121,6 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         `max_yaw_lead` or `max_joint_lead` of what is measured, so a step's action is the motion it gets once
         under way; the observation adds the servos' lead (`SERVO_LEAD_OBS_SIZE`). Without it (the default) each
         step's target starts from the measured pose and the servos cover about a third of the step.
-      privileged: a pixel mode's observation also holds the state observation of the same step
-        ({"privileged": [S]}, for a learner's critic: `jaxarm.envs.observation`).
     """
 
     # jaxlib 0.10.2's CPU runtime deadlocked on this env at 256 envs (one object) and 128 (three): two batched
@@ -148,7 +145,6 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         running_target: bool = False,
         privileged: bool = False,
     ):
-        check_obs_mode(obs_mode, resolution, privileged)
         if not 1 <= objects_count <= 5:
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
         if control_mode not in (MODE_EE, MODE_JOINT):
@@ -157,7 +153,6 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self.control_mode = control_mode
         self.target_first = target_first
         self.running_target = running_target
-        self.privileged = privileged
         self.tool_obs_size = TOOL_OBS_SIZE + (SERVO_LEAD_OBS_SIZE if running_target else 0)
         self.layout = make_layout(blocker=blocker, tosser=tosser)
         mj_model = build_model(objects_count, self.layout, dynamics, firm_grip=tosser)
@@ -175,17 +170,11 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             resolution,
             cameras,
             max_action_latency=max_action_latency,
+            privileged=privileged,
         )
         self.grasp_qpos = self.solve_posture(np.r_[spawn_centre, GRASP_HEIGHT])
-        action_size = 5 if control_mode == MODE_EE else 8
         state_size = OBJECT_OBS_SIZE * objects_count + self.tool_obs_size
-        if obs_mode == "state":
-            self.spec = EnvSpec(observation_shape=(state_size,), action_shape=(action_size,))
-        else:
-            parts = observation_parts(
-                obs_mode, self.image_shape, self.tool_obs_size, state_size if privileged else None
-            )
-            self.spec = EnvSpec(observation_parts=parts, action_shape=(action_size,))
+        self.spec = self.observation_spec(state_size, self.tool_obs_size, 5 if control_mode == MODE_EE else 8)
 
     def default_params(self) -> PandaSortParams:
         return default_params()
@@ -331,12 +320,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             tool.append(sim.ctrl[:7] - sim.qpos[robot.arm_qpos])
         tool_obs = with_noise(jnp.concatenate(tool), tool_key, params.obs_noise)
         objects = with_noise(objects, objects_key, params.obs_noise) * in_play
-        # In a pixel mode without `privileged`, XLA drops the objects' part: nothing reads it.
         state = jnp.concatenate([objects[self.slot_order(sim)].ravel(), tool_obs]).astype(jnp.float32)
-        if self.obs_mode == "state":
-            return state
-        privileged = state if self.privileged else None
-        return pixel_observation(self.obs_mode, self.blank_image(), tool_obs.astype(jnp.float32), privileged)
+        return self.observation(state, tool_obs)
 
     def slot_order(self, sim: PandaSortSim) -> jax.Array:
         """[N] the object slots in the order the observation lists them: from the target on with

@@ -26,8 +26,7 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
-from jaxarm.envs.base import EnvSpec, Observation, Transition
-from jaxarm.envs.observation import check_obs_mode, observation_parts, pixel_observation
+from jaxarm.envs.base import Observation, Transition
 from jaxarm.envs.panda.base import CAMERAS, PandaBase
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, with_geom_sizes
@@ -101,11 +100,10 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     """The Panda inserting a peg held in its hand into a square hole shifted at random every episode.
 
     Args:
-      max_action_latency, impl, max_envs, contacts_per_env, obs_mode, resolution, cameras: as `PandaBase`'s
-        (the module docstring says what each observation mode holds).
+      max_action_latency, impl, max_envs, contacts_per_env, obs_mode, resolution, cameras, privileged: as
+        `PandaBase`'s (the module docstring says what each observation mode holds).
       dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
         published values, `jaxarm.envs.panda.franka_dynamics`).
-      privileged: a pixel mode's observation also holds the state observation of the same step.
     """
 
     def __init__(
@@ -120,8 +118,6 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         dynamics: str = NOMINAL,
         privileged: bool = False,
     ):
-        check_obs_mode(obs_mode, resolution, privileged)
-        self.privileged = privileged
         mj_model = build_model(dynamics=dynamics)
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
         super().__init__(
@@ -135,12 +131,9 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             resolution,
             cameras,
             max_action_latency=max_action_latency,
+            privileged=privileged,
         )
-        if obs_mode == "state":
-            self.spec = EnvSpec(observation_shape=(STATE_OBS_SIZE,), action_shape=(3,))
-        else:
-            parts = observation_parts(obs_mode, self.image_shape, 9, STATE_OBS_SIZE if privileged else None)
-            self.spec = EnvSpec(observation_parts=parts, action_shape=(3,))
+        self.spec = self.observation_spec(STATE_OBS_SIZE, 9, 3)
 
     def default_params(self) -> PegInsertParams:
         return default_params()
@@ -208,12 +201,8 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
                 (tip - nominal) / POSITION_SCALE,
             ]
         ).astype(jnp.float32)
-        if self.obs_mode == "state":
-            return state
-        # In a pixel mode without `privileged`, XLA drops the hole's part: nothing reads it.
         proprio = jnp.concatenate([tip_velocity / POSITION_SCALE, lead, (tip - nominal) / POSITION_SCALE])
-        privileged = state if self.privileged else None
-        return pixel_observation(self.obs_mode, self.blank_image(), proprio.astype(jnp.float32), privileged)
+        return self.observation(state, proprio)
 
     # --- the contract -------------------------------------------------------------------------------
 
