@@ -26,12 +26,12 @@ from jaxarm.agents.ppo.train import Samples, make_optimizer, sgd_epochs
 from jaxarm.envs import EnvSpec
 
 
-def random_samples(key: jax.Array, spec: EnvSpec, count: int) -> Samples:
-    """[count] training samples of random values in the env's observation and action shapes."""
+def random_samples(key: jax.Array, spec: EnvSpec, rollout_length: int, num_envs: int) -> Samples:
+    """[rollout_length, num_envs] training samples of random values in the env's observation and action shapes."""
     obs_key, action_key, log_prob_key, advantage_key, target_key = jax.random.split(key, 5)
 
     def random_part(part_key, part):
-        shape = (count, *part.shape)
+        shape = (rollout_length, num_envs, *part.shape)
         if jnp.issubdtype(part.dtype, jnp.integer):
             return jax.random.randint(part_key, shape, 0, 256).astype(part.dtype)
         return jax.random.normal(part_key, shape, part.dtype)
@@ -40,10 +40,10 @@ def random_samples(key: jax.Array, spec: EnvSpec, count: int) -> Samples:
     obs_leaves = [random_part(k, part) for k, part in zip(jax.random.split(obs_key, len(parts)), parts, strict=True)]
     return Samples(
         obs=jax.tree.unflatten(jax.tree.structure(spec.observation), obs_leaves),
-        raw_action=jax.random.normal(action_key, (count, spec.action_size)),
-        log_prob=jax.random.normal(log_prob_key, (count,)),
-        advantage=jax.random.normal(advantage_key, (count,)),
-        target=jax.random.normal(target_key, (count,)),
+        raw_action=jax.random.normal(action_key, (rollout_length, num_envs, spec.action_size)),
+        log_prob=jax.random.normal(log_prob_key, (rollout_length, num_envs)),
+        advantage=jax.random.normal(advantage_key, (rollout_length, num_envs)),
+        target=jax.random.normal(target_key, (rollout_length, num_envs)),
     )
 
 
@@ -57,7 +57,7 @@ def sgd_seconds(config: PPOConfig, unrolls: Sequence[int], repeats: int) -> list
     params = networks.init(params_key, value_key, spec)
     opt_state = make_optimizer(hparams, hparams.learning_rate).init(params)
     normalizer = observation_normalizer.init(spec)
-    samples = random_samples(samples_key, spec, config.env_steps_per_update)
+    samples = random_samples(samples_key, spec, config.rollout_length, config.num_envs)
     args = (params, opt_state, normalizer, samples, hparams, hparams.learning_rate, run_key)
     rows = []
     for unroll in unrolls:

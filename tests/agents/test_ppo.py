@@ -12,6 +12,7 @@ from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.trainer import make_chunk_runner, make_train
 from jaxarm.agents.ppo import PPOConfig, make_networks, make_trainer
 from jaxarm.agents.ppo.distill import teacher_input
+from jaxarm.agents.ppo.train import Samples, shuffled_minibatches
 from jaxarm.envs.observation import PRIVILEGED, actor_observation
 from tests.agents.probe_envs import ConstantRewardEnv, ImageTargetEnv, TargetActionEnv
 
@@ -59,6 +60,25 @@ def test_vmap_over_seeds_and_hyper_parameters():
 def test_sizes_that_do_not_split_into_minibatches_are_rejected():
     with pytest.raises(ValueError, match="num_minibatches"):
         make_trainer(dataclasses.replace(TINY, num_minibatches=3))
+
+
+@pytest.mark.parametrize("groups", [1, 4])
+def test_each_minibatch_draws_an_equal_share_of_every_env_group_once(groups):
+    config = PPOConfig(num_envs=8, rollout_length=3, num_minibatches=2, shuffle_groups=groups)
+    # Each sample is its own index: env e's step t is t * 8 + e.
+    index = jnp.arange(3 * 8).reshape(3, 8)
+    samples = Samples(obs=index, raw_action=index, log_prob=index, advantage=index, target=index)
+    minibatches = np.asarray(shuffled_minibatches(config, samples, jax.random.PRNGKey(0)).obs)
+    assert minibatches.shape == (2, 12)
+    assert sorted(minibatches.ravel()) == list(range(24))
+    group_of = (minibatches % 8) // (8 // groups)
+    for minibatch in group_of:
+        assert np.bincount(minibatch, minlength=groups).tolist() == [12 // groups] * groups
+
+
+def test_shuffle_groups_that_do_not_split_the_envs_or_minibatches_are_rejected():
+    with pytest.raises(ValueError, match="shuffle_groups=3"):
+        PPOConfig(num_envs=8, rollout_length=3, num_minibatches=2, shuffle_groups=3).validate()
 
 
 @pytest.mark.slow

@@ -16,6 +16,10 @@ class PPOConfig(RunConfig):
       rollout_length: env steps per env between updates (T).
       num_minibatches: minibatches per epoch; T·num_envs must divide by it.
       num_epochs: passes over each rollout.
+      shuffle_groups: groups of contiguous envs whose samples are shuffled apart, each minibatch taking an equal
+        share of every group (`train.shuffled_minibatches`). A multiple of the device count keeps every device's
+        minibatch share on that device (data-parallel SGD) and gives the same run on any count dividing it; 1
+        shuffles all samples together.
       policy_hidden_sizes: hidden layer sizes of the policy MLP.
       value_hidden_sizes: hidden layer sizes of the value MLP.
       activation: hidden-layer activation, one of `jaxarm.agents.common.networks.ACTIVATIONS`.
@@ -53,6 +57,7 @@ class PPOConfig(RunConfig):
     rollout_length: int = static(16, COUNT)
     num_minibatches: int = static(8, COUNT)
     num_epochs: int = static(4, COUNT)
+    shuffle_groups: int = static(1, COUNT)
     policy_hidden_sizes: tuple[int, ...] = static((64, 64), COUNT)
     value_hidden_sizes: tuple[int, ...] = static((64, 64), COUNT)
     activation: str = static("tanh", ACTIVATION)
@@ -89,8 +94,8 @@ class PPOConfig(RunConfig):
         return self.env_steps_per_update // self.num_minibatches
 
     def validate(self) -> None:
-        """RunConfig's checks, that each rollout splits into whole minibatches, and that an asymmetric critic has
-        no encoder to share."""
+        """RunConfig's checks, that each rollout splits into whole minibatches and shuffle groups, and that an
+        asymmetric critic has no encoder to share."""
         super().validate()
         if self.asymmetric and self.shared_encoder:
             raise ValueError("asymmetric=true gives the critic the privileged state, not images: no encoder to share")
@@ -98,4 +103,9 @@ class PPOConfig(RunConfig):
             raise ValueError(
                 f"rollout_length*num_envs={self.env_steps_per_update} must divide by "
                 f"num_minibatches={self.num_minibatches}"
+            )
+        if self.num_envs % self.shuffle_groups or self.minibatch_size % self.shuffle_groups:
+            raise ValueError(
+                f"num_envs={self.num_envs} and the minibatch size {self.minibatch_size} must divide by "
+                f"shuffle_groups={self.shuffle_groups}"
             )

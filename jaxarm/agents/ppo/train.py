@@ -78,7 +78,8 @@ class PPOMetrics:
 
 @struct.dataclass
 class Samples:
-    """Flattened training samples, [N, ...] per field; `teacher_action` [N, A] only when distilling."""
+    """Training samples, [T, B, ...] per field as the rollout holds them; `teacher_action` [T, B, A] only when
+    distilling."""
 
     obs: Observation
     raw_action: jax.Array
@@ -139,6 +140,31 @@ def minibatch_loss(
     return total, losses.LossTerms(policy_loss, value_loss, entropy, approx_kl, clip_fraction, imitation)
 
 
+def shuffled_minibatches(config: PPOConfig, samples: Samples, key: jax.Array) -> Samples:
+    """`samples` ([T, B, ...] per field) in a random order, as [num_minibatches, minibatch_size, ...].
+
+    The B envs form `shuffle_groups` (G) groups of contiguous envs, each shuffled alone, and every minibatch takes
+    minibatch_size / G samples from each group. A run splits its envs over devices in contiguous blocks, so where
+    G is a multiple of the device count each device draws its share of every minibatch from its own samples, and
+    the gradient steps run data-parallel; one shuffle over all samples (G = 1) gathers the whole batch onto every
+    device each epoch. A config computes the same run on any device count that divides G.
+    """
+    groups = config.shuffle_groups
+    per_group = config.env_steps_per_update // groups
+    # One group keeps the single shuffle's draws (the key itself, not a split of it).
+    keys = jax.random.split(key, groups) if groups > 1 else key[None]
+    orders = jax.vmap(lambda group_key: random_permutation(group_key, per_group))(keys)
+
+    def shuffle(x: jax.Array) -> jax.Array:
+        rollout_length, num_envs, *rest = x.shape
+        by_group = x.reshape((rollout_length, groups, num_envs // groups, *rest)).swapaxes(0, 1)
+        shuffled = jax.vmap(lambda group, order: group[order])(by_group.reshape((groups, per_group, *rest)), orders)
+        split = shuffled.reshape((groups, config.num_minibatches, config.minibatch_size // groups, *rest))
+        return split.swapaxes(0, 1).reshape((config.num_minibatches, config.minibatch_size, *rest))
+
+    return jax.tree.map(shuffle, samples)
+
+
 def sgd_epochs(
     config: PPOConfig,
     networks: PPONetworks,
@@ -153,8 +179,8 @@ def sgd_epochs(
     critic_normalizer=None,
 ):
     """`num_epochs` passes of `num_minibatches` clipped-surrogate steps over freshly shuffled `samples`
-    ([T·B, ...] per field), `unroll` steps per iteration of each epoch's loop (`critic_normalizer`: as
-    `minibatch_loss`'s).
+    ([T, B, ...] per field; `shuffled_minibatches`), `unroll` steps per iteration of each epoch's loop
+    (`critic_normalizer`: as `minibatch_loss`'s).
 
     Returns ((params, opt_state), (loss terms, grad norms)), the last two [num_epochs, num_minibatches].
     """
@@ -171,10 +197,7 @@ def sgd_epochs(
 
     def epoch(carry, key):
         permute_key, step_key = jax.random.split(key)
-        order = random_permutation(permute_key, config.env_steps_per_update)
-        minibatches = jax.tree.map(
-            lambda x: x[order].reshape((config.num_minibatches, config.minibatch_size) + x.shape[1:]), samples
-        )
+        minibatches = shuffled_minibatches(config, samples, permute_key)
         return jax.lax.scan(
             sgd_step, carry, (minibatches, jax.random.split(step_key, config.num_minibatches)), unroll=unroll
         )
@@ -235,7 +258,7 @@ def advantage_samples(
     rollout: Rollout,
     hparams: HParams,
 ):
-    """(normaliser and critic normaliser updated with the rollout's observations, [T·B] training samples with
+    """(normaliser and critic normaliser updated with the rollout's observations, [T, B] training samples with
     GAE targets, labelled with the teacher's actions where there is one)."""
     normalizer = observation_normalizer.update(state.normalizer, config.normalize_observations, rollout.obs)
     critic_normalizer = state.critic_normalizer
@@ -254,11 +277,9 @@ def advantage_samples(
         hparams.gamma,
         hparams.gae_lambda,
     )
-    samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets)
-    flat_samples = jax.tree.map(lambda x: x.reshape((config.env_steps_per_update,) + x.shape[2:]), samples)
-    if teacher is not None:
-        flat_samples = flat_samples.replace(teacher_action=teacher(flat_samples.obs))
-    return normalizer, critic_normalizer, flat_samples
+    teacher_action = None if teacher is None else jax.vmap(teacher)(rollout.obs)
+    samples = Samples(rollout.obs, rollout.raw_action, rollout.log_prob, advantages, targets, teacher_action)
+    return normalizer, critic_normalizer, samples
 
 
 def learning_rate_at(config: PPOConfig, hparams: HParams, updates: jax.Array) -> jax.Array:
