@@ -96,7 +96,7 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
             raise ValueError(f"--episodes must be positive, got {args.episodes}")
         enable_compilation_cache()
         config, _ = rundir.read_config(run_dir)
-        trainer = configs.make_trainer(config)
+        trainer = configs.make_trainer(config, run_dir)
         with rundir.locked(run_dir):
             state = rundir.restore_state(run_dir, trainer, config, best=args.best)
             if args.perturb or args.randomized_ends:

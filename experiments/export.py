@@ -31,7 +31,7 @@ def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Pat
     config, _ = rundir.read_config(run_dir)
     env, _ = config.make_env()
     observation_size = policy.check_flat_observations(env.spec)
-    trainer = configs.make_trainer(config)
+    trainer = configs.make_trainer(config, run_dir)
     state = rundir.restore_state(run_dir, trainer, config)
     arrays = policy.numpy_policy(trainer, state)
     serialized = policy.serialized_jax_policy(trainer, state, observation_size)

@@ -135,6 +135,7 @@ def _main(argv) -> int:
     options = loop.Options(
         stop_after_s=None if args.stop_after_minutes is None else 60 * args.stop_after_minutes,
         wandb=WandbOptions(args.wandb, offline=args.wandb_offline) if args.wandb else None,
+        presets=configs.get,
     )
     try:
         if args.show:

@@ -6,6 +6,8 @@ The learner is compiled in chunks of `updates_per_chunk` updates; between chunks
 lines, TensorBoard, optionally wandb), shows progress, checks for NaN/inf, evaluates (`eval_every_updates`)
 and checkpoints the whole learner state. A resumed run continues from the latest checkpoint; on CPU the result
 is bit-identical to an uninterrupted run. Ctrl-C or SIGTERM stops at the next chunk end with a checkpoint.
+A run whose teacher is named by preset (`teacher=preset:NAME`) has two stages: the teacher is trained (or resumed)
+into `<run dir>/teacher`, then the student from it; a resumed run resumes the stage it stopped in.
 With several devices the env batch is split across all of them (data parallel, jaxarm/agents/common/sharding.py),
 and with several processes (`jax.distributed`) process 0 alone writes the run directory (processes.py).
 """
@@ -28,9 +30,10 @@ import numpy as np
 from jax.sharding import Mesh
 
 from jaxarm.agents.common import checkpoint
-from jaxarm.agents.common.config import RunConfig
+from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
 from jaxarm.agents.common.trainer import Trainer, make_chunk_runner
+from jaxarm.agents.ppo.distill import teacher_input
 from jaxarm.runner import plots, processes, progress, rundir
 from jaxarm.runner.sinks import Sink, TensorBoardSink, WandbOptions, WandbSink
 
@@ -142,12 +145,15 @@ class Options:
       wandb: also log to this wandb project; None for no wandb.
       on_chunk: called with the update count after each chunk's rows are logged (e.g. to watch a run).
       devices: the devices to split the env batch over; None for every device of every process.
+      presets: preset name -> its config (`experiments.configs.get`): how a teacher named by preset
+        (`teacher=preset:NAME`) is found, before it has been trained; the library holds no presets.
     """
 
     stop_after_s: float | None = None
     wandb: WandbOptions | None = None
     on_chunk: Callable[[int], None] | None = None
     devices: Sequence[jax.Device] | None = None
+    presets: Callable[[str], RunConfig] | None = None
 
 
 def train(
@@ -160,7 +166,9 @@ def train(
     rundir.RunDirError (foreign files, in use, already a run), TrainingDiverged on NaN/inf, TrainingInterrupted
     after Ctrl-C or SIGTERM; with `options.stop_after_s`, the first chunk past it is checkpointed and the
     evaluation describes that state. With several processes (`jax.distributed`) every process calls this with
-    the same arguments; process 0 alone writes the directory (processes.py).
+    the same arguments; process 0 alone writes the directory (processes.py). A teacher named by preset
+    (`teacher=preset:NAME`, found through `options.presets`) is trained first, into `run_dir/teacher`
+    (`_train_teacher`); a time limit counts both stages.
     """
     run_dir = pathlib.Path(run_dir)
     rundir.check_holds_a_run_or_nothing(run_dir)
@@ -212,8 +220,18 @@ class _Start:
 def _train_locked(
     config: RunConfig, preset: str, run_dir: pathlib.Path, resume: bool, options: Options, overrides: Sequence[str] = ()
 ) -> dict:
-    """`train`, with the lock held; a resume's `overrides` are recorded once its checkpoint is restored."""
-    trainer = rundir.make_trainer(config)
+    """`train`, with the lock held, after the teacher stage where there is one (the teacher's evaluation is
+    returned where a time limit stopped that stage); a resume's `overrides` are recorded once its checkpoint is
+    restored."""
+    if rundir.teacher_preset(config):
+        clock = time.perf_counter()
+        stopped = _train_teacher(config, preset, run_dir, resume, options)
+        if stopped is not None:
+            return stopped
+        if options.stop_after_s is not None:
+            spent = time.perf_counter() - clock
+            options = dataclasses.replace(options, stop_after_s=max(0.0, options.stop_after_s - spent))
+    trainer = rundir.make_trainer(config, run_dir)
     if processes.is_primary():
         progress.explain_slow_compiles(config.make_env(randomized=False)[0])
     run_steps = config.num_updates * config.env_steps_per_update
@@ -229,6 +247,74 @@ def _train_locked(
         start = _start(trainer, config, preset, run_dir, resume, overrides, mesh)
         state, done_updates, train_time = _train_chunks(trainer, config, run_dir, options, start, mesh)
         return _final_evaluation(trainer, config, preset, run_dir, state, done_updates, train_time)
+
+
+def _train_teacher(
+    config: RunConfig, preset: str, run_dir: pathlib.Path, resuming: bool, options: Options
+) -> dict | None:
+    """Trains the teacher `config` names by preset into `run_dir/teacher`, or resumes it there, having first
+    written the student's config.json, so that a run stopped in this stage resumes as the student's. Returns None
+    once the teacher has finished (at once where it had), else its evaluation (stopped by `options.stop_after_s`).
+    Bad names and mismatches raise ValueError before anything is written."""
+    name = rundir.teacher_preset(config)
+    teacher_dir = run_dir / rundir.TEACHER_DIR
+    if (teacher_dir / "config.json").exists():
+        teacher, trained_preset = rundir.read_config(teacher_dir)
+        if trained_preset != name:
+            raise rundir.RunDirError(
+                f"{teacher_dir} holds a teacher trained from preset {trained_preset!r}, not {name!r}; use another "
+                "run directory"
+            )
+        if rundir.finished_evaluation(teacher_dir, teacher) is not None:
+            return None
+        if not resuming and rundir.any_checkpoint_files(teacher_dir):
+            raise rundir.resumable(
+                rundir.RunDirError(f"{run_dir} already holds a run, in its teacher stage; resume it (resume=True)"),
+                run_dir,
+            )
+    else:
+        teacher = teacher_config(config, options.presets)
+    if processes.is_primary():
+        if not (run_dir / "config.json").exists():
+            rundir.write_config(run_dir, config, preset)
+        print(f"teacher stage: {name} into {teacher_dir}", file=sys.stderr)
+    if (teacher_dir / "config.json").exists():
+        result, _ = resume(teacher_dir, options=options)
+    else:
+        result = train(teacher, teacher_dir, preset=name, options=options)
+    if result["finished"]:
+        return None
+    if processes.is_primary():
+        print(f"stopped in the teacher stage; resume {run_dir} to go on", file=sys.stderr)
+    return result
+
+
+def teacher_config(config: RunConfig, presets: Callable[[str], RunConfig] | None) -> RunConfig:
+    """The config of the teacher `config` names by preset, with `teacher_overrides`; ValueError in one line for
+    an unknown preset, a bad override, a teacher with a preset teacher of its own, or one that does not observe
+    what this run's env gives a teacher (`jaxarm.agents.ppo.distill.teacher_input`)."""
+    name = rundir.teacher_preset(config)
+    if presets is None:
+        raise ValueError(
+            f"teacher=preset:{name}: give Options(presets=...) a lookup of presets (experiments.configs.get)"
+        )
+    try:
+        teacher = apply_overrides(presets(name), getattr(config, "teacher_overrides", ()))
+    except ValueError as error:
+        raise ValueError(f"teacher=preset:{name}: {error}") from None
+    if rundir.teacher_preset(teacher):
+        raise ValueError(
+            f"teacher=preset:{name} has a teacher preset of its own; train that run first and give teacher=RUN_DIR"
+        )
+    given = teacher_input(config.make_env(randomized=False)[0].spec.observation)
+    observed = teacher.make_env(randomized=False)[0].spec.observation
+    if given != observed:
+        shapes = jax.tree.map(lambda part: part.shape, (given, observed))
+        raise ValueError(
+            f"teacher=preset:{name} observes {shapes[1]} but this run's env gives a teacher {shapes[0]} (a camera "
+            "student's env needs env_kwargs.privileged=true)"
+        )
+    return teacher
 
 
 def _start(
@@ -251,9 +337,11 @@ def _start(
         # Died before its first checkpoint (Ctrl-C while compiling, NaN at once, a full disk), or while writing it
         # (a kill, a full disk): nothing to keep.
         if primary:
-            unfinished = checkpoint.half_written(run_dir / "checkpoints")
-            why = f"only a half-written one, {', '.join(unfinished)}" if unfinished else "none"
-            print(f"{run_dir} has no complete checkpoint ({why}): starting it afresh", file=sys.stderr)
+            # A teacher stage writes config.json alone: then nothing of the student's own had begun.
+            if (run_dir / rundir.PROVENANCE_FILE).exists():
+                unfinished = checkpoint.half_written(run_dir / "checkpoints")
+                why = f"only a half-written one, {', '.join(unfinished)}" if unfinished else "none"
+                print(f"{run_dir} has no complete checkpoint ({why}): starting it afresh", file=sys.stderr)
             rundir.clear_run(run_dir)
         has_run, resume = False, False
     elif has_run and not resume:
@@ -470,4 +558,4 @@ def diverged_message(bad: tuple[int, str] | None, done_updates: int, count: int,
 def load_run(run_dir: pathlib.Path) -> tuple[RunConfig, Any]:
     """(config, latest learner state) of the run in `run_dir`, for notebooks and scripts."""
     config, _ = rundir.read_config(run_dir)
-    return config, rundir.restore_state(run_dir, rundir.make_trainer(config), config)
+    return config, rundir.restore_state(run_dir, rundir.make_trainer(config, run_dir), config)

@@ -15,10 +15,13 @@ Layout of `runs/<config>-<timestamp>/`:
   eval-<episodes>-<seed>-<update|best>.json, video.gif, video.mp4   written by `experiments.eval`
   robustness-<episodes>-<seed>.json, .md, .png   written by `experiments.eval --perturb`
   export/          the policy exported by `experiments.export`
+  teacher/         the run of a teacher named by preset (`teacher=preset:NAME`), trained first; kept when the
+                   student starts afresh
   .lock            held (flock) by the one process writing to the directory
 
-A directory becomes a run when its config.json is written; until its first checkpoint, starting it again (or
-resuming it) starts it afresh. Nothing here deletes or overwrites a file that is not one of the above.
+A directory becomes a run when its config.json is written (before its teacher stage, where it has one); until its
+first checkpoint, starting it again (or resuming it) starts it afresh, keeping a teacher/ it has. Nothing here
+deletes or overwrites a file that is not one of the above.
 """
 
 import contextlib
@@ -41,7 +44,7 @@ from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
-from jaxarm.agents.ppo.distill import teacher_input
+from jaxarm.agents.ppo.distill import PRESET_TEACHER, teacher_input
 from jaxarm.runner import provenance
 
 PROVENANCE_FILE = "provenance.json"
@@ -56,7 +59,9 @@ RUN_FILES = (
     "best.json",
 )
 """What training writes; with `OUTPUT_FILES`, what a run directory may hold."""
-OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock")
+TEACHER_DIR = "teacher"
+"""Where a run whose teacher is named by preset (`teacher=preset:NAME`) trains that teacher before itself."""
+OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock", TEACHER_DIR)
 OUTPUT_PATTERNS = (
     "eval-*.json",
     "robustness-*.json",
@@ -299,13 +304,34 @@ def read_config(run_dir: pathlib.Path, path: pathlib.Path | None = None) -> tupl
     return config, preset
 
 
-def make_trainer(config: RunConfig):
-    """The trainer of `config`'s learner, with its teacher's policy loaded from the run in `config.teacher` where it
-    names one (distillation, `jaxarm.agents.ppo.distill`)."""
+def teacher_preset(config: RunConfig) -> str:
+    """The preset `config`'s teacher names (`teacher=preset:NAME`), or "" (a run directory, or no teacher)."""
+    teacher = getattr(config, "teacher", "")
+    return teacher.removeprefix(PRESET_TEACHER) if teacher.startswith(PRESET_TEACHER) else ""
+
+
+def teacher_run(config: RunConfig, run_dir: pathlib.Path | None) -> pathlib.Path | None:
+    """The run directory of `config`'s teacher (None for none): the one it names, or for a teacher named by preset
+    `run_dir/teacher` (RunDirError without `run_dir`: such a student is read from its run directory)."""
     teacher = getattr(config, "teacher", "")
     if not teacher:
+        return None
+    if not teacher_preset(config):
+        return pathlib.Path(teacher)
+    if run_dir is None:
+        raise RunDirError(
+            f"teacher={teacher} is trained into the student's run directory: build the trainer of a run from it"
+        )
+    return pathlib.Path(run_dir) / TEACHER_DIR
+
+
+def make_trainer(config: RunConfig, run_dir: pathlib.Path | None = None):
+    """The trainer of `config`'s learner, with its teacher's policy loaded where it has one (distillation,
+    `jaxarm.agents.ppo.distill`): from the run `config.teacher` names, or, named by preset, from `run_dir/teacher`."""
+    teacher = teacher_run(config, run_dir)
+    if teacher is None:
         return registry.make_trainer(config)
-    return registry.make_trainer(config, teacher=load_teacher(pathlib.Path(teacher)))
+    return registry.make_trainer(config, teacher=load_teacher(teacher))
 
 
 def load_teacher(run_dir: pathlib.Path):
@@ -313,7 +339,7 @@ def load_teacher(run_dir: pathlib.Path):
     [N, ...] -> actions [N, A]; its arrays become constants of the program that calls it. RunDirError or
     CheckpointError for a run that cannot be read."""
     config, _ = read_config(run_dir)
-    trainer = make_trainer(config)
+    trainer = make_trainer(config, run_dir)
     state = restore_state(run_dir, trainer, config)
     return lambda obs: trainer.act(state, teacher_input(obs))
 
@@ -340,7 +366,7 @@ def warm_starter(config: RunConfig) -> Callable[[Any], Any]:
             f"init_from: warm starts exist for {', '.join(with_warm_starts)} only, from a run of the same learner "
             f"({source_dir} is {registry.name_of(source)}, this run {registry.name_of(config)})"
         )
-    trained = restore_state(source_dir, make_trainer(source), source)
+    trained = restore_state(source_dir, make_trainer(source, source_dir), source)
     index = config.make_env()[0].observation_source_index(source.make_env()[0])
     return lambda state: warm_start(state, trained, index)
 

@@ -5,6 +5,7 @@ import dataclasses
 from jaxarm.agents.common.config import RunConfig, dynamic, static
 from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
+from jaxarm.agents.ppo.distill import PRESET_TEACHER
 from jaxarm.ranges import COUNT, DISCOUNT, LEARNING_RATE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, Range
 
 
@@ -30,7 +31,11 @@ class PPOConfig(RunConfig):
       teacher: run directory of a finished run (any learner) whose deterministic policy the policy is distilled
         from, DAgger-style: the student drives the rollouts and each observation is labelled with the teacher's
         action, read from the observation's privileged part where it has one (a state teacher for a camera
-        student: `env_kwargs.privileged=true`), else from the observation; "" for none.
+        student: `env_kwargs.privileged=true`), else from the observation; "" for none. `preset:NAME` names a
+        preset instead: the runner first trains it into the run directory's `teacher/` (a finished one is
+        reused; a resumed run resumes the stage it stopped in), then the student from it.
+      teacher_overrides: with `teacher=preset:NAME`, `key=value` overrides of that preset (e.g. to shrink it on a
+        CPU; on the command line comma-separated, so values without commas).
       imitation_coef: weight of the distillation loss (squared distance between the student's mean action and
         the teacher's); used with `teacher`.
       imitation_only: with `teacher`, the policy learns from the teacher alone (the distillation loss and the
@@ -66,6 +71,7 @@ class PPOConfig(RunConfig):
     shared_encoder: bool = False
     asymmetric: bool = False
     teacher: str = ""
+    teacher_overrides: tuple[str, ...] = ()
     imitation_only: bool = True
     normalize_observations: bool = True
     normalize_advantages: bool = True
@@ -94,9 +100,15 @@ class PPOConfig(RunConfig):
         return self.env_steps_per_update // self.num_minibatches
 
     def validate(self) -> None:
-        """RunConfig's checks, that each rollout splits into whole minibatches and shuffle groups, and that an
-        asymmetric critic has no encoder to share."""
+        """RunConfig's checks, that each rollout splits into whole minibatches and shuffle groups, that an
+        asymmetric critic has no encoder to share, and that a teacher named by preset names one (which one exists,
+        the runner checks: presets are not the library's)."""
         super().validate()
+        preset = self.teacher.removeprefix(PRESET_TEACHER) if self.teacher.startswith(PRESET_TEACHER) else None
+        if preset == "":
+            raise ValueError(f"teacher={self.teacher} names no preset: give teacher=preset:NAME or a run directory")
+        if self.teacher_overrides and preset is None:
+            raise ValueError("teacher_overrides apply to a teacher named by preset (teacher=preset:NAME) alone")
         if self.asymmetric and self.shared_encoder:
             raise ValueError("asymmetric=true gives the critic the privileged state, not images: no encoder to share")
         if self.env_steps_per_update % self.num_minibatches:
