@@ -5,6 +5,7 @@ import dataclasses
 from experiments.configs.registry import preset
 from jaxarm.agents.common.config import with_pair, with_pairs
 from jaxarm.agents.ppo import PPOConfig
+from jaxarm.agents.ppo.distill import PRESET_TEACHER
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
 
 # Measured on the 2-core CPU (deterministic success on 1,000 fresh episodes, random reachable goals):
@@ -280,4 +281,47 @@ def ppo_peg_pixels() -> PPOConfig:
         encoder="nature",
         encoder_features=256,
         total_env_steps=4_000_000,
+    )
+
+
+SORTER_PIXELS_PPO = dataclasses.replace(
+    SORTER_PPO,
+    env="panda_sort_pixels",
+    # The teacher reads the state observation each step also returns (obs["privileged"]), the policy the images.
+    env_kwargs=(*SORTER_ENGINE, *FRANKA_ARM, ("privileged", True)),
+    # A state teacher trained from nothing into <run dir>/teacher first (a few minutes on one GPU), then distilled
+    # DAgger-style: the student drives, every observation is labelled with the teacher's action.
+    teacher=f"{PRESET_TEACHER}ppo_sorter",
+    # A rollout of 2,048 envs x 16 steps holds 512 MiB of uint8 frames (16 KiB per observation: 64x64, gray and
+    # depth of two cameras), twice ppo_peg_pixels' batch; each minibatch of 4,096 passes the Nature encoder.
+    num_envs=2048,
+    num_minibatches=8,
+    # The critic reads the privileged state: no second encoder to run, and a value ready for PPO afterwards.
+    asymmetric=True,
+    # Distillation fits the policy's mean alone, so its initial spread stays the rollouts' noise: std 0.37
+    # (pre-tanh) instead of 1 keeps the student near the states its own mean policy reaches, which DAgger labels.
+    initial_log_std=-1.0,
+    # Regressing onto a teacher needs far fewer samples than finding the task by reward, and a pixel step costs
+    # several state steps: a budget that keeps teacher and student together well inside 20 minutes on one GPU.
+    total_env_steps=10_000_000,
+)
+
+
+@preset("PPO sorter from cameras: a state teacher (ppo_sorter) trained first, then distilled (one GPU)")
+def ppo_sorter_pixels() -> PPOConfig:
+    # From a finished state run instead: `--config ppo_sorter_pixels teacher=RUN_DIR` (a ppo_sorter run, or any
+    # run whose env observes what panda_sort_pixels' privileged part holds: panda_sort's state observation).
+    return SORTER_PIXELS_PPO
+
+
+@preset("PPO sorter from cameras under randomised physics and sensing, from a ppo_sorter_dr teacher (one GPU)")
+def ppo_sorter_pixels_dr() -> PPOConfig:
+    # The student meets SORTER_RANDOMIZE as its teacher did, so the teacher's labels hold over every draw; twice
+    # the budget, as ppo_sorter_dr takes over ppo_sorter. The cameras themselves are not randomised: the env has
+    # no camera params yet.
+    return dataclasses.replace(
+        SORTER_PIXELS_PPO,
+        teacher=f"{PRESET_TEACHER}ppo_sorter_dr",
+        randomize=SORTER_RANDOMIZE,
+        total_env_steps=20_000_000,
     )

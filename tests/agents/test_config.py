@@ -17,7 +17,7 @@ from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.envs.panda_sort import params as panda_sort_params
 from jaxarm.envs.peg_insert import params as peg_insert_params
-from jaxarm.runner import rundir
+from jaxarm.runner import loop, rundir
 
 
 @pytest.mark.parametrize(
@@ -225,3 +225,10 @@ def test_env_kwargs_take_true_and_false_as_the_config_fields_do():
     config = apply_overrides(sorter, ["env_kwargs.tosser=false", "env_kwargs.running_target=True"])
     assert dict(config.env_kwargs) == {"tosser": False, "running_target": True}
     assert parse_literal("FALSE") is False and parse_literal("0.5") == 0.5 and parse_literal("ee") == "ee"
+
+
+def test_every_teacher_a_preset_names_exists_and_observes_what_its_student_gives_it():
+    students = [name for name in configs.names() if rundir.teacher_preset(configs.get(name))]
+    assert {"ppo_sorter_pixels", "ppo_sorter_pixels_dr"} <= set(students)
+    for name in students:
+        loop.teacher_config(configs.get(name), configs.get)  # raises on an unknown preset or another observation
