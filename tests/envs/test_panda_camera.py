@@ -5,6 +5,7 @@ poses and sizes as arrays.
 """
 
 from functools import partial
+from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
@@ -12,6 +13,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from jaxarm.envs.panda.base import image_channels
 from jaxarm.envs.panda.camera import AMBIENT, FAR, Camera, Scene, ray_directions, render
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.peg_insert import PegInsert
@@ -197,3 +199,31 @@ def test_the_cast_program_does_not_grow_with_the_number_of_geoms():
 
     more_boxes = '<geom type="box" size="0.02 0.02 0.02" pos="0.3 0 0.02" rgba="1 1 1 1"/>\n' * 5
     assert equations(CROWD) == equations(CROWD.replace("  <camera", more_boxes + "  <camera"))
+
+
+def test_image_channels_scale_the_gray_shift_the_depth_and_saturate():
+    # Two cameras: gray 0.5 and depth 0.2 m, then gray 0.9 and depth 0.95 m.
+    pixel = jnp.array([0.5, 0.2, 0.9, 0.95])
+    np.testing.assert_array_equal(image_channels(pixel, 1.0, 0.0), [128, 51, 230, 242])
+    np.testing.assert_array_equal(image_channels(pixel, 1.5, 0.2), [191, 102, 255, 255])
+    np.testing.assert_array_equal(image_channels(pixel, 0.5, -0.4), [64, 0, 115, 140])
+
+
+def vars_of(data: mujoco.MjData) -> dict[str, np.ndarray]:
+    """The poses the caster reads of MuJoCo's data."""
+    return {name: getattr(data, name) for name in ("geom_xpos", "geom_xmat", "xpos", "xmat")}
+
+
+def test_a_panda_cameras_gain_and_offset_change_its_images_as_image_channels_says():
+    # Posed by MuJoCo on the CPU: only the caster compiles.
+    env = PegInsert(obs_mode="pixels", resolution=8)
+    data = mujoco.MjData(env.mj_model)
+    mujoco.mj_forward(env.mj_model, data)
+    model, poses = SimpleNamespace(geom_size=env.mj_model.geom_size), SimpleNamespace(**vars_of(data))
+    image = jax.jit(lambda gain, offset: env.camera_image(model, poses, gain, offset))
+    as_simulated = np.asarray(image(1.0, 0.0)).astype(int)
+    changed = np.asarray(image(0.5, 0.05)).astype(int)
+    np.testing.assert_allclose(changed[..., 0::2], as_simulated[..., 0::2] / 2, atol=1.0)
+    depth = as_simulated[..., 1::2] < 255 - 13  # not at the far clip, before or after the 5 cm
+    assert depth.mean() > 0.5 and as_simulated[..., 0::2].mean() > 20, "the cameras see the scene"
+    np.testing.assert_allclose(changed[..., 1::2][depth], as_simulated[..., 1::2][depth] + 0.05 * 255, atol=1.0)

@@ -127,6 +127,7 @@ def test_robot_params_reach_the_arm_alone(franka_sorter):
         ("force_limit_scale", 0.0, "> 0"),
         ("control_period_scale", 2.0, r"in \[0.5, 1.5\]"),
         ("object_pose_bias", -0.01, ">= 0"),
+        ("camera_gray_gain", -0.5, ">= 0"),
     ],
 )
 def test_values_outside_a_params_range_are_refused(name, value, message):
@@ -143,6 +144,8 @@ def test_randomize_draws_the_new_params_within_their_ranges():
         "control_period_scale": "0.8..1.2",
         "action_latency": "0..2",
         "object_pose_bias": "0..0.01",
+        "camera_gray_gain": "0.7..1.3",
+        "camera_depth_offset": "-0.02..0.02",
     }
     env = Randomized(PandaSort(), parse_ranges(ranges))
     drawn = jax.vmap(env.episode_params, in_axes=(0, None))(

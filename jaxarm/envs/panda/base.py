@@ -61,13 +61,20 @@ class PandaSimState(Protocol):
 
 
 class IkParams(HasEpisodeLimit, Protocol):
-    """What `PandaBase` reads of a task's params (scalars): the time limit and the IK's settings."""
+    """What `PandaBase` reads of a task's params (scalars): the time limit, the IK's settings and the cameras'
+    (`RobotParams`)."""
 
     @property
     def ik_damping(self) -> jax.Array: ...
 
     @property
     def ik_posture_gain(self) -> jax.Array: ...
+
+    @property
+    def camera_gray_gain(self) -> jax.Array: ...
+
+    @property
+    def camera_depth_offset(self) -> jax.Array: ...
 
 
 class TaskIds(Protocol):
@@ -83,6 +90,16 @@ class RestingPhysics(NamedTuple):
     qpos: jax.Array
     qvel: jax.Array
     qacc_warmstart: jax.Array
+
+
+def image_channels(
+    gray_and_depth: jax.Array, gray_gain: jax.Array | float, depth_offset: jax.Array | float
+) -> jax.Array:
+    """float [..., 2C]: each camera's gray (0-1) then depth (metres) -> uint8 [..., 2C]: the gray times `gray_gain`
+    and the depth plus `depth_offset` over `DEPTH_RANGE`, each clipped to 0-1 and scaled to 0-255."""
+    gray, depth = gray_and_depth[..., 0::2], gray_and_depth[..., 1::2]
+    scaled = jnp.stack([gray * gray_gain, (depth + depth_offset) / DEPTH_RANGE], axis=-1).reshape(gray_and_depth.shape)
+    return jnp.round(jnp.clip(scaled, 0.0, 1.0) * 255.0).astype(jnp.uint8)
 
 
 ParamsT = TypeVar("ParamsT", bound=IkParams)
@@ -231,14 +248,22 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         return bool(self.cameras)
 
     def images(self, sim: SimT, params: ParamsT) -> jax.Array:
-        """`camera_image` of `sim` posed in its episode's model. The pixel observations of `_reset` and `_transition`
-        hold `blank_image` instead, and the base env draws this once per step (see `jaxarm.envs.base`)."""
+        """`camera_image` of `sim` posed in its episode's model, with the params' camera gain and offset. The pixel
+        observations of `_reset` and `_transition` hold `blank_image` instead, and the base env draws this once per
+        step (see `jaxarm.envs.base`)."""
         model = self.episode_model(sim, params)
-        return self.camera_image(model, self.poses(model, sim))
+        return self.camera_image(model, self.poses(model, sim), params.camera_gray_gain, params.camera_depth_offset)
 
-    def camera_image(self, model: mjx.Model, data: mjx.Data) -> jax.Array:
+    def camera_image(
+        self,
+        model: mjx.Model,
+        data: mjx.Data,
+        gray_gain: jax.Array | float = 1.0,
+        depth_offset: jax.Array | float = 0.0,
+    ) -> jax.Array:
         """uint8 [R, R, 2 per camera]: each camera's grayscale, then its depth over `DEPTH_RANGE`, cast in JAX
-        (`camera.render`) from the poses in `data` (after `poses`) and the episode's geom sizes."""
+        (`camera.render`) from the poses in `data` (after `poses`) and the episode's geom sizes, and put through
+        `image_channels` with `gray_gain` and `depth_offset` (metres)."""
         if self._camera_scene is None:
             raise ValueError('obs_mode "state" has no camera: build the env with a pixel obs_mode')
         channels = []
@@ -253,8 +278,8 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
                 data.xpos,
                 data.xmat,
             )
-            channels += [gray, jnp.clip(depth / DEPTH_RANGE, 0.0, 1.0)]
-        return jnp.round(jnp.stack(channels, axis=-1) * 255.0).astype(jnp.uint8)
+            channels += [gray, depth]
+        return image_channels(jnp.stack(channels, axis=-1), gray_gain, depth_offset)
 
     def simulate(self, model: mjx.Model, data: mjx.Data) -> mjx.Data:
         """`data` after `substeps` physics steps (one env step); raises if Warp dropped contacts on the way."""

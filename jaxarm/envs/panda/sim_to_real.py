@@ -1,6 +1,7 @@
 """What separates a simulated Panda from a real one, as functions of env params: servo gains and damping, joint
-friction, force limits, the control period, action latency and sensor noise. Tasks apply them where they build
-their model, act and observe, and their params extend `RobotParams`; nothing here knows about a task.
+friction, force limits, the control period, action latency, sensor noise, and the cameras' gray gain and depth
+offset. Tasks apply them where they build their model, act and observe, and their params extend `RobotParams`;
+nothing here knows about a task.
 """
 
 import jax
@@ -34,6 +35,10 @@ class RobotParams:
       control_period_scale: factor on the physics timestep, so each env step spans `CONTROL_DT` times this of
         simulated time (the substeps per step are fixed when the program is traced; see `CONTROL_PERIOD_SCALES`
         for the range): a control loop that runs slower or faster than its nominal rate.
+      camera_gray_gain: factor on every camera's gray image, clipped to white: lighting and exposure other than
+        the simulated ones (pixel modes only).
+      camera_depth_offset: metres added to every camera's depth, clipped to its range: a depth camera's
+        calibration error (pixel modes only).
     """
 
     action_latency: jax.Array = ranged(NON_NEGATIVE)
@@ -42,11 +47,13 @@ class RobotParams:
     joint_friction_scale: jax.Array = ranged(NON_NEGATIVE)
     force_limit_scale: jax.Array = ranged(POSITIVE)
     control_period_scale: jax.Array = ranged(CONTROL_PERIOD_SCALES)
+    camera_gray_gain: jax.Array = ranged(NON_NEGATIVE)
+    camera_depth_offset: jax.Array = ranged()
 
 
 def robot_defaults() -> dict[str, jax.Array]:
     """`RobotParams`' defaults, the nominal robot: no latency, the model's own gains, damping, friction, force
-    limits and timestep."""
+    limits and timestep, the cameras as simulated."""
     return {
         "action_latency": jnp.array(0, jnp.int32),
         "servo_gain_scale": jnp.array(1.0, jnp.float32),
@@ -54,6 +61,8 @@ def robot_defaults() -> dict[str, jax.Array]:
         "joint_friction_scale": jnp.array(1.0, jnp.float32),
         "force_limit_scale": jnp.array(1.0, jnp.float32),
         "control_period_scale": jnp.array(1.0, jnp.float32),
+        "camera_gray_gain": jnp.array(1.0, jnp.float32),
+        "camera_depth_offset": jnp.array(0.0, jnp.float32),
     }
 
 
