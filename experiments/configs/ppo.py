@@ -314,14 +314,22 @@ def ppo_sorter_pixels() -> PPOConfig:
     return SORTER_PIXELS_PPO
 
 
-@preset("PPO sorter from cameras under randomised physics and sensing, from a ppo_sorter_dr teacher (one GPU)")
+CAMERA_RANDOMIZE = (
+    # Per episode: lighting and exposure 30% either way of the simulated gray, and a depth camera's calibration
+    # error of up to 2 cm. Per-pixel depth noise and the cameras' pose are not modelled.
+    ("camera_gray_gain", "0.7..1.3"),
+    ("camera_depth_offset", "-0.02..0.02"),
+)
+
+
+@preset("PPO sorter from cameras under randomised physics, sensing and cameras, from a ppo_sorter_dr teacher")
 def ppo_sorter_pixels_dr() -> PPOConfig:
-    # The student meets SORTER_RANDOMIZE as its teacher did, so the teacher's labels hold over every draw; twice
-    # the budget, as ppo_sorter_dr takes over ppo_sorter. The cameras themselves are not randomised: the env has
-    # no camera params yet.
+    # The student meets SORTER_RANDOMIZE as its teacher did, so the teacher's labels hold over every draw, and
+    # the cameras' own ranges, which the state teacher does not see; twice the budget, as ppo_sorter_dr takes
+    # over ppo_sorter.
     return dataclasses.replace(
         SORTER_PIXELS_PPO,
         teacher=f"{PRESET_TEACHER}ppo_sorter_dr",
-        randomize=SORTER_RANDOMIZE,
+        randomize=(*SORTER_RANDOMIZE, *CAMERA_RANDOMIZE),
         total_env_steps=20_000_000,
     )
