@@ -44,7 +44,7 @@ from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
-from jaxarm.agents.ppo.distill import PRESET_TEACHER, teacher_input
+from jaxarm.agents.ppo.distill import teacher_input, teacher_preset_name
 from jaxarm.runner import provenance
 
 PROVENANCE_FILE = "provenance.json"
@@ -306,8 +306,7 @@ def read_config(run_dir: pathlib.Path, path: pathlib.Path | None = None) -> tupl
 
 def teacher_preset(config: RunConfig) -> str:
     """The preset `config`'s teacher names (`teacher=preset:NAME`), or "" (a run directory, or no teacher)."""
-    teacher = getattr(config, "teacher", "")
-    return teacher.removeprefix(PRESET_TEACHER) if teacher.startswith(PRESET_TEACHER) else ""
+    return teacher_preset_name(getattr(config, "teacher", "")) or ""
 
 
 def teacher_run(config: RunConfig, run_dir: pathlib.Path | None) -> pathlib.Path | None:

@@ -5,7 +5,7 @@ import dataclasses
 from jaxarm.agents.common.config import RunConfig, dynamic, static
 from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
-from jaxarm.agents.ppo.distill import PRESET_TEACHER
+from jaxarm.agents.ppo.distill import teacher_preset_name
 from jaxarm.ranges import COUNT, DISCOUNT, LEARNING_RATE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, Range
 
 
@@ -104,7 +104,7 @@ class PPOConfig(RunConfig):
         asymmetric critic has no encoder to share, and that a teacher named by preset names one (which one exists,
         the runner checks: presets are not the library's)."""
         super().validate()
-        preset = self.teacher.removeprefix(PRESET_TEACHER) if self.teacher.startswith(PRESET_TEACHER) else None
+        preset = teacher_preset_name(self.teacher)
         if preset == "":
             raise ValueError(f"teacher={self.teacher} names no preset: give teacher=preset:NAME or a run directory")
         if self.teacher_overrides and preset is None:

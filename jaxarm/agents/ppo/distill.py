@@ -22,6 +22,12 @@ Teacher = Callable[[Observation], jax.Array]
 """Observations [N, ...] -> the teacher's deterministic actions [N, A]."""
 
 
+def teacher_preset_name(teacher: str) -> str | None:
+    """The preset a `PPOConfig.teacher` setting names (`preset:NAME` -> NAME; `preset:` alone -> ""), or None for
+    a run directory or no teacher."""
+    return teacher.removeprefix(PRESET_TEACHER) if teacher.startswith(PRESET_TEACHER) else None
+
+
 def teacher_input(obs: Observation) -> Observation:
     """What a teacher reads of observations [N, ...]: their privileged part where they have one, else all."""
     if isinstance(obs, Mapping) and PRIVILEGED in obs:
