@@ -302,7 +302,8 @@ SORTER_PIXELS_PPO = dataclasses.replace(
     # (pre-tanh) instead of 1 keeps the student near the states its own mean policy reaches, which DAgger labels.
     initial_log_std=-1.0,
     # Regressing onto a teacher needs far fewer samples than finding the task by reward, and a pixel step costs
-    # several state steps: a budget that keeps teacher and student together well inside 20 minutes on one GPU.
+    # more than a state step (two images cast, an encoder): a budget meant to keep teacher and student together
+    # well inside 20 minutes on one GPU.
     total_env_steps=10_000_000,
 )
 
