@@ -278,10 +278,16 @@ def _train_teacher(
         if not (run_dir / "config.json").exists():
             rundir.write_config(run_dir, config, preset)
         print(f"teacher stage: {name} into {teacher_dir}", file=sys.stderr)
-    if (teacher_dir / "config.json").exists():
-        result, _ = resume(teacher_dir, options=options)
-    else:
-        result = train(teacher, teacher_dir, preset=name, options=options)
+    try:
+        if (teacher_dir / "config.json").exists():
+            result, _ = resume(teacher_dir, options=options)
+        else:
+            result = train(teacher, teacher_dir, preset=name, options=options)
+    except Exception as error:
+        # Resuming the student's run goes on with its teacher, and then with the student: point there.
+        if getattr(error, "resume_dir", None) is not None:
+            rundir.resumable(error, run_dir)
+        raise
     if result["finished"]:
         return None
     if processes.is_primary():

@@ -3,6 +3,8 @@ finished, resumed in whichever stage a run stopped, and refused in one line wher
 
 import dataclasses
 import json
+import os
+import signal
 
 import pytest
 
@@ -12,8 +14,8 @@ from jaxarm.runner import loop, rundir
 
 TINY = ["num_envs=16", "rollout_length=4", "num_minibatches=2", "updates_per_chunk=2", "eval_episodes=4"]
 """Both stages at a size that compiles and trains in seconds on a CPU."""
-TEACHER_OVERRIDES = (*TINY, "total_env_steps=256", "checkpoint_every_updates=2")
-"""The state teacher: 4 updates in 2 chunks, each checkpointed."""
+TEACHER_OVERRIDES = (*TINY, "total_env_steps=384", "checkpoint_every_updates=2")
+"""The state teacher: 6 updates in 3 chunks, each checkpointed."""
 
 
 def camera_student(*overrides: str):
@@ -33,9 +35,16 @@ def test_a_preset_teacher_trains_first_and_each_stop_resumes_its_own_stage(tmp_p
     run_dir = tmp_path / "student"
     teacher_dir = run_dir / rundir.TEACHER_DIR
 
-    # Stopped in the teacher stage: the student's config is written, so the directory resumes as its run.
-    stopped = loop.train(camera_student(), run_dir, options=loop.Options(stop_after_s=0.0, presets=configs.get))
-    assert not stopped["finished"] and updates_logged(teacher_dir) == [1, 2]
+    # Ctrl-C in the teacher stage (after its first chunk: the stop comes at the next chunk end). The student's
+    # config is written first, so the directory resumes as the student's run.
+    def interrupt_once(updates):
+        if updates == 2:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    options = loop.Options(presets=configs.get, on_chunk=interrupt_once)
+    with pytest.raises(loop.TrainingInterrupted) as interrupted:
+        loop.train(camera_student(), run_dir, options=options)
+    assert interrupted.value.resume_dir == run_dir and updates_logged(teacher_dir) == [1, 2, 3, 4]
     assert rundir.read_config(run_dir)[0].teacher == "preset:ppo_arm2d"
     assert not (run_dir / "checkpoints").exists()
 
@@ -53,7 +62,7 @@ def test_a_preset_teacher_trains_first_and_each_stop_resumes_its_own_stage(tmp_p
         loop.resume(run_dir)
     monkeypatch.undo()
     assert json.loads((teacher_dir / "eval.json").read_text())["finished"]
-    assert updates_logged(teacher_dir) == [1, 2, 3, 4]
+    assert updates_logged(teacher_dir) == [1, 2, 3, 4, 5, 6]
     assert sorted(path.name for path in run_dir.iterdir()) == [".lock", "config.json", rundir.TEACHER_DIR]
     teacher_files = {path: path.stat().st_mtime_ns for path in teacher_dir.rglob("*") if path.is_file()}
 
