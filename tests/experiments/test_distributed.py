@@ -7,6 +7,7 @@ import os
 import socket
 import subprocess
 import sys
+import textwrap
 
 import jax
 import numpy as np
@@ -148,3 +149,41 @@ def test_a_sweep_shared_over_devices_computes_what_one_device_does(tmp_path):
     for single, shared in zip(one, four, strict=True):
         for column in ("success_mean", "return_mean", "return_std"):
             assert float(shared[column]) == pytest.approx(float(single[column]), abs=1e-4)
+
+
+SORTER_START = textwrap.dedent("""
+    import sys, jax
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    jax.distributed.initialize(coordinator_address=sys.argv[1], num_processes=2, process_id=int(sys.argv[2]))
+    from experiments import configs
+    from jaxarm.agents.common.config import apply_overrides
+    from jaxarm.agents.common.sharding import data_mesh, envs_split_over
+    from jaxarm.runner import rundir
+
+    overrides = ["env_kwargs.impl=jax", "num_envs=16", "rollout_length=8", "num_minibatches=2"]
+    config = apply_overrides(configs.get("ppo_sorter"), overrides)
+    with envs_split_over(data_mesh()):
+        trainer = rundir.make_trainer(config)
+        # Lowering embeds every array the program closes over: one on another process's device fails here.
+        jax.jit(trainer.init).lower(jax.random.PRNGKey(0), config.hparams())
+    print("lowered")
+""")
+
+
+@pytest.mark.slow
+def test_every_process_of_a_sorter_run_holds_its_own_mjx_model(tmp_path):
+    # MJX puts a model on jax.devices()[0] unless told: process 0's device, which process 1 cannot close over.
+    coordinator = f"127.0.0.1:{free_port()}"
+    children = [
+        subprocess.Popen(
+            [sys.executable, "-c", SORTER_START, coordinator, str(index)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "JAX_PLATFORMS": "cpu"},
+        )
+        for index in range(2)
+    ]
+    for child in children:
+        out, err = child.communicate(timeout=600)
+        assert child.returncode == 0 and "lowered" in out, err[-3000:]

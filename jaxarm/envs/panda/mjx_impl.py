@@ -150,14 +150,19 @@ def put_scene(
 ) -> tuple[mjx.Model, mjx.Data]:
     """(mjx.Model, initial mjx.Data) of the scene for `impl`. Warp's contact buffer (shared by a batch) holds
     `contacts_per_env` contacts (default: the scene's worst case, `contact_capacity`) for each of `max_envs`
-    envs, and each env's constraint rows the rows of that many contacts (`constraint_capacity`)."""
+    envs, and each env's constraint rows the rows of that many contacts (`constraint_capacity`).
+
+    Both live on this process's first device: MJX's default, `jax.devices()[0]`, is process 0's device in every
+    process of a run of several (`--distributed`), where no other process's program may close over them."""
+    device = jax.local_devices()[0]
     if impl == Impl.JAX:
-        return mjx.put_model(mj_model, impl="jax"), mjx.make_data(mj_model, impl="jax")
+        return mjx.put_model(mj_model, device, impl="jax"), mjx.make_data(mj_model, device, impl="jax")
     if contacts_per_env is not None and contacts_per_env < 1:
         raise ValueError(f"contacts_per_env must be at least 1, got {contacts_per_env}")
-    model = silence_overflow_warnings(mjx.put_model(mj_model, impl="warp"))
+    model = silence_overflow_warnings(mjx.put_model(mj_model, device, impl="warp"))
     data = mjx.make_data(
         mj_model,
+        device,
         impl="warp",
         naconmax=(contacts_per_env or contact_capacity(mj_model)) * max_envs,
         njmax=constraint_capacity(mj_model, contacts_per_env),
