@@ -113,8 +113,8 @@ SORTER_PPO = PPOConfig(
     rollout_length=16,
     num_minibatches=32,
     num_epochs=4,
-    # Each device of up to 8 takes its minibatch shares from its own envs: SGD data-parallel, the same run on
-    # 1, 2, 4 or 8 GPUs (one shuffle over all samples gathered the whole rollout onto every GPU each epoch).
+    # On 1, 2, 4 or 8 GPUs each takes its minibatch shares from its own envs: SGD data-parallel (one shuffle
+    # over all samples gathered the whole rollout onto every GPU each epoch).
     shuffle_groups=8,
     # Wider nets than arm2d's: the observation mixes object and gripper state (54 values for one object).
     policy_hidden_sizes=(256, 256),

@@ -18,9 +18,9 @@ class PPOConfig(RunConfig):
       num_minibatches: minibatches per epoch; T·num_envs must divide by it.
       num_epochs: passes over each rollout.
       shuffle_groups: groups of contiguous envs whose samples are shuffled apart, each minibatch taking an equal
-        share of every group (`train.shuffled_minibatches`). A multiple of the device count keeps every device's
-        minibatch share on that device (data-parallel SGD) and gives the same run on any count dividing it; 1
-        shuffles all samples together.
+        share of every group (`train.shuffled_minibatches`). It defines the run whatever the device count; a
+        multiple of the device count keeps every device's minibatch share on that device (data-parallel SGD).
+        1 shuffles all samples together.
       policy_hidden_sizes: hidden layer sizes of the policy MLP.
       value_hidden_sizes: hidden layer sizes of the value MLP.
       activation: hidden-layer activation, one of `jaxarm.agents.common.networks.ACTIVATIONS`.

@@ -147,7 +147,7 @@ def shuffled_minibatches(config: PPOConfig, samples: Samples, key: jax.Array) ->
     minibatch_size / G samples from each group. A run splits its envs over devices in contiguous blocks, so where
     G is a multiple of the device count each device draws its share of every minibatch from its own samples, and
     the gradient steps run data-parallel; one shuffle over all samples (G = 1) gathers the whole batch onto every
-    device each epoch. A config computes the same run on any device count that divides G.
+    device each epoch. The grouping follows env indices, not devices: a config computes the same run on any count.
     """
     groups = config.shuffle_groups
     per_group = config.env_steps_per_update // groups
