@@ -91,14 +91,22 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
     from jaxarm.runner import rundir, video
     from jaxarm.runner.cache import enable_compilation_cache
 
+    phases = {"imports": time.perf_counter() - began}
     try:
         if args.episodes <= 0:
             raise ValueError(f"--episodes must be positive, got {args.episodes}")
         enable_compilation_cache()
         config, _ = rundir.read_config(run_dir)
+        clock = time.perf_counter()
+        jax.devices()  # starts the backend: its time apart from the env's
+        phases["devices"] = time.perf_counter() - clock
+        clock = time.perf_counter()
         trainer = configs.make_trainer(config, run_dir)
+        phases["env"] = time.perf_counter() - clock
         with rundir.locked(run_dir):
+            clock = time.perf_counter()
             state = rundir.restore_state(run_dir, trainer, config, best=args.best)
+            phases["checkpoint"] = time.perf_counter() - clock
             if args.perturb or args.randomized_ends:
                 write_robustness(run_dir, config, trainer, state, args)
                 return 0
@@ -109,7 +117,7 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
                 f"{run_dir}: success_rate {result['success_rate']:.3f} return_mean {result['return_mean']:.2f} "
                 f"over {result['episodes']} episodes (update {result['checkpoint_update']}; "
                 f"{time.perf_counter() - start:.1f} s with compilation, after {start - began:.1f} s of devices, "
-                "env and checkpoint)",
+                f"env and checkpoint: {', '.join(f'{name} {seconds:.1f} s' for name, seconds in phases.items())})",
                 flush=True,
             )
             path = rundir.eval_path(run_dir, args.episodes, args.seed, "best" if args.best else str(int(state.updates)))

@@ -8,13 +8,15 @@ import pathlib
 
 import jax
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from jaxarm.runner.stats import mean_band
 
 
 def figure(width: float, height: float, columns: int = 1, rows: int = 1):
+    # Imported here: matplotlib takes ~0.7 s to import, which an evaluation or a sweep member never draws.
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
     figure = Figure(figsize=(width, height))
     FigureCanvasAgg(figure)
     return figure, figure.subplots(rows, columns)

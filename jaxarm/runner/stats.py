@@ -3,12 +3,14 @@
 import warnings
 
 import numpy as np
-from scipy import stats
 
 
 def confidence_halfwidth(values: np.ndarray, axis: int = 0) -> np.ndarray:
     """Half-width of the Student-t 95% CI of the mean over `axis`; NaNs are left out, and where fewer than
     2 values remain the half-width is 0."""
+    # Imported here: scipy.stats takes ~1 s to import, which every command that never draws a band would pay.
+    from scipy import stats
+
     values = np.asarray(values, float)
     count = np.sum(~np.isnan(values), axis=axis)
     # Columns with fewer than 2 values get 0 below; numpy warns about them ("Degrees of freedom <= 0").
