@@ -14,7 +14,7 @@ import pytest
 
 from experiments import configs, transfer
 from experiments.benchmarks.deploy import random_policy
-from jaxarm.envs.panda.robot import resolve_panda_ids, tcp_pose_at
+from jaxarm.envs.panda.robot import MENAGERIE_TIMESTEP, resolve_panda_ids, tcp_pose_at
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.peg_insert.env import PegInsert
 from jaxarm.runner import rundir
@@ -25,9 +25,9 @@ def test_both_pandas_have_the_same_kinematics_and_the_stock_solver():
     params = env.default_params()
     models = [transfer.plant_model(env, params, name) for name in transfer.MODELS]
     default = mujoco.MjModel.from_xml_string("<mujoco/>").opt
-    for model in models:
-        assert model.opt.iterations == default.iterations and model.opt.timestep == env.mj_model.opt.timestep
+    assert all(model.opt.iterations == default.iterations for model in models)
     jaxarm, menagerie = models
+    assert jaxarm.opt.timestep == env.mj_model.opt.timestep and menagerie.opt.timestep == MENAGERIE_TIMESTEP
     # Menagerie's own dynamics: another gripper drive, other link inertias.
     assert menagerie.nu == jaxarm.nu - 1
     assert not np.allclose(menagerie.body("link1").inertia, jaxarm.body("link1").inertia)
@@ -37,6 +37,33 @@ def test_both_pandas_have_the_same_kinematics_and_the_stock_solver():
         (tcp_a, rotation_a), (tcp_b, rotation_b) = (tcp_pose_at(m, resolve_panda_ids(m), arm_q) for m in models)
         np.testing.assert_allclose(tcp_a, tcp_b, atol=1e-9)
         np.testing.assert_allclose(rotation_a, rotation_b, atol=1e-6)
+
+
+def wrist_step_response(model: mujoco.MjModel, start_qpos: np.ndarray, seconds: float) -> np.ndarray:
+    """Joint 7's angle [T] after each physics step of `seconds`, its target stepped 0.1 rad from rest at
+    `start_qpos` [7] (the other joints held)."""
+    ids = resolve_panda_ids(model)
+    data = mujoco.MjData(model)
+    data.qpos[ids.arm_qpos] = start_qpos
+    data.ctrl[ids.arm_actuators] = start_qpos
+    data.ctrl[ids.arm_actuators[6]] += 0.1
+    angles = []
+    for _ in range(round(seconds / model.opt.timestep)):
+        mujoco.mj_step(model, data)
+        angles.append(data.qpos[ids.arm_qpos[6]])
+    return np.array(angles) - start_qpos[6]
+
+
+def test_menageries_wrist_follows_a_target_step_at_the_plants_timestep():
+    env = PandaSort()
+    model = transfer.plant_model(env, env.default_params(), "menagerie")
+    angle = wrist_step_response(model, env.start_qpos, 0.4)
+    np.testing.assert_allclose(angle[-1], 0.1, rtol=0.05)
+    # No chatter between its force limits: the joint turns one way, as jaxarm's wrist does at the scene's 0.01 s.
+    assert np.all(np.diff(angle) > -1e-5)
+    # The scene's timestep is what its servos can not take (the reason for MENAGERIE_TIMESTEP).
+    model.opt.timestep = env.mj_model.opt.timestep
+    assert wrist_step_response(model, env.start_qpos, 0.4)[-1] < 0.08
 
 
 def test_each_pandas_scene_gets_the_episodes_objects_on_its_own_bodies():

@@ -21,6 +21,11 @@ from jaxarm.deploy.limits import ARM_SPEED_LIMITS as ARM_SPEED_LIMITS
 PANDA_XML = Path(__file__).parent / "assets" / "panda.xml"
 MENAGERIE_PANDA_XML = Path(__file__).parent / "assets" / "menagerie" / "panda.xml"
 """MuJoCo Menagerie's Panda with the names the scenes use (assets/menagerie/README.md): a robot jaxarm did not write."""
+MENAGERIE_TIMESTEP = 0.002
+"""The physics timestep menagerie's Panda is simulated at: its panda.xml sets none, so MuJoCo's default. Its wrist
+servos (kp 2000, kv 200, clamped at 12 N·m) need it: at the scenes' 0.01 s a clamped servo's damping acts
+explicitly (200 · 0.01 / ~0.11 kg·m², beyond the stable 2), and in MuJoCo C the wrist chattered between its force
+limits, ending a 0.1 rad target step at 56% after 0.4 s (at 0.002 s: 98%, as jaxarm's wrist at 0.01 s)."""
 SCENE_INCLUDE = 'file="../../panda/assets/panda.xml"'
 """How each task's scene.xml includes the Panda."""
 FINGER_JOINTS = ("finger_left", "finger_right")
