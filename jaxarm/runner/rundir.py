@@ -28,6 +28,7 @@ import contextlib
 import dataclasses
 import errno
 import fcntl
+import functools
 import json
 import os
 import pathlib
@@ -346,9 +347,11 @@ def load_teacher(run_dir: pathlib.Path):
 def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig, best: bool = False, shardings=None):
     """The latest checkpointed learner state of `run_dir`, or with `best` the one that scored best in evaluation
     during training (CheckpointError if none or mismatched), placed with `shardings` (a pytree like the state;
-    None: on this process's first device)."""
-    like = jax.eval_shape(trainer.init, jax.random.PRNGKey(config.seed), config.hparams())
-    return checkpoint.restore(run_dir / ("best" if best else "checkpoints"), like, shardings=shardings)
+    None: on this process's first device); leaves added to the learner since it was saved start fresh."""
+    key, hparams = jax.random.PRNGKey(config.seed), config.hparams()
+    like = jax.eval_shape(trainer.init, key, hparams)
+    fresh = functools.partial(jax.jit(trainer.init, out_shardings=shardings), key, hparams)
+    return checkpoint.restore(run_dir / ("best" if best else "checkpoints"), like, shardings=shardings, fresh=fresh)
 
 
 def warm_starter(config: RunConfig) -> Callable[[Any], Any]:

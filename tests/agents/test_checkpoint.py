@@ -1,10 +1,11 @@
-"""Checkpoints read back on another machine's devices."""
+"""Checkpoints read back on another machine's devices, and by a learner that has gained leaves since."""
 
 import json
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from jaxarm.agents.common import checkpoint
 
@@ -44,3 +45,22 @@ def test_latest_step_looks_again_when_a_live_run_prunes_a_step_it_is_listing(tmp
     monkeypatch.setattr(checkpoint.ocp, "CheckpointManager", pruned_while_listing)
     assert checkpoint.latest_step(tmp_path) == 3
     assert len(calls) == 2
+
+
+def test_a_checkpoint_lacking_leaves_added_since_takes_them_from_a_fresh_state(tmp_path):
+    saved = {"params": jnp.arange(3.0), "env": {"mass": jnp.ones(4)}}
+    checkpoint.save(tmp_path, 5, saved)
+    fresh = {"params": jnp.zeros(3), "env": {"mass": jnp.zeros(4), "gain": jnp.full(4, 2.0)}}
+
+    with pytest.warns(UserWarning, match=r"predates 1 leaves of this learner \(env.gain\)"):
+        restored = checkpoint.restore(tmp_path, jax.eval_shape(lambda: fresh), fresh=lambda: fresh)
+
+    np.testing.assert_array_equal(restored["params"], saved["params"])
+    np.testing.assert_array_equal(restored["env"]["mass"], saved["env"]["mass"])
+    np.testing.assert_array_equal(restored["env"]["gain"], fresh["env"]["gain"])
+    # Without a fresh state, or where a saved leaf is gone or reshaped, the mismatch stays an error.
+    with pytest.raises(checkpoint.CheckpointError, match="cannot be restored"):
+        checkpoint.restore(tmp_path, jax.eval_shape(lambda: fresh))
+    for other in ({"params": jnp.zeros(3), "env": {"gain": jnp.ones(4)}}, {**fresh, "params": jnp.zeros(2)}):
+        with pytest.raises(checkpoint.CheckpointError, match="cannot be restored"):
+            checkpoint.restore(tmp_path, jax.eval_shape(lambda other=other: other), fresh=lambda other=other: other)

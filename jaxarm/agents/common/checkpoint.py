@@ -11,6 +11,9 @@ import errno
 import logging
 import os
 import pathlib
+import warnings
+from collections.abc import Callable
+from typing import Any
 
 import jax
 import orbax.checkpoint as ocp
@@ -105,11 +108,16 @@ def _listed_latest_step(directory: pathlib.Path) -> int | None:
         return manager.latest_step()
 
 
-def restore(directory: pathlib.Path, like, step: int | None = None, shardings=None):
+def restore(
+    directory: pathlib.Path, like, step: int | None = None, shardings=None, fresh: Callable[[], Any] | None = None
+):
     """Restores the checkpoint `step` (default: latest) into the structure, shapes and dtypes of `like`, placed
     with `shardings` (a pytree of shardings like `like`; None: every leaf on this process's first device).
 
-    Raises CheckpointError when there is none, or when it cannot be read into `like`.
+    A checkpoint saved before the learner gained leaves (an env param added since, in the envs' state) restores
+    with those leaves taken from `fresh()` (a state like `like`, placed the same), with a warning naming them; no
+    other difference is forgiven. Raises CheckpointError when there is no checkpoint, or when it cannot be read
+    into `like`.
     """
     step = latest_step(directory) if step is None else step
     if step is None:
@@ -126,12 +134,47 @@ def restore(directory: pathlib.Path, like, step: int | None = None, shardings=No
         with _quiet_orbax(), _manager(directory) as manager:
             restored = manager.restore(step, args=ocp.args.StandardRestore(abstract))
     except Exception as error:  # orbax raises many types for corrupt and mismatched trees
-        raise CheckpointError(
-            f"checkpoint {step} in {directory} cannot be restored into this learner "
-            f"(corrupt, or saved by a different config): {type(error).__name__}: {str(error)[:300]}"
-        ) from error
+        restored = None if fresh is None else _restore_with_additions(directory, step, abstract, fresh)
+        if restored is None:
+            raise CheckpointError(
+                f"checkpoint {step} in {directory} cannot be restored into this learner "
+                f"(corrupt, or saved by a different config): {type(error).__name__}: {str(error)[:300]}"
+            ) from error
     _check_matches(restored, like, directory, step)
     return restored
+
+
+def _leaf_name(path) -> str:
+    """A leaf's path as orbax names it in a checkpoint (`env_state.sim.params.mass_scale`)."""
+    return ".".join(str(getattr(key, "name", getattr(key, "key", getattr(key, "idx", key)))) for key in path)
+
+
+def _restore_with_additions(directory: pathlib.Path, step: int, abstract, fresh: Callable[[], Any]):
+    """`abstract`'s tree from checkpoint `step`, where the checkpoint lacks some of its leaves and has no other:
+    the saved leaves restored, the others from `fresh()`; None where the trees differ otherwise."""
+    try:
+        with _quiet_orbax():
+            saved = ocp.StandardCheckpointer().metadata(directory / str(step) / "default").item_metadata
+    except Exception:  # unreadable metadata: the caller's error says the checkpoint is corrupt
+        return None
+    saved_shapes = {leaf.name: (tuple(leaf.shape), leaf.dtype) for leaf in jax.tree.leaves(saved)}
+    wanted = {_leaf_name(path): leaf for path, leaf in jax.tree_util.tree_flatten_with_path(abstract)[0]}
+    added = sorted(set(wanted) - set(saved_shapes))
+    kept_as_saved = all(
+        name in wanted and (wanted[name].shape, wanted[name].dtype) == shape for name, shape in saved_shapes.items()
+    )
+    if not added or not kept_as_saved:
+        return None
+    target = jax.tree.map(lambda leaf: wanted[leaf.name], saved)
+    with _quiet_orbax(), _manager(directory) as manager:
+        restored = manager.restore(step, args=ocp.args.StandardRestore(target))
+    by_name = {_leaf_name(path): leaf for path, leaf in jax.tree_util.tree_flatten_with_path(restored)[0]}
+    warnings.warn(
+        f"checkpoint {step} in {directory} predates {len(added)} leaves of this learner ({', '.join(added[:4])}"
+        f"{', ...' if len(added) > 4 else ''}): they take a fresh state's values",
+        stacklevel=3,
+    )
+    return jax.tree_util.tree_map_with_path(lambda path, leaf: by_name.get(_leaf_name(path), leaf), fresh())
 
 
 def _check_matches(restored, like, directory, step) -> None:
