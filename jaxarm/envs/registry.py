@@ -1,12 +1,16 @@
 """Named envs: `make(name, **kwargs)` builds one (once per arguments), `names()` lists them, `override_params`
 edits params.
 
+Env kwargs are flat (`env_kwargs.impl=warp` in a config): an env whose constructor takes an options record (the
+Panda tasks' `PandaOptions`) gets those naming its fields gathered into it (`constructor_kwargs`).
+
 Factories import their module lazily so that making arm2d never imports MuJoCo.
 """
 
 import dataclasses
 import difflib
 import importlib
+import inspect
 from collections.abc import Mapping
 from typing import Any
 
@@ -30,7 +34,31 @@ class EnvEntry:
         return getattr(importlib.import_module(module_name), class_name)
 
     def build(self, **kwargs):
-        return self.env_class()(**{**self.kwargs, **kwargs})
+        cls = self.env_class()
+        return cls(**constructor_kwargs(cls, {**self.kwargs, **kwargs}))
+
+
+OPTIONS = "options"
+"""The constructor keyword of an env's options record."""
+
+
+def options_class(cls: type) -> type | None:
+    """The options record (a frozen dataclass) `cls`'s constructor takes: its `options` keyword's default's type;
+    None for a constructor without one."""
+    parameter = inspect.signature(cls).parameters.get(OPTIONS)
+    return None if parameter is None else type(parameter.default)
+
+
+def constructor_kwargs(cls: type, kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """Flat env kwargs as `cls`'s constructor takes them: those naming a field of its options record (if it has one
+    and `kwargs` gives none) gathered into one under `options`; the rest as they are, an unknown one for the
+    constructor to refuse."""
+    options = options_class(cls)
+    if options is None or OPTIONS in kwargs:
+        return dict(kwargs)
+    fields = {field.name for field in dataclasses.fields(options)}
+    own = {name: value for name, value in kwargs.items() if name not in fields}
+    return {**own, OPTIONS: options(**{name: value for name, value in kwargs.items() if name in fields})}
 
 
 _REGISTRY: dict[str, EnvEntry] = {}

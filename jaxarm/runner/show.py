@@ -16,6 +16,7 @@ import numpy as np
 
 from jaxarm import envs, ranges
 from jaxarm.agents.common.config import RunConfig
+from jaxarm.envs.registry import OPTIONS, options_class
 
 _ENTRY = re.compile(r"^\s{2,}(\w+): (.*)$")
 _SECTION = re.compile(r"^\s{0,4}[A-Z]\w*( \(.*\))?:$")
@@ -96,17 +97,25 @@ def env_param_lines(config: RunConfig) -> list[str]:
 
 
 def env_kwarg_lines(config: RunConfig) -> list[str]:
-    """One line per constructor argument of the config's env: name, the value the config builds it with (and the
-    constructor's default where it differs), doc (from the class's `Args:`)."""
+    """One line per constructor argument of the config's env (each field of its options record, `PandaOptions`, as
+    one): name, the value the config builds it with (and the default where it differs), doc (from the class's
+    `Args:`, the options record's `Attributes:`)."""
     env, _ = config.make_env(randomized=False)  # the env itself, no Randomized wrapper
     cls = type(env)
     built = {**envs.registered_kwargs(config.env), **dict(config.env_kwargs)}
     docs = attribute_docs(cls, "Args")
+    defaults = {
+        name: parameter.default
+        for name, parameter in inspect.signature(cls).parameters.items()
+        if name != OPTIONS and parameter.kind not in (parameter.VAR_POSITIONAL, parameter.VAR_KEYWORD)
+    }
+    options = options_class(cls)
+    if options is not None:
+        defaults.update({field.name: field.default for field in dataclasses.fields(options)})
+        docs.update(attribute_docs(options))
     lines = []
-    for name, parameter in inspect.signature(cls.__init__).parameters.items():
-        if name == "self" or parameter.kind in (parameter.VAR_POSITIONAL, parameter.VAR_KEYWORD):
-            continue
-        default = _enum_value(parameter.default)
+    for name, default in defaults.items():
+        default = _enum_value(default)
         value = _enum_value(built.get(name, default))
         changed = "" if value == default else f"  (default {default!r})"
         lines.append(f"  env_kwargs.{name} = {value!r}{changed}")

@@ -17,7 +17,10 @@ import pytest
 
 from jaxarm import envs
 from jaxarm.envs.observation import IMAGE
+from jaxarm.envs.panda.base import PandaOptions
+from jaxarm.envs.peg_insert import PegInsert
 from jaxarm.envs.randomize import ParamRange, Randomized
+from jaxarm.envs.registry import constructor_kwargs
 from tests.envs.compiled import compiled, same_worker
 
 ROLLOUT_STEPS = 8
@@ -189,6 +192,15 @@ def test_check_action_rejects_nan_and_wrong_shape(env_and_params):
 def test_unknown_env_name_names_the_closest():
     with pytest.raises(KeyError, match="did you mean 'arm2d'"):
         envs.make("arm2dd")
+
+
+def test_flat_env_kwargs_fill_a_panda_tasks_options_and_an_unknown_one_is_refused():
+    flat = {"impl": "jax", "dynamics": "franka", "max_action_latency": 1}
+    options = PandaOptions(impl="jax", max_action_latency=1)
+    assert constructor_kwargs(PegInsert, flat) == {"dynamics": "franka", "options": options}
+    assert constructor_kwargs(PegInsert, {"options": options}) == {"options": options}
+    with pytest.raises(TypeError, match="unexpected keyword argument 'max_action_latancy'"):
+        envs.make("peg_insert", max_action_latancy=1)
 
 
 def test_a_diverged_step_terminates_with_zero_observation_and_reward():

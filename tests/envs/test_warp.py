@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from jaxarm import envs
-from jaxarm.envs.panda.base import CONTROL_DT, WARP_TIMESTEP
+from jaxarm.envs.panda.base import CONTROL_DT, WARP_TIMESTEP, PandaOptions
 from jaxarm.envs.panda.mjx_impl import (
     Impl,
     constraint_capacity,
@@ -61,7 +61,7 @@ def test_an_unknown_impl_is_refused_by_name():
 @pytest.mark.skipif(warp_available(), reason="warp-lang is installed here")
 def test_warp_without_warp_lang_says_what_is_missing():
     with pytest.raises(ValueError, match="warp-lang"):
-        PegInsert(impl="warp")
+        PegInsert(options=PandaOptions(impl="warp"))
 
 
 def test_buffers_are_sized_from_the_scene_pairs():
@@ -132,9 +132,12 @@ def rollout(env, params, state, actions):
 
 def make_env(name: str, impl: str) -> PandaSort | PegInsert:
     """The env compared as `name` ("sort1", "sort3" or "peg") on MJX implementation `impl`."""
+    options = PandaOptions(impl=impl)
     if name == "peg":
-        return PegInsert(impl=impl)
-    return PandaSort(objects_count=3, target_first=True, impl=impl) if name == "sort3" else PandaSort(impl=impl)
+        return PegInsert(options=options)
+    if name == "sort3":
+        return PandaSort(objects_count=3, target_first=True, options=options)
+    return PandaSort(options=options)
 
 
 def on_one_timestep_without_force_limits(env: PandaSort | PegInsert) -> PandaSort | PegInsert:
@@ -169,7 +172,7 @@ def test_scripted_pick_and_place_scores_500_on_warp():
     pytest.importorskip("warp")
     from tests.envs.test_panda_sort import JittedStep, scripted_pick_and_place, with_object
 
-    env = PandaSort(objects_count=1, impl="warp")
+    env = PandaSort(objects_count=1, options=PandaOptions(impl="warp"))
     params = env.default_params()
     size, yaw = 0.0375, np.pi / 4
     pose = [0.5, -0.1, size + 0.001, np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)]
@@ -183,9 +186,9 @@ def test_scripted_pick_and_place_scores_500_on_warp():
 
 def test_warp_steps_the_panda_at_its_own_timestep():
     pytest.importorskip("warp")
-    assert PegInsert(impl="warp").mj_model.opt.timestep == WARP_TIMESTEP
-    assert PandaSort(impl="warp").substeps == round(CONTROL_DT / WARP_TIMESTEP)
-    assert PandaSort(impl="jax").substeps == 4
+    assert PegInsert(options=PandaOptions(impl="warp")).mj_model.opt.timestep == WARP_TIMESTEP
+    assert PandaSort(options=PandaOptions(impl="warp")).substeps == round(CONTROL_DT / WARP_TIMESTEP)
+    assert PandaSort(options=PandaOptions(impl="jax")).substeps == 4
 
 
 def scripted_placements(env: PandaSort, num_envs: int, steps: int = 250) -> float:
@@ -221,20 +224,20 @@ def test_scripted_pick_and_place_places_most_objects_on_warp():
     pytest.importorskip("warp")
     # At MJX-JAX's 0.01 s step Warp placed 32% (1,024 envs, H100; see WARP_TIMESTEP); at 0.005 s 82% (1,024
     # envs, H100), 80% (64) and 72% (these 32) on the CPU, against 91-95% on MJX-JAX.
-    assert scripted_placements(PandaSort(objects_count=1, impl="warp", max_envs=32), 32) >= 0.6
+    assert scripted_placements(PandaSort(objects_count=1, options=PandaOptions(impl="warp", max_envs=32)), 32) >= 0.6
 
 
 def test_warp_kernels_print_no_overflow_warnings():
     pytest.importorskip("warp")
     # The overflow bits stay set (the test below raises on them); only the GPU's printing is off.
-    assert PandaSort(impl="warp").mjx_model.opt._impl.warn_overflow == 0
-    assert PegInsert(impl="warp").mjx_model.opt._impl.warn_overflow == 0
+    assert PandaSort(options=PandaOptions(impl="warp")).mjx_model.opt._impl.warn_overflow == 0
+    assert PegInsert(options=PandaOptions(impl="warp")).mjx_model.opt._impl.warn_overflow == 0
 
 
 def test_a_contact_buffer_too_small_for_the_batch_raises():
     pytest.importorskip("warp")
     # Room for one env's worst case, shared by 64 envs whose objects rest on the table (4+ contacts each).
-    env = PandaSort(objects_count=1, impl="warp", max_envs=1)
+    env = PandaSort(objects_count=1, options=PandaOptions(impl="warp", max_envs=1))
     params = env.default_params()
     batch = envs.VmapEnv(env, 64)
     state = jax.jit(batch.reset)(jax.random.key(0), params)

@@ -70,6 +70,13 @@ def test_show_lists_the_env_constructor_arguments_with_defaults_and_docs(capsys)
     assert "env_kwargs.resolution = 24  (default 64)" in out and "env_kwargs.num_links = 2\n" in out
 
 
+def test_show_lists_a_panda_envs_options_as_flat_env_kwargs(capsys):
+    assert run.main(["--config", "ppo_peg", "--show", "env_kwargs.max_action_latency=1"]) == 0
+    out = capsys.readouterr().out
+    assert "env_kwargs.max_action_latency = 1  (default 2)" in out and "env_kwargs.dynamics = " in out
+    assert "env_kwargs.options" not in out and "the most control steps of action latency" in out
+
+
 def test_list_describes_every_preset_in_one_line(capsys):
     assert run.main(["--list"]) == 0
     lines = capsys.readouterr().out.splitlines()

@@ -8,6 +8,7 @@ drawn (`_pose_for_drawing`). Nothing here knows about a task, and no task module
 
 import abc
 import copy
+import dataclasses
 from typing import Generic, NamedTuple, Protocol, TypeVar
 
 import jax
@@ -102,19 +103,12 @@ def image_channels(
     return jnp.round(jnp.clip(scaled, 0.0, 1.0) * 255.0).astype(jnp.uint8)
 
 
-ParamsT = TypeVar("ParamsT", bound=IkParams)
-SimT = TypeVar("SimT", bound=PandaSimState)
-IdsT = TypeVar("IdsT", bound=TaskIds)
+@dataclasses.dataclass(frozen=True)
+class PandaOptions:
+    """How a Panda env is built, whatever its task: its physics, its buffers and what it observes. Frozen and
+    hashable; configs set each field by name as a flat env kwarg (`env_kwargs.impl=warp`, `jaxarm.envs.registry`).
 
-
-class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
-    """Base of the Panda envs: the compiled scene, its MJX copy and the robot's control, shared by every task.
-
-    Args:
-      mj_model: the task's compiled scene.
-      ids: the task's ids, resolved in `mj_model`.
-      start_tcp: [3] tool-centre position of the arm's start posture (`start_qpos`), pointing down; the IK's
-        null space pulls the arm towards that posture.
+    Attributes:
       impl: MJX implementation of the physics: "jax", "warp" (NVIDIA's Warp; needs warp-lang and a CUDA GPU
         or the CPU) or "auto" (Warp on an NVIDIA GPU when warp-lang is importable, else JAX).
       max_envs: Warp only: its contact buffer, shared by all envs of a batch, holds `contacts_per_env` contacts
@@ -131,6 +125,37 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         randomised presets draw up to two.
       privileged: a pixel mode's observation also holds the state observation of the same step
         ({"privileged": [S]}, for a learner's critic: `jaxarm.envs.observation`).
+    """
+
+    impl: str = Impl.JAX
+    max_envs: int = 4096
+    contacts_per_env: int | None = None
+    obs_mode: str = "state"
+    resolution: int = 64
+    cameras: tuple[str, ...] = CAMERAS
+    max_action_latency: int = 2
+    privileged: bool = False
+
+    def __post_init__(self):
+        check_obs_mode(self.obs_mode, self.resolution, self.privileged)
+        if self.max_action_latency < 0:
+            raise ValueError(f"max_action_latency must be >= 0, got {self.max_action_latency}")
+
+
+ParamsT = TypeVar("ParamsT", bound=IkParams)
+SimT = TypeVar("SimT", bound=PandaSimState)
+IdsT = TypeVar("IdsT", bound=TaskIds)
+
+
+class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
+    """Base of the Panda envs: the compiled scene, its MJX copy and the robot's control, shared by every task.
+
+    Args:
+      mj_model: the task's compiled scene.
+      ids: the task's ids, resolved in `mj_model`.
+      start_tcp: [3] tool-centre position of the arm's start posture (`start_qpos`), pointing down; the IK's
+        null space pulls the arm towards that posture.
+      options: the construction choices every task shares (`PandaOptions`).
 
     Attributes:
       mj_model: the compiled scene as built (drawing poses a copy of it).
@@ -140,7 +165,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       mjx_model: `mj_model` on the device; tasks replace its per-episode fields in `episode_model`.
       home_tcp_rotation: [3, 3] tool-centre orientation at HOME_QPOS (pointing down, yaw 0).
       start_qpos: [7] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
-      obs_mode, resolution, max_action_latency, privileged: as given.
+      obs_mode, resolution, max_action_latency, privileged: as in `options`.
       cameras: the `camera.Camera`s of `cameras`, resolved once (none in "state" mode).
     """
 
@@ -152,30 +177,20 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         mj_model: mujoco.MjModel,
         ids: IdsT,
         start_tcp: np.ndarray,
-        impl: str = Impl.JAX,
-        max_envs: int = 4096,
-        contacts_per_env: int | None = None,
-        obs_mode: str = "state",
-        resolution: int = 64,
-        cameras: tuple[str, ...] = CAMERAS,
-        max_action_latency: int = 2,
-        privileged: bool = False,
+        options: PandaOptions,
     ):
-        check_obs_mode(obs_mode, resolution, privileged)
-        if max_action_latency < 0:
-            raise ValueError(f"max_action_latency must be >= 0, got {max_action_latency}")
-        self.max_action_latency = max_action_latency
-        self.obs_mode = obs_mode
-        self.resolution = resolution
-        self.privileged = privileged
+        self.max_action_latency = options.max_action_latency
+        self.obs_mode = options.obs_mode
+        self.resolution = options.resolution
+        self.privileged = options.privileged
         # Resolved only where they are observed: a state-only scene need not declare cameras, nor keep to the
         # primitive geoms the caster draws.
         self.cameras: tuple[camera.Camera, ...] = ()
         self._camera_scene: camera.Scene | None = None
-        if obs_mode != "state":
-            self.cameras = tuple(camera.Camera.from_model(mj_model, name) for name in cameras)
+        if options.obs_mode != "state":
+            self.cameras = tuple(camera.Camera.from_model(mj_model, name) for name in options.cameras)
             self._camera_scene = camera.Scene.from_model(mj_model)
-        self.impl = resolve_impl(impl)
+        self.impl = resolve_impl(options.impl)
         if self.impl == Impl.WARP:
             mj_model = copy.copy(mj_model)  # the builders cache their models
             mj_model.opt.timestep = min(WARP_TIMESTEP, mj_model.opt.timestep)
@@ -183,7 +198,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         self._drawing: Drawing | None = None
         self.ids = ids
         self.substeps = int(round(CONTROL_DT / mj_model.opt.timestep))
-        self.mjx_model, self._data0 = put_scene(mj_model, self.impl, max_envs, contacts_per_env)
+        self.mjx_model, self._data0 = put_scene(mj_model, self.impl, options.max_envs, options.contacts_per_env)
         self.home_tcp_rotation = tcp_pose_at(mj_model, ids.robot, HOME_QPOS)[1]
         self.start_qpos = self.solve_posture(start_tcp)
 

@@ -30,9 +30,9 @@ import numpy as np
 from mujoco import mjx
 
 from jaxarm.envs.base import Env, Observation, Transition
-from jaxarm.envs.panda.base import CAMERAS, PandaBase
+from jaxarm.envs.panda.base import PandaBase, PandaOptions
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
-from jaxarm.envs.panda.mjx_impl import Impl, with_geom_sizes
+from jaxarm.envs.panda.mjx_impl import with_geom_sizes
 from jaxarm.envs.panda.robot import (
     FINGER_OPEN,
     advanced_target,
@@ -110,10 +110,6 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         objects starting from it (slots in cyclic order), and the shaping terms follow it alone, so a policy
         always finds the object to work on in the first slot and several objects become the one-object task
         repeated. With one object nothing changes.
-      max_action_latency: the most steps of action latency the params may ask for, as `PandaBase`'s.
-      impl, max_envs, contacts_per_env: the MJX implementation and Warp's buffer sizing, as `PandaBase`'s.
-      obs_mode, resolution, cameras, privileged: the observation (the module docstring says what each mode holds), as
-        `PandaBase`'s.
       dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
         published values, `jaxarm.envs.panda.franka_dynamics`).
       running_target: an action moves the target the servos chase (the tool-centre pose in `ee` mode, the joint
@@ -121,6 +117,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         `max_yaw_lead` or `max_joint_lead` of what is measured, so a step's action is the motion it gets once
         under way; the observation adds the servos' lead (`SERVO_LEAD_OBS_SIZE`). Without it (the default) each
         step's target starts from the measured pose and the servos cover about a third of the step.
+      options: the physics, its buffers and the observation (`PandaOptions`; the module docstring says what each
+        observation mode holds).
     """
 
     # jaxlib 0.10.2's CPU runtime deadlocked on this env at 256 envs (one object) and 128 (three): two batched
@@ -134,16 +132,10 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         blocker: bool = False,
         tosser: bool = False,
         target_first: bool = False,
-        max_action_latency: int = 2,
-        impl: str = Impl.JAX,
-        max_envs: int = 4096,
-        contacts_per_env: int | None = None,
-        obs_mode: str = "state",
-        resolution: int = 64,
-        cameras: tuple[str, ...] = CAMERAS,
         dynamics: str = NOMINAL,
         running_target: bool = False,
-        privileged: bool = False,
+        *,
+        options: PandaOptions = PandaOptions(),
     ):
         if not 1 <= objects_count <= 5:
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")
@@ -159,19 +151,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         spawn_centre = (np.array(self.layout.spawn_low) + np.array(self.layout.spawn_high)) / 2
         start_tcp = np.r_[spawn_centre, START_HEIGHT]
         ids = resolve_ids(mj_model, objects_count)
-        super().__init__(
-            mj_model,
-            ids,
-            start_tcp,
-            impl,
-            max_envs,
-            contacts_per_env,
-            obs_mode,
-            resolution,
-            cameras,
-            max_action_latency=max_action_latency,
-            privileged=privileged,
-        )
+        super().__init__(mj_model, ids, start_tcp, options)
         self.grasp_qpos = self.solve_posture(np.r_[spawn_centre, GRASP_HEIGHT])
         state_size = OBJECT_OBS_SIZE * objects_count + self.tool_obs_size
         self.spec = self.observation_spec(state_size, self.tool_obs_size, 5 if control_mode == MODE_EE else 8)

@@ -27,9 +27,9 @@ from flax import struct
 from mujoco import mjx
 
 from jaxarm.envs.base import Observation, Transition
-from jaxarm.envs.panda.base import CAMERAS, PandaBase
+from jaxarm.envs.panda.base import PandaBase, PandaOptions
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
-from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, with_geom_sizes
+from jaxarm.envs.panda.mjx_impl import check_no_overflow, with_geom_sizes
 from jaxarm.envs.panda.robot import advanced_target
 from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_robot_params
 from jaxarm.envs.peg_insert.model import (
@@ -100,39 +100,16 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     """The Panda inserting a peg held in its hand into a square hole shifted at random every episode.
 
     Args:
-      max_action_latency, impl, max_envs, contacts_per_env, obs_mode, resolution, cameras, privileged: as
-        `PandaBase`'s (the module docstring says what each observation mode holds).
       dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
         published values, `jaxarm.envs.panda.franka_dynamics`).
+      options: the physics, its buffers and the observation (`PandaOptions`; the module docstring says what each
+        observation mode holds).
     """
 
-    def __init__(
-        self,
-        max_action_latency: int = 2,
-        impl: str = Impl.JAX,
-        max_envs: int = 4096,
-        contacts_per_env: int | None = None,
-        obs_mode: str = "state",
-        resolution: int = 64,
-        cameras: tuple[str, ...] = CAMERAS,
-        dynamics: str = NOMINAL,
-        privileged: bool = False,
-    ):
+    def __init__(self, dynamics: str = NOMINAL, *, options: PandaOptions = PandaOptions()):
         mj_model = build_model(dynamics=dynamics)
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
-        super().__init__(
-            mj_model,
-            resolve_ids(mj_model),
-            start_tcp,
-            impl,
-            max_envs,
-            contacts_per_env,
-            obs_mode,
-            resolution,
-            cameras,
-            max_action_latency=max_action_latency,
-            privileged=privileged,
-        )
+        super().__init__(mj_model, resolve_ids(mj_model), start_tcp, options)
         self.spec = self.observation_spec(STATE_OBS_SIZE, 9, 3)
 
     def default_params(self) -> PegInsertParams:
