@@ -1,11 +1,11 @@
 """Allowed values of config fields and env params, declared beside each field, and the checks that enforce them.
 
-A field states its range once, in its dataclass metadata (`Range` under the key `RANGE`): run configs through
-`static(...)` and `dynamic(...)` (jaxarm.agents.common.config), env params through `ranged(...)`. The checks
-here are generic: beyond each field's declared range, every float must be finite and every integer must fit in
-int32 (the dtype of jaxarm's update counters, indices and int params), or in int64 where the range says the count
-lives on the host alone (`Range.host_count`: a budget in env steps). Messages name the field and what it must be,
-in one line. Nothing here runs inside jit: params made inside a compiled program are not checked, and the envs
+A field states its range once, beside its default, in its dataclass metadata (`Range` under the key `RANGE`): run
+configs through `static(...)` and `dynamic(...)` (jaxarm.agents.common.config), env params through `ranged(...)`.
+The checks here are generic: beyond each field's declared range, every float must be finite and every integer must
+fit in int32 (the dtype of jaxarm's update counters, indices and int params), or in int64 where the range says the
+count lives on the host alone (`Range.host_count`: a budget in env steps). Messages name the field and what it must
+be, in one line. Nothing here runs inside jit: params made inside a compiled program are not checked, and the envs
 clean up what such params break (see jaxarm.envs.base).
 """
 
@@ -16,6 +16,7 @@ import typing
 from collections.abc import Iterable
 from typing import Any
 
+import jax.numpy as jnp
 import numpy as np
 
 RANGE = "range"
@@ -79,9 +80,15 @@ LEARNING_RATE = Range(gt=0, le=1)
 """An optimiser's step size: past 1 an Adam update moves every weight by about that much, and learning fails."""
 
 
-def ranged(allowed: Range | None = None) -> Any:
-    """An env params field (no default) whose values must be finite and lie in `allowed` (None: any)."""
-    return dataclasses.field(metadata={RANGE: allowed})
+def ranged(default: Any = dataclasses.MISSING, allowed: Range | None = None) -> Any:
+    """An env params field defaulting to `default` (a number or nested list of numbers: int32 for integers, else
+    float32; none: the env supplies the value, as one shaped by its constructor) whose values must be finite and
+    lie in `allowed` (None: any)."""
+    metadata = {RANGE: allowed}
+    if default is dataclasses.MISSING:
+        return dataclasses.field(metadata=metadata)
+    dtype = jnp.int32 if np.asarray(default).dtype.kind == "i" else jnp.float32
+    return dataclasses.field(default_factory=lambda: jnp.asarray(default, dtype), metadata=metadata)
 
 
 def declared_range(field: dataclasses.Field) -> Range | None:

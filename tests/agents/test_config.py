@@ -8,6 +8,7 @@ import typing
 import jax
 import jax.numpy as jnp
 import pytest
+from flax import struct
 from mujoco import mjx
 
 from experiments import configs
@@ -15,8 +16,8 @@ from jaxarm import envs, ranges
 from jaxarm.agents.common.config import HParams, RunConfig, apply_overrides, parse_literal
 from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
-from jaxarm.envs.panda_sort import params as panda_sort_params
-from jaxarm.envs.peg_insert import params as peg_insert_params
+from jaxarm.envs.panda_sort.params import PandaSortParams
+from jaxarm.envs.peg_insert.params import PegInsertParams
 from jaxarm.runner import loop, rundir
 
 
@@ -59,7 +60,7 @@ def test_every_sorter_preset_trains_with_curricula_and_evaluates_the_plain_task(
     assert "ppo_sorter_toss" in sorter_presets
     for name in sorter_presets:
         config = configs.get(name)
-        training = envs.override_params(panda_sort_params.default_params(), dict(config.env_params))
+        training = envs.override_params(PandaSortParams(), dict(config.env_params))
         evaluation = envs.override_params(training, dict(config.eval_env_params))
         assert float(training.held_start_prob) > 0, name
         for start in ("held_start_prob", "ready_start_prob", "presorted_prob"):
@@ -169,7 +170,7 @@ def test_issue_env_params_are_refused_by_override_params_and_overrides(name, tex
 
 
 def test_sorter_params_are_refused_by_their_ranges_and_order():
-    params = panda_sort_params.default_params()
+    params = PandaSortParams()
     with pytest.raises(ValueError, match="^env param object_size must be > 0, got -0.01"):
         envs.override_params(params, {"object_size": -0.01})
     with pytest.raises(ValueError, match="size_scale_low .2.0. must not exceed env param size_scale_high .1.5."):
@@ -184,12 +185,29 @@ def test_sorter_params_are_refused_by_their_ranges_and_order():
 def test_default_env_params_lie_in_their_declared_ranges():
     for params in (
         envs.make("arm2d").default_params(),
-        panda_sort_params.default_params(),
-        peg_insert_params.default_params(),
+        PandaSortParams(),
+        PegInsertParams(),
     ):
         ranges.check_params(params)
         hints = [field.metadata for field in dataclasses.fields(params)]
         assert all(ranges.RANGE in metadata for metadata in hints), type(params).__name__
+
+
+@struct.dataclass
+class RangedParams:
+    shaped: jax.Array = ranges.ranged(allowed=ranges.POSITIVE)
+    steps: jax.Array = ranges.ranged(3, ranges.COUNT)
+    offset: jax.Array = ranges.ranged([1.0, -2.0])
+
+
+def test_a_ranged_param_defaults_to_int32_for_integers_float32_otherwise_or_to_what_the_env_gives():
+    params = RangedParams(shaped=jnp.ones(4))
+    assert params.steps.dtype == jnp.int32 and int(params.steps) == 3
+    assert params.offset.dtype == jnp.float32 and params.offset.tolist() == [1.0, -2.0]
+    declared = [ranges.declared_range(field) for field in dataclasses.fields(params)]
+    assert declared == [ranges.POSITIVE, ranges.COUNT, None]
+    with pytest.raises(TypeError, match="shaped"):
+        RangedParams()
 
 
 def test_a_chunk_larger_than_the_budget_shrinks_to_the_budget():

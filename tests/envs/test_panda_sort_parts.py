@@ -17,7 +17,7 @@ from jaxarm.envs.panda_sort import (
 )
 from jaxarm.envs.panda_sort.curriculum import draw_start
 from jaxarm.envs.panda_sort.objects import INNER_SCALE, object_geom_sizes, object_mass_inertia, spawn_xy
-from jaxarm.envs.panda_sort.params import default_params
+from jaxarm.envs.panda_sort.params import PandaSortParams
 from jaxarm.envs.panda_sort.reward import next_outcome
 
 SHAPES = jnp.array([SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE], jnp.int32)
@@ -79,7 +79,7 @@ def test_spawned_objects_stand_apart_inside_the_spawn_region():
 
 
 def test_curricula_draw_in_their_proportions():
-    params = default_params().replace(
+    params = PandaSortParams().replace(
         held_start_prob=jnp.float32(0.25), ready_start_prob=jnp.float32(0.5), presorted_prob=jnp.float32(1.0)
     )
     keys = jax.random.split(jax.random.key(0), (2, 4000))
@@ -94,7 +94,7 @@ def test_curricula_draw_in_their_proportions():
 
 
 def test_wound_up_starts_are_held_starts_and_leave_the_other_draws_as_they_were():
-    params = default_params().replace(held_start_prob=jnp.float32(0.25), ready_start_prob=jnp.float32(0.5))
+    params = PandaSortParams().replace(held_start_prob=jnp.float32(0.25), ready_start_prob=jnp.float32(0.5))
     keys = jax.random.split(jax.random.key(0), (2, 4000))
 
     def draws(wind_up_start_prob: float, wind_up_spread: float = 0.0):

@@ -20,7 +20,8 @@ GOAL_UNIFORM_REACHABLE = 2
 class Arm2dParams:
     """Everything a user may randomise or sweep. Link count is static (the constructor's `num_links`).
 
-    Each field declares its allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all are finite.
+    Each field declares its default and allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all
+    are finite. `link_lengths` has no default: the env's `num_links` shapes it.
 
     Attributes:
       link_lengths: [N] link lengths, world units.
@@ -38,18 +39,18 @@ class Arm2dParams:
       max_episode_steps: time limit (truncation).
     """
 
-    link_lengths: jax.Array = ranged(POSITIVE)
-    base_pos: jax.Array = ranged()
-    world_size: jax.Array = ranged(POSITIVE)
-    goal_size: jax.Array = ranged(POSITIVE)
-    goal_mode: jax.Array = ranged(Range(choices=(GOAL_FIXED, GOAL_UNIFORM_WORLD, GOAL_UNIFORM_REACHABLE)))
-    fixed_goal: jax.Array = ranged()
-    action_scale: jax.Array = ranged(POSITIVE)
-    distance_weight: jax.Array = ranged()
-    goal_bonus: jax.Array = ranged()
-    success_bonus: jax.Array = ranged()
-    hold_steps: jax.Array = ranged(NON_NEGATIVE)
-    max_episode_steps: jax.Array = ranged(COUNT)
+    link_lengths: jax.Array = ranged(allowed=POSITIVE)
+    base_pos: jax.Array = ranged([200.0, 200.0])
+    world_size: jax.Array = ranged(400.0, POSITIVE)
+    goal_size: jax.Array = ranged(40.0, POSITIVE)
+    goal_mode: jax.Array = ranged(GOAL_FIXED, Range(choices=(GOAL_FIXED, GOAL_UNIFORM_WORLD, GOAL_UNIFORM_REACHABLE)))
+    fixed_goal: jax.Array = ranged([100.0, 100.0])
+    action_scale: jax.Array = ranged(0.1, POSITIVE)
+    distance_weight: jax.Array = ranged(1.0)
+    goal_bonus: jax.Array = ranged(1.0)
+    success_bonus: jax.Array = ranged(0.0)
+    hold_steps: jax.Array = ranged(50, NON_NEGATIVE)
+    max_episode_steps: jax.Array = ranged(200, COUNT)
 
 
 @struct.dataclass

@@ -18,7 +18,6 @@ import jax.numpy as jnp
 from flax import struct
 
 from jaxarm.envs.arm2d.arm import (
-    GOAL_FIXED,
     Arm2dParams,
     Arm2dSim,
     goal_reachable,
@@ -64,21 +63,7 @@ class Arm2d(Env[Arm2dParams, Arm2dSim]):
             self.spec = EnvSpec(observation_parts=parts, action_shape=action_shape)
 
     def default_params(self) -> Arm2dParams:
-        f32 = jnp.float32
-        return Arm2dParams(
-            link_lengths=jnp.full((self.num_links,), 200.0 / self.num_links, f32),
-            base_pos=jnp.array([200.0, 200.0], f32),
-            world_size=jnp.array(400.0, f32),
-            goal_size=jnp.array(40.0, f32),
-            goal_mode=jnp.array(GOAL_FIXED, jnp.int32),
-            fixed_goal=jnp.array([100.0, 100.0], f32),
-            action_scale=jnp.array(0.1, f32),
-            distance_weight=jnp.array(1.0, f32),
-            goal_bonus=jnp.array(1.0, f32),
-            success_bonus=jnp.array(0.0, f32),
-            hold_steps=jnp.array(50, jnp.int32),
-            max_episode_steps=jnp.array(200, jnp.int32),
-        )
+        return Arm2dParams(link_lengths=jnp.full((self.num_links,), 200.0 / self.num_links, jnp.float32))
 
     def render(self, state, params: Arm2dParams):
         return draw_frame(state.sim, params)

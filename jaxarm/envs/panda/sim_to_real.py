@@ -20,7 +20,9 @@ speed was 4.5, 5.1, 5.2, 8.4 and 14 rad/s at 1, 1.25, 1.5, 2 and 3 times the tim
 
 @struct.dataclass
 class RobotParams:
-    """The robot's randomisable params, shared by every Panda task's params (scalars).
+    """The robot's randomisable params, shared by every Panda task's params (scalars). Their defaults are the
+    nominal robot: no latency, the model's own gains, damping, friction, force limits and timestep, the cameras as
+    simulated.
 
     Attributes:
       action_latency: int32, control steps (0.04 s) between a policy's action and the robot acting on it, at
@@ -41,29 +43,14 @@ class RobotParams:
         calibration error (pixel modes only).
     """
 
-    action_latency: jax.Array = ranged(NON_NEGATIVE)
-    servo_gain_scale: jax.Array = ranged(POSITIVE)
-    joint_damping_scale: jax.Array = ranged(NON_NEGATIVE)
-    joint_friction_scale: jax.Array = ranged(NON_NEGATIVE)
-    force_limit_scale: jax.Array = ranged(POSITIVE)
-    control_period_scale: jax.Array = ranged(CONTROL_PERIOD_SCALES)
-    camera_gray_gain: jax.Array = ranged(NON_NEGATIVE)
-    camera_depth_offset: jax.Array = ranged()
-
-
-def robot_defaults() -> dict[str, jax.Array]:
-    """`RobotParams`' defaults, the nominal robot: no latency, the model's own gains, damping, friction, force
-    limits and timestep, the cameras as simulated."""
-    return {
-        "action_latency": jnp.array(0, jnp.int32),
-        "servo_gain_scale": jnp.array(1.0, jnp.float32),
-        "joint_damping_scale": jnp.array(1.0, jnp.float32),
-        "joint_friction_scale": jnp.array(1.0, jnp.float32),
-        "force_limit_scale": jnp.array(1.0, jnp.float32),
-        "control_period_scale": jnp.array(1.0, jnp.float32),
-        "camera_gray_gain": jnp.array(1.0, jnp.float32),
-        "camera_depth_offset": jnp.array(0.0, jnp.float32),
-    }
+    action_latency: jax.Array = ranged(0, NON_NEGATIVE)
+    servo_gain_scale: jax.Array = ranged(1.0, POSITIVE)
+    joint_damping_scale: jax.Array = ranged(1.0, NON_NEGATIVE)
+    joint_friction_scale: jax.Array = ranged(1.0, NON_NEGATIVE)
+    force_limit_scale: jax.Array = ranged(1.0, POSITIVE)
+    control_period_scale: jax.Array = ranged(1.0, CONTROL_PERIOD_SCALES)
+    camera_gray_gain: jax.Array = ranged(1.0, NON_NEGATIVE)
+    camera_depth_offset: jax.Array = ranged(0.0)
 
 
 def with_robot_params(model: mjx.Model, robot: PandaIds, params: RobotParams) -> mjx.Model:

@@ -55,7 +55,7 @@ from jaxarm.envs.panda_sort.objects import (
     spawn_xy,
     velocity_index,
 )
-from jaxarm.envs.panda_sort.params import PandaSortParams, default_params
+from jaxarm.envs.panda_sort.params import PandaSortParams
 from jaxarm.envs.panda_sort.render import dress_objects
 from jaxarm.envs.panda_sort.reward import (
     IN_CORRECT_BIN,
@@ -157,7 +157,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self.spec = self.observation_spec(state_size, self.tool_obs_size, 5 if control_mode == MODE_EE else 8)
 
     def default_params(self) -> PandaSortParams:
-        return default_params()
+        return PandaSortParams()
 
     def observation_source_index(self, source: Env) -> np.ndarray:
         """As `Env.observation_source_index`; from a sorter with another object count (same control mode), the

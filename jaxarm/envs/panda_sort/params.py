@@ -7,10 +7,9 @@ through the mjx.Model fields the env replaces each step). Counts and modes are c
 from typing import ClassVar
 
 import jax
-import jax.numpy as jnp
 from flax import struct
 
-from jaxarm.envs.panda.sim_to_real import RobotParams, robot_defaults
+from jaxarm.envs.panda.sim_to_real import RobotParams
 from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
 
 
@@ -18,9 +17,9 @@ from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
 class PandaSortParams(RobotParams):
     """Task, action and randomisation parameters (scalars unless noted).
 
-    Each field declares its allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all are finite.
-    The robot's own (action latency; servo gain, damping, friction, force limit and control period scales) are
-    `RobotParams`', documented there.
+    Each field declares its default and allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all
+    are finite. The robot's own (action latency; servo gain, damping, friction, force limit and control period
+    scales) are `RobotParams`', documented there.
 
     The shaping terms pay changes of potentials (see reward.py), so their weights set how strongly each stage
     pulls without creating any reward for lingering; by default one object's stages are worth 1 each.
@@ -100,95 +99,45 @@ class PandaSortParams(RobotParams):
         afresh every step); the derived offsets follow it too.
     """
 
-    max_episode_steps: jax.Array = ranged(COUNT)
-    ee_step: jax.Array = ranged(POSITIVE)
-    ee_yaw_step: jax.Array = ranged(NON_NEGATIVE)
-    joint_step: jax.Array = ranged(POSITIVE)
-    max_lead: jax.Array = ranged(POSITIVE)
-    max_yaw_lead: jax.Array = ranged(POSITIVE)
-    max_joint_lead: jax.Array = ranged(POSITIVE)
-    ik_damping: jax.Array = ranged(POSITIVE)
-    ik_posture_gain: jax.Array = ranged(UNIT_INTERVAL)
-    step_reward: jax.Array = ranged()
-    floor_reward: jax.Array = ranged()
-    wrong_bin_reward: jax.Array = ranged()
-    correct_bin_reward: jax.Array = ranged()
-    reach_weight: jax.Array = ranged()
-    reach_scale: jax.Array = ranged(POSITIVE)
-    grasp_weight: jax.Array = ranged()
-    lift_weight: jax.Array = ranged()
-    carry_weight: jax.Array = ranged()
-    lift_height: jax.Array = ranged(POSITIVE)
-    carry_scale: jax.Array = ranged(POSITIVE)
-    carry_height: jax.Array = ranged(NON_NEGATIVE)
-    toss_weight: jax.Array = ranged()
-    toss_scale: jax.Array = ranged(POSITIVE)
-    held_start_prob: jax.Array = ranged(UNIT_INTERVAL)
-    ready_start_prob: jax.Array = ranged(UNIT_INTERVAL)
-    wind_up_start_prob: jax.Array = ranged(UNIT_INTERVAL)
-    wind_up_spread: jax.Array = ranged(UNIT_INTERVAL)
-    presorted_prob: jax.Array = ranged(UNIT_INTERVAL)
-    object_size: jax.Array = ranged(POSITIVE)
-    size_scale_low: jax.Array = ranged(POSITIVE)
-    size_scale_high: jax.Array = ranged(POSITIVE)
-    density: jax.Array = ranged(POSITIVE)
-    mass_scale: jax.Array = ranged(POSITIVE)
-    object_friction: jax.Array = ranged(NON_NEGATIVE)
-    finger_friction: jax.Array = ranged(NON_NEGATIVE)
-    home_noise: jax.Array = ranged(NON_NEGATIVE)
-    obs_noise: jax.Array = ranged(NON_NEGATIVE)
-    object_pose_noise: jax.Array = ranged(NON_NEGATIVE)
-    object_pose_bias: jax.Array = ranged(NON_NEGATIVE)
+    max_episode_steps: jax.Array = ranged(750, COUNT)
+    ee_step: jax.Array = ranged(0.02, POSITIVE)
+    ee_yaw_step: jax.Array = ranged(0.1, NON_NEGATIVE)
+    joint_step: jax.Array = ranged(0.1, POSITIVE)
+    max_lead: jax.Array = ranged(0.08, POSITIVE)
+    max_yaw_lead: jax.Array = ranged(0.8, POSITIVE)
+    max_joint_lead: jax.Array = ranged(0.4, POSITIVE)
+    ik_damping: jax.Array = ranged(0.05, POSITIVE)
+    ik_posture_gain: jax.Array = ranged(0.05, UNIT_INTERVAL)
+    step_reward: jax.Array = ranged(-1.0)
+    floor_reward: jax.Array = ranged(-50.0)
+    wrong_bin_reward: jax.Array = ranged(200.0)
+    correct_bin_reward: jax.Array = ranged(500.0)
+    reach_weight: jax.Array = ranged(1.0)
+    reach_scale: jax.Array = ranged(0.1, POSITIVE)
+    grasp_weight: jax.Array = ranged(1.0)
+    lift_weight: jax.Array = ranged(1.0)
+    carry_weight: jax.Array = ranged(1.0)
+    lift_height: jax.Array = ranged(0.1, POSITIVE)
+    carry_scale: jax.Array = ranged(0.2, POSITIVE)
+    carry_height: jax.Array = ranged(0.15, NON_NEGATIVE)
+    toss_weight: jax.Array = ranged(0.0)
+    toss_scale: jax.Array = ranged(0.5, POSITIVE)
+    held_start_prob: jax.Array = ranged(0.0, UNIT_INTERVAL)
+    ready_start_prob: jax.Array = ranged(0.0, UNIT_INTERVAL)
+    wind_up_start_prob: jax.Array = ranged(0.0, UNIT_INTERVAL)
+    wind_up_spread: jax.Array = ranged(0.0, UNIT_INTERVAL)
+    presorted_prob: jax.Array = ranged(0.0, UNIT_INTERVAL)
+    object_size: jax.Array = ranged(0.025, POSITIVE)
+    size_scale_low: jax.Array = ranged(0.5, POSITIVE)
+    size_scale_high: jax.Array = ranged(1.5, POSITIVE)
+    density: jax.Array = ranged(600.0, POSITIVE)
+    mass_scale: jax.Array = ranged(1.0, POSITIVE)
+    object_friction: jax.Array = ranged(0.8, NON_NEGATIVE)
+    finger_friction: jax.Array = ranged(2.5, NON_NEGATIVE)
+    home_noise: jax.Array = ranged(0.02, NON_NEGATIVE)
+    obs_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
+    object_pose_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
+    object_pose_bias: jax.Array = ranged(0.0, NON_NEGATIVE)
 
     ORDERED: ClassVar = (("size_scale_low", "size_scale_high"),)
     """(low, high) pairs of fields that must satisfy low <= high."""
-
-
-def default_params() -> PandaSortParams:
-    """The defaults described in the class docstring."""
-
-    def f32(value: float) -> jax.Array:
-        return jnp.array(value, jnp.float32)
-
-    return PandaSortParams(
-        max_episode_steps=jnp.array(750, jnp.int32),
-        ee_step=f32(0.02),
-        ee_yaw_step=f32(0.1),
-        joint_step=f32(0.1),
-        max_lead=f32(0.08),
-        max_yaw_lead=f32(0.8),
-        max_joint_lead=f32(0.4),
-        ik_damping=f32(0.05),
-        ik_posture_gain=f32(0.05),
-        step_reward=f32(-1.0),
-        floor_reward=f32(-50.0),
-        wrong_bin_reward=f32(200.0),
-        correct_bin_reward=f32(500.0),
-        reach_weight=f32(1.0),
-        reach_scale=f32(0.1),
-        grasp_weight=f32(1.0),
-        lift_weight=f32(1.0),
-        carry_weight=f32(1.0),
-        lift_height=f32(0.1),
-        carry_scale=f32(0.2),
-        carry_height=f32(0.15),
-        toss_weight=f32(0.0),
-        toss_scale=f32(0.5),
-        held_start_prob=f32(0.0),
-        ready_start_prob=f32(0.0),
-        wind_up_start_prob=f32(0.0),
-        wind_up_spread=f32(0.0),
-        presorted_prob=f32(0.0),
-        object_size=f32(0.025),
-        size_scale_low=f32(0.5),
-        size_scale_high=f32(1.5),
-        density=f32(600.0),
-        mass_scale=f32(1.0),
-        object_friction=f32(0.8),
-        finger_friction=f32(2.5),
-        home_noise=f32(0.02),
-        obs_noise=f32(0.0),
-        object_pose_noise=f32(0.0),
-        object_pose_bias=f32(0.0),
-        **robot_defaults(),
-    )

@@ -42,7 +42,7 @@ from jaxarm.envs.peg_insert.model import (
     hole_walls,
     resolve_ids,
 )
-from jaxarm.envs.peg_insert.params import PegInsertParams, default_params
+from jaxarm.envs.peg_insert.params import PegInsertParams
 from jaxarm.envs.peg_insert.render import place_block
 
 START_TIP_HEIGHT = 0.15
@@ -113,7 +113,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         self.spec = self.observation_spec(STATE_OBS_SIZE, 9, 3)
 
     def default_params(self) -> PegInsertParams:
-        return default_params()
+        return PegInsertParams()
 
     # --- physics ------------------------------------------------------------------------------------
 

@@ -8,10 +8,9 @@ hole depth) is static, in model.py.
 from typing import ClassVar
 
 import jax
-import jax.numpy as jnp
 from flax import struct
 
-from jaxarm.envs.panda.sim_to_real import RobotParams, robot_defaults
+from jaxarm.envs.panda.sim_to_real import RobotParams
 from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
 
 
@@ -19,9 +18,9 @@ from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
 class PegInsertParams(RobotParams):
     """Task, action and randomisation parameters (scalars, float32 unless noted).
 
-    Each field declares its allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all are finite.
-    The robot's own (action latency; servo gain, damping, friction, force limit and control period scales) are
-    `RobotParams`', documented there.
+    Each field declares its default and allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all
+    are finite. The robot's own (action latency; servo gain, damping, friction, force limit and control period
+    scales) are `RobotParams`', documented there.
 
     Attributes:
       max_episode_steps: time limit (truncation), int32, in env steps of 0.04 s.
@@ -46,49 +45,22 @@ class PegInsertParams(RobotParams):
         episode and kept, as a pose estimator's calibration would err.
     """
 
-    max_episode_steps: jax.Array = ranged(COUNT)
-    ee_step: jax.Array = ranged(POSITIVE)
-    max_lead: jax.Array = ranged(POSITIVE)
-    ik_damping: jax.Array = ranged(POSITIVE)
-    ik_posture_gain: jax.Array = ranged(UNIT_INTERVAL)
-    clearance: jax.Array = ranged(POSITIVE)
-    hole_shift: jax.Array = ranged(NON_NEGATIVE)
-    home_noise: jax.Array = ranged(NON_NEGATIVE)
-    progress_weight: jax.Array = ranged()
-    success_bonus: jax.Array = ranged()
-    insert_distance: jax.Array = ranged(POSITIVE)
-    max_distance: jax.Array = ranged(POSITIVE)
-    friction: jax.Array = ranged(NON_NEGATIVE)
-    obs_noise: jax.Array = ranged(NON_NEGATIVE)
-    hole_pose_noise: jax.Array = ranged(NON_NEGATIVE)
-    hole_pose_bias: jax.Array = ranged(NON_NEGATIVE)
+    max_episode_steps: jax.Array = ranged(100, COUNT)
+    ee_step: jax.Array = ranged(0.005, POSITIVE)
+    max_lead: jax.Array = ranged(0.01, POSITIVE)
+    ik_damping: jax.Array = ranged(0.05, POSITIVE)
+    ik_posture_gain: jax.Array = ranged(0.05, UNIT_INTERVAL)
+    clearance: jax.Array = ranged(0.001, POSITIVE)
+    hole_shift: jax.Array = ranged(0.1, NON_NEGATIVE)
+    home_noise: jax.Array = ranged(0.02, NON_NEGATIVE)
+    progress_weight: jax.Array = ranged(1.0)
+    success_bonus: jax.Array = ranged(0.1)
+    insert_distance: jax.Array = ranged(0.01, POSITIVE)
+    max_distance: jax.Array = ranged(0.8, POSITIVE)
+    friction: jax.Array = ranged(0.5, NON_NEGATIVE)
+    obs_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
+    hole_pose_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
+    hole_pose_bias: jax.Array = ranged(0.0, NON_NEGATIVE)
 
     ORDERED: ClassVar = (("insert_distance", "max_distance"),)
     """(low, high) pairs of fields that must satisfy low <= high."""
-
-
-def default_params() -> PegInsertParams:
-    """The defaults of the task description: 5 mm steps, 1 mm clearance, ±10 cm hole, 100 steps."""
-
-    def f32(value: float) -> jax.Array:
-        return jnp.array(value, jnp.float32)
-
-    return PegInsertParams(
-        max_episode_steps=jnp.array(100, jnp.int32),
-        ee_step=f32(0.005),
-        max_lead=f32(0.01),
-        ik_damping=f32(0.05),
-        ik_posture_gain=f32(0.05),
-        clearance=f32(0.001),
-        hole_shift=f32(0.1),
-        home_noise=f32(0.02),
-        progress_weight=f32(1.0),
-        success_bonus=f32(0.1),
-        insert_distance=f32(0.01),
-        max_distance=f32(0.8),
-        friction=f32(0.5),
-        obs_noise=f32(0.0),
-        hole_pose_noise=f32(0.0),
-        hole_pose_bias=f32(0.0),
-        **robot_defaults(),
-    )
