@@ -121,8 +121,8 @@ class PandaOptions:
       resolution: side of the square camera images, pixels.
       cameras: names of the MJCF cameras (mode "fixed") stacked in `camera_image`.
       max_action_latency: the most control steps of action latency the params may ask for (`action_latency` of
-        `RobotParams`); the state queues that many actions (`initial_action_queue`). Two by default: the
-        randomised presets draw up to two.
+        `RobotParams`); the state queues that many actions (`initial_action_queue`). The default covers the
+        randomised presets' draws.
       privileged: a pixel mode's observation also holds the state observation of the same step
         ({"privileged": [S]}, for a learner's critic: `jaxarm.envs.observation`).
     """
