@@ -117,10 +117,10 @@ def test_learner_suite_times_the_sgd_phase_per_unroll(tmp_path):
 
 def test_random_samples_take_the_envs_shapes_and_frames_stay_uint8():
     spec = envs.make("arm2d", obs_mode="pixels").spec
-    samples = learner.random_samples(jax.random.PRNGKey(0), spec, 5)
+    samples = learner.random_samples(jax.random.PRNGKey(0), spec, 3, 5)
     image = samples.obs["image"]
-    assert image.dtype == jax.numpy.uint8 and image.shape == (5, *spec.observation["image"].shape)
-    assert samples.raw_action.shape == (5, spec.action_size) and samples.target.shape == (5,)
+    assert image.dtype == jax.numpy.uint8 and image.shape == (3, 5, *spec.observation["image"].shape)
+    assert samples.raw_action.shape == (3, 5, spec.action_size) and samples.target.shape == (3, 5)
 
 
 @pytest.mark.slow
