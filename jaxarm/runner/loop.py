@@ -343,9 +343,9 @@ def _start(
         # Died before its first checkpoint (Ctrl-C while compiling, NaN at once, a full disk), or while writing it
         # (a kill, a full disk): nothing to keep.
         if primary:
+            unfinished = checkpoint.half_written(run_dir / "checkpoints")
             # A teacher stage writes config.json alone: then nothing of the student's own had begun.
-            if (run_dir / rundir.PROVENANCE_FILE).exists():
-                unfinished = checkpoint.half_written(run_dir / "checkpoints")
+            if unfinished or (run_dir / rundir.PROVENANCE_FILE).exists():
                 why = f"only a half-written one, {', '.join(unfinished)}" if unfinished else "none"
                 print(f"{run_dir} has no complete checkpoint ({why}): starting it afresh", file=sys.stderr)
             rundir.clear_run(run_dir)
