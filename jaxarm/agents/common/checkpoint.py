@@ -155,19 +155,22 @@ def _restore_with_additions(directory: pathlib.Path, step: int, abstract, fresh:
     try:
         with _quiet_orbax():
             saved = ocp.StandardCheckpointer().metadata(directory / str(step) / "default").item_metadata
+            saved_shapes = {leaf.name: (tuple(leaf.shape), leaf.dtype) for leaf in jax.tree.leaves(saved)}
     except Exception:  # unreadable metadata: the caller's error says the checkpoint is corrupt
         return None
-    saved_shapes = {leaf.name: (tuple(leaf.shape), leaf.dtype) for leaf in jax.tree.leaves(saved)}
     wanted = {_leaf_name(path): leaf for path, leaf in jax.tree_util.tree_flatten_with_path(abstract)[0]}
     added = sorted(set(wanted) - set(saved_shapes))
     kept_as_saved = all(
         name in wanted and (wanted[name].shape, wanted[name].dtype) == shape for name, shape in saved_shapes.items()
     )
-    if not added or not kept_as_saved:
+    if not saved_shapes or not added or not kept_as_saved:
         return None
     target = jax.tree.map(lambda leaf: wanted[leaf.name], saved)
-    with _quiet_orbax(), _manager(directory) as manager:
-        restored = manager.restore(step, args=ocp.args.StandardRestore(target))
+    try:
+        with _quiet_orbax(), _manager(directory) as manager:
+            restored = manager.restore(step, args=ocp.args.StandardRestore(target))
+    except Exception:  # as in `restore`: the caller's error says what is wrong
+        return None
     by_name = {_leaf_name(path): leaf for path, leaf in jax.tree_util.tree_flatten_with_path(restored)[0]}
     warnings.warn(
         f"checkpoint {step} in {directory} predates {len(added)} leaves of this learner ({', '.join(added[:4])}"
