@@ -123,7 +123,9 @@ def spawn(module: str, argv: Sequence[str], count: int) -> int:
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, forward)
     failed_at = None
-    while any(child.poll() is None for child in children):
+    # Every child polled each turn (not `any` over polls, which stops at the first still running and never sees a
+    # later one fail).
+    while not all([child.poll() is not None for child in children]):
         if failed_at is None and any(child.returncode not in (None, 0) for child in children):
             failed_at = time.monotonic()
             forward(signal.SIGTERM, None)

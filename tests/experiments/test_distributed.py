@@ -8,6 +8,7 @@ import socket
 import subprocess
 import sys
 import textwrap
+import time
 
 import jax
 import numpy as np
@@ -187,3 +188,27 @@ def test_every_process_of_a_sorter_run_holds_its_own_mjx_model(tmp_path):
     for child in children:
         out, err = child.communicate(timeout=600)
         assert child.returncode == 0 and "lowered" in out, err[-3000:]
+
+
+ONE_FAILS = textwrap.dedent("""
+    import pathlib, signal, sys, time
+    process = sys.argv[sys.argv.index("--process-id") + 1]
+    if process == "1":
+        sys.exit(3)  # as a process that died
+    def stopped(signum, frame):
+        pathlib.Path(sys.argv[1]).write_text("stopped")
+        sys.exit(0)
+    signal.signal(signal.SIGTERM, stopped)
+    time.sleep(120)
+""")
+
+
+def test_where_one_local_process_fails_the_launcher_stops_the_others(tmp_path, monkeypatch):
+    (tmp_path / "one_fails.py").write_text(ONE_FAILS)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", f"{tmp_path}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    marker = tmp_path / "process0"
+    start = time.monotonic()
+    assert distributed.spawn("one_fails", [str(marker)], 2) == 3  # the failed process's code
+    assert marker.read_text() == "stopped"  # process 0 was told to stop (SIGTERM), not left waiting for its peer
+    assert time.monotonic() - start < distributed.STOP_GRACE_S
