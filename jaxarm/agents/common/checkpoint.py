@@ -146,7 +146,7 @@ def restore(
 
 def _leaf_name(path) -> str:
     """A leaf's path as orbax names it in a checkpoint (`env_state.sim.params.mass_scale`)."""
-    return ".".join(str(getattr(key, "name", getattr(key, "key", getattr(key, "idx", key)))) for key in path)
+    return jax.tree_util.keystr(path, simple=True, separator=".")
 
 
 def _restore_with_additions(directory: pathlib.Path, step: int, abstract, fresh: Callable[[], Any]):
