@@ -1,6 +1,7 @@
 """Checkpoints read back on another machine's devices, and by a learner that has gained leaves since."""
 
 import json
+import pathlib
 
 import jax
 import jax.numpy as jnp
@@ -47,7 +48,11 @@ def test_latest_step_looks_again_when_a_live_run_prunes_a_step_it_is_listing(tmp
     assert len(calls) == 2
 
 
-def test_a_checkpoint_lacking_leaves_added_since_takes_them_from_a_fresh_state(tmp_path):
+@pytest.mark.parametrize("relative", [False, True])
+def test_a_checkpoint_lacking_leaves_added_since_takes_them_from_a_fresh_state(tmp_path, monkeypatch, relative):
+    if relative:  # a run directory named relative to the working directory, as on a command line
+        monkeypatch.chdir(tmp_path.parent)
+        tmp_path = pathlib.Path(tmp_path.name)
     saved = {"params": jnp.arange(3.0), "env": {"mass": jnp.ones(4)}}
     checkpoint.save(tmp_path, 5, saved)
     fresh = {"params": jnp.zeros(3), "env": {"mass": jnp.zeros(4), "gain": jnp.full(4, 2.0)}}

@@ -154,7 +154,7 @@ def _restore_with_additions(directory: pathlib.Path, step: int, abstract, fresh:
     the saved leaves restored, the others from `fresh()`; None where the trees differ otherwise."""
     try:
         with _quiet_orbax():
-            saved = ocp.StandardCheckpointer().metadata(directory / str(step) / "default").item_metadata
+            saved = ocp.StandardCheckpointer().metadata(directory.absolute() / str(step) / "default").item_metadata
             saved_shapes = {leaf.name: (tuple(leaf.shape), leaf.dtype) for leaf in jax.tree.leaves(saved)}
     except Exception:  # unreadable metadata: the caller's error says the checkpoint is corrupt
         return None
