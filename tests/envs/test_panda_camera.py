@@ -4,6 +4,8 @@ A small scene of every primitive, posed by MuJoCo on the CPU (no MJX program to 
 poses and sizes as arrays.
 """
 
+import copy
+import itertools
 from functools import partial
 from types import SimpleNamespace
 
@@ -13,9 +15,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxarm.envs.panda.base import PandaOptions, image_channels
+from jaxarm.envs.panda.base import CAMERAS, PandaOptions, image_channels
 from jaxarm.envs.panda.camera import AMBIENT, FAR, Camera, Scene, ray_directions, render
 from jaxarm.envs.panda_sort import PandaSort
+from jaxarm.envs.panda_sort.layout import SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE
+from jaxarm.envs.panda_sort.objects import object_geom_sizes
 from jaxarm.envs.peg_insert import PegInsert
 
 HEIGHT = 1.0
@@ -227,3 +231,27 @@ def test_a_panda_cameras_gain_and_offset_change_its_images_as_image_channels_say
     depth = as_simulated[..., 1::2] < 255 - 13  # not at the far clip, before or after the 5 cm
     assert depth.mean() > 0.5 and as_simulated[..., 0::2].mean() > 20, "the cameras see the scene"
     np.testing.assert_allclose(changed[..., 1::2][depth], as_simulated[..., 1::2][depth] + 0.05 * 255, atol=1.0)
+
+
+def test_a_sorters_cameras_see_each_objects_own_shape():
+    # The slot's drawing-only cylinder (MAX_OBJECT_SIZE) once hid every object's shape from the cameras.
+    env = PandaSort()
+    model, ids = copy.copy(env.mj_model), env.ids  # the env is shared: its model stays as built
+    assert not set(ids.object_visual) & set(Scene.from_model(model).geoms)
+    data = mujoco.MjData(model)
+
+    def scene_depth():
+        return np.asarray(image(model, data, camera=CAMERAS[0], resolution=128)[0])
+
+    mujoco.mj_forward(model, data)
+    empty = scene_depth()  # the objects parked far out of view
+    size, seen = 0.03, {}
+    for shape in (SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE):
+        model.geom_size[ids.object_geom[0]] = np.asarray(object_geom_sizes(np.array([shape]), np.array([size])))[0]
+        data.qpos[ids.object_qpos[0] : ids.object_qpos[0] + 7] = [0.5, -0.05, size, 1, 0, 0, 0]
+        mujoco.mj_forward(model, data)
+        seen[shape] = np.abs(scene_depth() - empty) > 0.005
+    # The scene camera looks down at a slant: a cube (4s² from above) shows the most, and no two shapes alike.
+    areas = {shape: np.count_nonzero(mask) for shape, mask in seen.items()}
+    assert areas[SHAPE_CUBE] > max(areas[SHAPE_CYLINDER], areas[SHAPE_SPHERE]) > 0
+    assert all(np.count_nonzero(seen[a] ^ seen[b]) >= 5 for a, b in itertools.combinations(seen, 2))

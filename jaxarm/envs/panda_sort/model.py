@@ -105,7 +105,15 @@ def _add_object(worldbody, slot: int) -> None:
         **common,
     )
     body.add_geom(name=f"object{slot}_sphere", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[s, 0, 0], **common)
-    body.add_geom(name=f"object{slot}_cylinder", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[s, s, 0], **common)
+    # Drawing only (`render.dress_objects` shows it for a cylinder, at its size): transparent here, so that the
+    # cameras (`camera.Scene`, which casts visible geoms) see each object's own collision shape, not a cylinder
+    # of the largest size over every object.
+    body.add_geom(
+        name=f"object{slot}_cylinder",
+        type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+        size=[s, s, 0],
+        **{**common, "rgba": [0.8, 0.3, 0.3, 0]},
+    )
 
 
 def build_spec(
