@@ -11,9 +11,12 @@ import numpy as np
 
 from experiments import configs
 from jaxarm import envs
+from jaxarm.agents import registry as agents_registry
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
 from jaxarm.agents.common.trainer import run_updates
+from jaxarm.agents.ppo.distill import teacher_input
+from jaxarm.runner import loop, rundir
 
 
 def time_jitted(run, state, repeats: int) -> tuple[float, float]:
@@ -40,6 +43,18 @@ ACTION_POOL_SIZE = 16
 """Distinct action sets `env_seconds` cycles through."""
 
 
+def benchmark_trainer(config: RunConfig):
+    """`config`'s trainer; a teacher named by preset (`teacher=preset:NAME`) is that preset's policy untrained, so
+    that a distilled student's program compiles and runs as in its run, with no teacher trained first."""
+    if not rundir.teacher_preset(config):
+        return configs.make_trainer(config)
+    teacher_config = loop.teacher_config(config, configs.get)
+    teacher = agents_registry.make_trainer(teacher_config)
+    key, hparams = jax.random.PRNGKey(teacher_config.seed), teacher_config.hparams()
+    state = jax.jit(teacher.init)(key, hparams)
+    return agents_registry.make_trainer(config, teacher=lambda obs: teacher.act(state, teacher_input(obs)))
+
+
 def compile_updates(config: RunConfig, num_updates: int, devices: Sequence[jax.Device] | None = None):
     """(compiled program, initial state, hparams, compile seconds) of `num_updates` updates of `config`'s learner.
 
@@ -48,7 +63,7 @@ def compile_updates(config: RunConfig, num_updates: int, devices: Sequence[jax.D
     placed over them and each steps its share of the envs, as the runner does (`jaxarm.agents.common.sharding`);
     else everything runs on the default device.
     """
-    trainer = configs.make_trainer(config)
+    trainer = benchmark_trainer(config)
     hparams = config.hparams()
     key = jax.random.PRNGKey(config.seed)
     mesh = None if devices is None else data_mesh(devices)

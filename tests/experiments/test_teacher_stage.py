@@ -6,9 +6,11 @@ import json
 import os
 import signal
 
+import numpy as np
 import pytest
 
 from experiments import configs, run
+from experiments.benchmarks.timing import compile_updates
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.runner import loop, rundir
 
@@ -94,3 +96,9 @@ def test_a_teacher_that_cannot_serve_is_refused_in_one_line_before_anything_is_w
     error = capsys.readouterr().err
     assert message in error and error.count("\n") == 1
     assert not out.exists()
+
+
+def test_a_benchmark_compiles_a_students_update_with_its_preset_teacher_untrained():
+    compiled, state, hparams, seconds = compile_updates(camera_student(), num_updates=1)
+    state, metrics = compiled(state, hparams)
+    assert seconds > 0 and np.isfinite(float(metrics.loss.imitation[-1]))
