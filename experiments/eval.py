@@ -96,11 +96,11 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
         if args.episodes <= 0:
             raise ValueError(f"--episodes must be positive, got {args.episodes}")
         enable_compilation_cache()
-        config, _ = rundir.read_config(run_dir)
         clock = time.perf_counter()
         jax.devices()  # starts the backend: its time apart from the env's
         phases["devices"] = time.perf_counter() - clock
         clock = time.perf_counter()
+        config, _ = rundir.read_config(run_dir)  # validating the config builds the env, which the trainer reuses
         trainer = configs.make_trainer(config, run_dir)
         phases["env"] = time.perf_counter() - clock
         with rundir.locked(run_dir):
