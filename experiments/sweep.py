@@ -6,11 +6,17 @@ results.csv and results.md (mean, std and 95% CI over seeds of final return and 
 curves.png (mean success rate and return over env steps with 95% CI bands) into the sweep directory, a new or
 empty one, locked while the sweep runs: a sweep never replaces another's results. With several devices the
 seeds and values are shared out over them, each run whole on one device (as many devices as divide their count).
+
+`--stop-after-minutes M` checkpoints every member after the chunk that passes M minutes and stops;
+`python -m experiments.sweep --resume SWEEP_DIR [--stop-after-minutes M]` continues it, computing what an
+uninterrupted sweep computes. Finished groups are kept in the sweep directory (group-<k>/), the group in progress
+as a checkpoint of all its members.
 """
 
 import argparse
 import csv
 import dataclasses
+import json
 import pathlib
 import sys
 import time
@@ -18,16 +24,28 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.sharding import Mesh
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from experiments import configs, distributed
+from experiments.run import minutes
+from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
-from jaxarm.agents.common.sharding import gathered, members_mesh, over_members
+from jaxarm.agents.common.sharding import ENV_AXIS, gathered, members_mesh, over_members
 from jaxarm.agents.common.trainer import Trainer, run_updates
 from jaxarm.runner import plots, processes, rundir
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.stats import confidence_halfwidth
+
+SWEEP_FILE = "sweep.json"
+"""What the sweep was asked (preset, seeds, assignments), written before it trains: `--resume` reads it."""
+GROUP_FILE = "group.json"
+CURVES_FILE = "curves.npz"
+"""A finished group's results rows and curves, in its folder group-<k>/ of the sweep directory."""
+
+
+class Stopped(Exception):
+    """The sweep checkpointed its group in progress at its time limit (`--resume` continues it)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,12 +85,23 @@ def init_members(trainer: Trainer, keys: jax.Array, hparams, mesh: Mesh | None =
     return jax.jit(init)(keys, hparams)
 
 
-def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, progress=print):
+def run_group(
+    config: RunConfig,
+    dynamic: list[dict[str, float]],
+    seeds: int,
+    saves: pathlib.Path | None = None,
+    deadline: float | None = None,
+    progress=print,
+):
     """Trains every (dynamic combination × seed) of one static group in one vmapped program.
 
     Returns (metrics with leaves [members, updates], eval results [members, episodes], wall seconds); members
     are ordered combination-major, seed-minor. The members are shared out over as many devices (of every
     process) as divide their count, each member computed as on one device.
+
+    With `saves` (a checkpoint folder), training continues from the latest checkpoint there, and once the clock
+    (`time.perf_counter`) passes `deadline` with chunks left, the members and their metrics so far are
+    checkpointed there and Stopped is raised. Every process calls this alike.
     """
     trainer = configs.make_trainer(config)
     members = [(combo, seed) for combo in dynamic for seed in range(seeds)]
@@ -93,14 +122,21 @@ def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, pr
         over_members(jax.vmap(lambda s, h: run_updates(trainer, s, h, config.chunk_updates)), mesh),
         compiler_options=trainer.compiler_options,
     )
-    chunks = []
-    for index in range(trainer.num_updates // config.chunk_updates):
+    num_chunks = trainer.num_updates // config.chunk_updates
+    done, chunks, spent = 0, [], 0.0
+    if saves is not None and checkpoint.latest_step(saves) is not None:
+        done, metrics, spent, state = restore_group(saves, jax.eval_shape(chunk, state, hparams), mesh)
+        chunks.append(metrics)
+        progress(f"  resumed after chunk {done}/{num_chunks}")
+    for index in range(done, num_chunks):
         state, metrics = chunk(state, hparams)
         chunks.append(gathered(metrics))
-        progress(
-            f"  chunk {index + 1}/{trainer.num_updates // config.chunk_updates} ({time.perf_counter() - start:.1f} s)"
-        )
-    metrics = jax.tree.map(lambda *parts: np.concatenate(parts, axis=1), *chunks)
+        progress(f"  chunk {index + 1}/{num_chunks} ({time.perf_counter() - start:.1f} s)")
+        out_of_time = deadline is not None and time.perf_counter() > deadline and index + 1 < num_chunks
+        if saves is not None and processes.any_process(out_of_time):
+            checkpoint.save(saves, index + 1, group_checkpoint(state, chunks, spent + time.perf_counter() - start))
+            raise Stopped(f"stopped after chunk {index + 1}/{num_chunks} of a group, checkpointed in {saves}")
+    metrics = joined(chunks)
     env, env_params = config.make_eval_env()
     eval_keys = jax.random.split(jax.random.PRNGKey(config.seed + 1_000_003), len(members))
     results = jax.jit(
@@ -113,7 +149,43 @@ def run_group(config: RunConfig, dynamic: list[dict[str, float]], seeds: int, pr
             mesh,
         )
     )(state, eval_keys)
-    return metrics, gathered(results), time.perf_counter() - start
+    return metrics, gathered(results), spent + time.perf_counter() - start
+
+
+def joined(chunks: list) -> object:
+    """Metrics of consecutive chunks, leaves [members, updates] each -> one, concatenated along the updates."""
+    return jax.tree.map(lambda *parts: np.concatenate(parts, axis=1), *chunks)
+
+
+def group_checkpoint(state, chunks: list, wall: float) -> dict:
+    """What a stopped group keeps: the members' state, their metrics so far and the seconds spent."""
+    return {"state": state, "metrics": joined(chunks), "wall": np.float32(wall)}
+
+
+def restore_group(directory: pathlib.Path, chunk_shapes, mesh: Mesh | None):
+    """(chunks done, metrics [members, updates so far], seconds spent, members' state) from the latest checkpoint
+    in `directory`; `chunk_shapes`: the (state, metrics) of one chunk, as `jax.eval_shape` gives them."""
+    done = checkpoint.latest_step(directory)
+    assert done is not None
+    state_like, chunk_metrics = chunk_shapes
+    like = {
+        "state": state_like,
+        "metrics": jax.tree.map(
+            lambda leaf: jax.ShapeDtypeStruct((leaf.shape[0], leaf.shape[1] * done, *leaf.shape[2:]), leaf.dtype),
+            chunk_metrics,
+        ),
+        "wall": jax.ShapeDtypeStruct((), jnp.float32),
+    }
+    shardings = None
+    if mesh is not None:
+        split, whole = NamedSharding(mesh, PartitionSpec(ENV_AXIS)), NamedSharding(mesh, PartitionSpec())
+        shardings = {
+            "state": jax.tree.map(lambda _: split, like["state"]),
+            "metrics": jax.tree.map(lambda _: whole, like["metrics"]),
+            "wall": whole,
+        }
+    restored = checkpoint.restore(directory, like, shardings=shardings)
+    return done, gathered(restored["metrics"]), float(gathered(restored["wall"])), restored["state"]
 
 
 def summarise(label: str, success: np.ndarray, returns: np.ndarray, wall: float) -> dict:
@@ -188,33 +260,56 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m experiments.sweep", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--config", required=True)
+    parser.add_argument("--config")
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--out", help="sweep directory (default runs/sweep-<config>-<timestamp>)")
+    parser.add_argument("--resume", metavar="SWEEP_DIR", help="continue the stopped sweep in SWEEP_DIR")
+    parser.add_argument(
+        "--stop-after-minutes",
+        type=minutes,
+        help="checkpoint the group in progress and stop after the chunk that passes this wall time (resume later)",
+    )
     distributed.add_arguments(parser, "--out")
     parser.add_argument("assignments", nargs="*", help="key=v1,v2,... (one value: a plain override)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     distributed.check_arguments(parser, args)
-    if args.distributed and not args.out:
+    if bool(args.config) == bool(args.resume):
+        parser.error("give --config NAME (a new sweep) or --resume SWEEP_DIR (a stopped one)")
+    if args.resume and (args.out or args.assignments):
+        parser.error("--resume takes the sweep's own preset, seeds and assignments; give no --out or key=values")
+    if args.distributed and not (args.out or args.resume):
         parser.error("with --distributed give --out: every process must write to the same sweep directory")
     try:
         if args.distributed:
             distributed.join(args)
-        if args.seeds <= 0:
-            raise ValueError(f"--seeds must be positive, got {args.seeds}")
-        base = configs.get(args.config)
-        grid = parse_grid(base, args.assignments)
+        asked = read_sweep(pathlib.Path(args.resume)) if args.resume else vars(args)
+        config_name, seeds, assignments = asked["config"], asked["seeds"], asked["assignments"]
+        if seeds <= 0:
+            raise ValueError(f"--seeds must be positive, got {seeds}")
+        base = configs.get(config_name)
+        grid = parse_grid(base, assignments)
         if args.out:
             rundir.check_output_dir(pathlib.Path(args.out), "--out")
         enable_compilation_cache()
-        out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"sweep-{args.config}")
-        title = f"{args.config}, {args.seeds} seeds"
-        if not processes.is_primary():  # every process trains its members; process 0 alone writes
-            sweep(base, grid, args.seeds, None, title)
+        if args.resume:
+            out = pathlib.Path(args.resume)
+        else:
+            out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"sweep-{config_name}")
+        title = f"{config_name}, {seeds} seeds"
+        stop_after_s = None if args.stop_after_minutes is None else 60 * args.stop_after_minutes
+        if not processes.is_primary():  # every process trains its members; process 0 alone writes results
+            sweep(base, grid, seeds, out, title, stop_after_s, primary=False)
             return 0
-        with rundir.locked(out, check=rundir.check_empty):
-            rundir.append_provenance(out, "sweep")
-            sweep(base, grid, args.seeds, out, title)
+        with rundir.locked(out, check=check_stopped_sweep if args.resume else rundir.check_empty):
+            if args.resume:
+                rundir.append_provenance(out, "sweep resumed")
+            else:
+                rundir.append_provenance(out, "sweep")
+                rundir.write_json(out / SWEEP_FILE, {"config": config_name, "seeds": seeds, "assignments": assignments})
+            sweep(base, grid, seeds, out, title, stop_after_s)
+    except Stopped as stopped:
+        print(f"{stopped}; continue with: python -m experiments.sweep --resume {out}")
+        return 0
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -224,17 +319,73 @@ def main(argv=None) -> int:
     return 0
 
 
-def sweep(base: RunConfig, grid: Grid, seeds: int, out: pathlib.Path | None, title: str) -> None:
-    """Trains every group of `grid` and writes the tables and curves into `out` (None: writes nothing, as a
-    process other than the first of a distributed sweep)."""
-    rows, curves = [], {}
-    for config in grid.groups:
-        print(f"group {describe(config, base, {})}: {len(grid.dynamic)} settings × {seeds} seeds", flush=True)
-        metrics, results, wall = run_group(config, grid.dynamic, seeds)
-        group_rows, group_curves = collect(config, base, grid.dynamic, seeds, metrics, results, wall)
-        rows += group_rows
-        curves.update(group_curves)
-    if out is None:
+def read_sweep(directory: pathlib.Path) -> dict:
+    """What the sweep in `directory` was asked ({"config", "seeds", "assignments"}); ValueError where there is no
+    stopped sweep there to resume."""
+    path = directory / SWEEP_FILE
+    if not path.exists():
+        raise ValueError(f"{directory} holds no sweep to resume (no {SWEEP_FILE})")
+    if (directory / "results.md").exists():
+        raise ValueError(f"the sweep in {directory} has finished: its results are in {directory / 'results.md'}")
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as error:
+        raise ValueError(f"{path} is corrupt ({error}); start the sweep again in a new directory") from None
+
+
+def check_stopped_sweep(directory: pathlib.Path) -> None:
+    """ValueError unless `directory` holds a stopped sweep (the lock's check for `--resume`)."""
+    read_sweep(directory)
+
+
+def write_group(folder: pathlib.Path, rows: list[dict], curves: dict) -> None:
+    """Keeps a finished group's results rows and curves in `folder`."""
+    folder.mkdir(parents=True, exist_ok=True)
+    labels = list(curves)
+    np.savez(
+        folder / CURVES_FILE,
+        **{f"{k}_{j}": part for k, label in enumerate(labels) for j, part in enumerate(curves[label])},
+    )
+    rundir.write_json(folder / GROUP_FILE, {"rows": rows, "labels": labels})
+
+
+def read_group(folder: pathlib.Path) -> tuple[list[dict], dict] | None:
+    """A finished group's (results rows, curves) kept in `folder`, or None where it has not finished."""
+    if not (folder / GROUP_FILE).exists():
+        return None
+    kept = json.loads((folder / GROUP_FILE).read_text())
+    with np.load(folder / CURVES_FILE) as parts:
+        curves = {label: tuple(parts[f"{k}_{j}"] for j in range(3)) for k, label in enumerate(kept["labels"])}
+    return kept["rows"], curves
+
+
+def sweep(
+    base: RunConfig,
+    grid: Grid,
+    seeds: int,
+    out: pathlib.Path,
+    title: str,
+    stop_after_s: float | None = None,
+    primary: bool = True,
+) -> None:
+    """Trains every group of `grid` not yet finished in `out` and, where `primary`, writes the tables and curves
+    into `out` (the other processes of a distributed sweep only train and checkpoint). Raises Stopped once
+    `stop_after_s` seconds have passed with a group unfinished (its checkpoint in `out`)."""
+    deadline = None if stop_after_s is None else time.perf_counter() + stop_after_s
+    rows: list[dict] = []
+    curves: dict = {}
+    for index, config in enumerate(grid.groups):
+        folder = out / f"group-{index}"
+        finished = read_group(folder)
+        if finished is None:
+            print(f"group {describe(config, base, {})}: {len(grid.dynamic)} settings × {seeds} seeds", flush=True)
+            metrics, results, wall = run_group(config, grid.dynamic, seeds, folder / "checkpoints", deadline)
+            finished = collect(config, base, grid.dynamic, seeds, metrics, results, wall)
+            if primary:
+                write_group(folder, *finished)
+        rows += finished[0]
+        curves.update(finished[1])
+    if not primary:
         return
     write_tables(rows, out)
     plots.sweep_curves(curves, out / "curves.png", title=title)

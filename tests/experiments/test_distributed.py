@@ -129,23 +129,25 @@ def test_local_processes_are_checked_and_leave_the_children_their_arguments(monk
     assert result.returncode == 2 and "--local-processes takes a count of 1 or more" in result.stderr
 
 
-def sweep_results(out, device_count: int) -> list[dict]:
-    """results.csv of a 2-value × 2-seed ppo_arm2d sweep run on `device_count` forced host devices."""
+def sweep_results(out, device_count: int, stopped: bool = False) -> list[dict]:
+    """results.csv of a 2-value × 2-seed ppo_arm2d sweep run on `device_count` forced host devices (`stopped`:
+    checkpointed after its first chunk, then resumed)."""
     command = [sys.executable, "-m", "experiments.sweep", "--config", "ppo_arm2d", "--seeds", "2", "--out", str(out)]
-    command += [*OVERRIDES[:5], "eval_episodes=16", "learning_rate=3e-4,1e-3"]
-    flags = f"--xla_force_host_platform_device_count={device_count}"
-    result = subprocess.run(
-        command, capture_output=True, text=True, timeout=600, env={**os.environ, "XLA_FLAGS": flags}
-    )
-    assert result.returncode == 0, result.stderr[-3000:]
+    command += [*OVERRIDES[:6], "eval_episodes=16", "learning_rate=3e-4,1e-3"]
+    commands = [[*command, "--stop-after-minutes", "0"], command[:3] + ["--resume", str(out)]] if stopped else [command]
+    env = {**os.environ, "XLA_FLAGS": f"--xla_force_host_platform_device_count={device_count}"}
+    for each in commands:
+        result = subprocess.run(each, capture_output=True, text=True, timeout=600, env=env)
+        assert result.returncode == 0, result.stderr[-3000:]
     assert (f"4 runs shared over {device_count} devices" in result.stdout) == (device_count > 1)
     with (out / "results.csv").open() as handle:
-        return list(csv.DictReader(handle))
+        return [{key: value for key, value in row.items() if key != "group_wall_s"} for row in csv.DictReader(handle)]
 
 
 @pytest.mark.slow
 def test_a_sweep_shared_over_devices_computes_what_one_device_does(tmp_path):
     one, four = sweep_results(tmp_path / "one", 1), sweep_results(tmp_path / "four", 4)
+    assert sweep_results(tmp_path / "resumed", 4, stopped=True) == four  # its members restored onto their devices
     assert [row["setting"] for row in one] == [row["setting"] for row in four]
     for single, shared in zip(one, four, strict=True):
         for column in ("success_mean", "return_mean", "return_std"):

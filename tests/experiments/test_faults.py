@@ -2,6 +2,7 @@
 parallel sweeps, edited configs, Ctrl-C at the edges. Each ends in one line naming what to do, and nothing is lost
 or stuck. All on arm2d with budgets of a few seconds (the chunk compiled in test_run.py)."""
 
+import csv
 import dataclasses
 import errno
 import json
@@ -175,11 +176,43 @@ def test_a_sweep_never_replaces_another_sweeps_results(tmp_path, capsys):
     assert not out.exists(), "the refused sweep left nothing behind"
     assert sweep.main(argv) == 0
     before = snapshot(out)
-    assert sorted(before) == [".lock", "curves.png", "provenance.json", "results.csv", "results.md"]
+    assert [name for name in sorted(before) if "/" not in name] == [
+        ".lock",
+        "curves.png",
+        "provenance.json",
+        "results.csv",
+        "results.md",
+        "sweep.json",
+    ]
     assert sweep.main(argv) == 2
     (line,) = error_lines(capsys)
-    assert f"{out} already holds curves.png, provenance.json, results.csv, results.md; choose a new or empty" in line
+    assert f"{out} already holds curves.png, group-0, provenance.json, results.csv, results.md, ...; choose" in line
     assert snapshot(out) == before
+    assert sweep.main(["--resume", str(out)]) == 2
+    assert f"the sweep in {out} has finished" in error_lines(capsys)[0]
+    assert snapshot(out) == before
+
+
+def result_rows(out: pathlib.Path) -> list[dict]:
+    """A sweep's results.csv without its wall-clock column."""
+    with (out / "results.csv").open() as handle:
+        return [{key: value for key, value in row.items() if key != "group_wall_s"} for row in csv.DictReader(handle)]
+
+
+def test_a_sweep_stopped_twice_and_resumed_computes_what_an_uninterrupted_one_does(tmp_path, capsys):
+    # Two static groups (num_minibatches) of 2 learning rates x 2 seeds, 2 chunks each: the first stop falls inside
+    # group 0, the second inside group 1, after group 0 was finished and kept.
+    grid = ["--seeds", "2", *SWEEP, "updates_per_chunk=2", "num_minibatches=1,2", "learning_rate=0.001,0.003"]
+    straight, stopped = tmp_path / "straight", tmp_path / "stopped"
+    assert sweep.main(["--config", "ppo_arm2d_fixed", *grid, "--out", str(straight)]) == 0
+    assert sweep.main(["--config", "ppo_arm2d_fixed", *grid, "--out", str(stopped), "--stop-after-minutes", "0"]) == 0
+    assert "stopped after chunk 1/" in capsys.readouterr().out and not (stopped / "results.csv").exists()
+    assert sweep.main(["--resume", str(stopped), "--stop-after-minutes", "0"]) == 0
+    out = capsys.readouterr().out
+    assert "resumed after chunk 1/" in out and "stopped after chunk 1/" in out
+    assert (stopped / "group-0" / "group.json").exists() and not (stopped / "results.csv").exists()
+    assert sweep.main(["--resume", str(stopped)]) == 0
+    assert result_rows(stopped) == result_rows(straight)
 
 
 def test_eval_of_the_best_and_of_the_latest_checkpoint_write_different_files(reference, capsys):
