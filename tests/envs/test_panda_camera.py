@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from jaxarm.envs.panda.base import CAMERAS, PandaOptions, image_channels
-from jaxarm.envs.panda.camera import AMBIENT, FAR, Camera, Scene, ray_directions, render
+from jaxarm.envs.panda.camera import AMBIENT, FAR, Camera, PoseOffset, Scene, ray_directions, render, rotation_of
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.panda_sort.layout import SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE
 from jaxarm.envs.panda_sort.objects import object_geom_sizes
@@ -38,6 +38,7 @@ SCENE = f"""
     </body>
     <body name="others" pos="0.35 0.3 0.1">
       <freejoint/>
+      <camera name="carried" pos="0.1 0 0.3" euler="0.3 -0.2 0.1" fovy="50"/>
       <geom name="sphere" type="sphere" size="0.05" pos="0 0 0" rgba="1 0 0 1"/>
       <geom name="capsule" type="capsule" size="0.03 0.06" pos="-0.6 0 0" euler="0 1.2 0.3" rgba="0 1 0 1"/>
       <geom name="cylinder" type="cylinder" size="0.04 0.05" pos="0 -0.6 0" euler="0.4 0 0" rgba="0 0 1 1"/>
@@ -57,10 +58,15 @@ def scene():
     return model, data
 
 
-def image(model, data, camera="overhead", resolution=RESOLUTION):
+def image(model, data, camera="overhead", resolution=RESOLUTION, offset=None):
+    """(depth, gray) [R, R] of `camera`, moved by `offset` (a `PoseOffset`; None: the default argument)."""
     arrays = (data.geom_xpos, data.geom_xmat, data.xpos, data.xmat)
     cast = jax.jit(partial(render, Scene.from_model(model), Camera.from_model(model, camera), resolution))
-    return cast(model.geom_size, *arrays)
+    return cast(model.geom_size, *arrays) if offset is None else cast(model.geom_size, *arrays, offset)
+
+
+def pose_offset(shift=(0.0, 0.0, 0.0), turn=(0.0, 0.0, 0.0)) -> PoseOffset:
+    return PoseOffset(jnp.asarray(shift, jnp.float32), jnp.asarray(turn, jnp.float32))
 
 
 def test_depth_of_the_table_is_the_cameras_height(scene):
@@ -203,6 +209,85 @@ def test_the_cast_program_does_not_grow_with_the_number_of_geoms():
 
     more_boxes = '<geom type="box" size="0.02 0.02 0.02" pos="0.3 0 0.02" rgba="1 1 1 1"/>\n' * 5
     assert equations(CROWD) == equations(CROWD.replace("  <camera", more_boxes + "  <camera"))
+
+
+def test_a_zero_pose_offset_moves_no_camera_by_a_single_bit(scene):
+    model, data = scene
+    # Traced zeros, as the params hold them, cannot be folded away by the compiler.
+    for camera in ("overhead", "oblique", "carried"):
+        for nominal, offset in zip(
+            image(model, data, camera), image(model, data, camera, offset=pose_offset()), strict=True
+        ):
+            np.testing.assert_array_equal(nominal, offset)
+        cam = Camera.from_model(model, camera)
+        body_rotation = jnp.asarray(data.xmat[cam.body]).reshape(3, 3)
+        pose = jax.jit(cam.world_pose)(jnp.asarray(data.xpos), jnp.asarray(data.xmat), pose_offset())
+        # The pose as formed without an offset.
+        np.testing.assert_array_equal(pose[0], data.xpos[cam.body] + jnp.matmul(body_rotation, cam.position))
+        np.testing.assert_array_equal(pose[1], jnp.matmul(body_rotation, cam.rotation))
+
+
+def test_a_camera_moved_back_sees_the_table_that_much_deeper(scene):
+    depth = np.asarray(image(*scene, offset=pose_offset(shift=(0.0, 0.0, 0.03)))[0])
+    np.testing.assert_allclose(depth[[0, 0, -1, -1], [0, -1, 0, -1]], HEIGHT + 0.03, atol=1e-3)
+
+
+def test_a_camera_moved_sideways_sees_the_box_move_the_other_way_by_the_predicted_pixels(scene):
+    # A shift of two pixels' width at the box top's depth moves its top by two whole columns.
+    pixel_width = 2 * (HEIGHT - BOX_TOP) * np.tan(np.deg2rad(FOVY) / 2) / RESOLUTION
+    box_top = [
+        np.abs(np.asarray(image(*scene, offset=pose_offset(shift=shift))[0]) - (HEIGHT - BOX_TOP)) < 1e-3
+        for shift in ((0.0, 0.0, 0.0), (2 * pixel_width, 0.0, 0.0))
+    ]
+    assert box_top[0].sum() > 16
+    np.testing.assert_array_equal(box_top[1], np.roll(box_top[0], -2, axis=1))
+
+
+def test_a_quarter_roll_turns_the_image_a_quarter_clockwise(scene):
+    for nominal, rolled in zip(
+        image(*scene), image(*scene, offset=pose_offset(turn=(0.0, 0.0, np.pi / 2))), strict=True
+    ):
+        np.testing.assert_allclose(rolled, np.rot90(np.asarray(nominal), -1), atol=1e-5)
+
+
+def test_pitch_looks_up_and_yaw_looks_left():
+    forward = np.array([0.0, 0.0, -1.0])  # a camera's view, in its own frame (x right, y up)
+    assert (np.asarray(rotation_of(jnp.array([0.1, 0.0, 0.0]))) @ forward)[1] > 0.09
+    assert (np.asarray(rotation_of(jnp.array([0.0, 0.1, 0.0]))) @ forward)[0] < -0.09
+
+
+@pytest.mark.parametrize("camera", ["oblique", "carried"])
+def test_an_offset_camera_sees_what_a_camera_placed_there_in_the_mjcf_sees(scene, camera):
+    model, _ = scene
+    data = mujoco.MjData(model)
+    data.qpos[7:14] = [0.3, 0.25, 0.12, *np.array([0.9, 0.1, -0.2, 0.3]) / np.linalg.norm([0.9, 0.1, -0.2, 0.3])]
+    mujoco.mj_forward(model, data)
+    shift, turn = np.array([0.006, -0.004, 0.005]), np.deg2rad([2.0, -1.5, 2.5])
+    # The same camera moved in the MJCF: its position by the shift in its own frame, its quaternion turned by the
+    # rotation vector after its own (MuJoCo's quaternion maths, independent of the caster's).
+    moved = copy.copy(model)
+    camera_id = model.camera(camera).id
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, model.cam_quat[camera_id])
+    moved.cam_pos[camera_id] = model.cam_pos[camera_id] + rotation.reshape(3, 3) @ shift
+    turned, quat = np.zeros(4), np.zeros(4)
+    mujoco.mju_axisAngle2Quat(turned, turn / np.linalg.norm(turn), np.linalg.norm(turn))
+    mujoco.mju_mulQuat(quat, model.cam_quat[camera_id], turned)
+    moved.cam_quat[camera_id] = quat
+    moved_data = mujoco.MjData(moved)
+    moved_data.qpos[:] = data.qpos
+    mujoco.mj_forward(moved, moved_data)
+    offset = pose_offset(shift, turn)
+    position, rotation = Camera.from_model(model, camera).world_pose(
+        jnp.asarray(data.xpos), jnp.asarray(data.xmat), offset
+    )
+    np.testing.assert_allclose(position, moved_data.cam_xpos[camera_id], atol=1e-6)
+    np.testing.assert_allclose(np.asarray(rotation).ravel(), moved_data.cam_xmat[camera_id], atol=1e-6)
+    offset_depth, offset_gray = image(model, data, camera, offset=offset)
+    placed_depth, placed_gray = image(moved, moved_data, camera)
+    np.testing.assert_allclose(offset_depth, placed_depth, atol=1e-4)
+    np.testing.assert_allclose(offset_gray, placed_gray, atol=1e-4)
+    assert np.abs(np.asarray(image(model, data, camera)[0]) - np.asarray(offset_depth)).max() > 0.01, "it moved"
 
 
 def test_image_channels_scale_the_gray_shift_the_depth_and_saturate():

@@ -5,7 +5,8 @@ intersected with each geom in closed form, in the geom's own frame; the nearest 
 along the camera's optical axis (as a depth camera reports it, not along the ray); grayscale is the geom's
 rgba luma under a head light: ambient `AMBIENT` plus Lambert's cos between the surface normal and the ray.
 A ray that hits nothing reads depth `FAR` and gray 0. Cameras are the MJCF's <camera>s with mode "fixed" (on
-their body: a scene camera on the world, a hand camera on the hand); images are square, `fovy` both ways.
+their body: a scene camera on the world, a hand camera on the hand); images are square, `fovy` both ways. A
+`PoseOffset` moves a camera off its MJCF pose, in its own frame, as a real camera's mounting errs.
 
 It reads poses (`geom_xpos`, `geom_xmat`, `xpos`, `xmat`) and sizes (`geom_size`, which a task may replace
 per episode) as arrays, so it serves mjx.Data and, in tests, MuJoCo's own CPU data alike. It must stay free of
@@ -15,6 +16,7 @@ task logic: what an env observes of the images is the env's choice.
 import dataclasses
 import functools
 from collections.abc import Callable
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -185,6 +187,34 @@ class Scene:
         return cls(geoms=visible, types=types, luma=luma.astype(np.float32))
 
 
+class PoseOffset(NamedTuple):
+    """A rigid offset of a camera from its MJCF pose, in the camera's own frame: x right, y up in the image, z
+    backwards (a camera looks along its −z).
+
+    Attributes:
+      shift: [3] metres the camera moves along its x, y and z axes (+z: away from what it sees).
+      turn: [3] rotation vector (radians, right-hand rule) about its x, y and z axes, applied at its new position:
+        +x pitches the view up, +y yaws it left, +z rolls the camera anticlockwise (the image turns clockwise).
+    """
+
+    shift: jax.Array | np.ndarray
+    turn: jax.Array | np.ndarray
+
+
+NO_OFFSET = PoseOffset(shift=np.zeros(3, np.float32), turn=np.zeros(3, np.float32))
+"""The camera at its MJCF pose."""
+
+
+def rotation_of(turn: jax.Array | np.ndarray) -> jax.Array:
+    """[3, 3] rotation by the rotation vector `turn` [3] (Rodrigues' formula; exactly the identity for zeros)."""
+    turn = jnp.asarray(turn, jnp.float32)
+    angle = jnp.sqrt(jnp.sum(turn * turn))
+    cross = jnp.array([[0.0, -turn[2], turn[1]], [turn[2], 0.0, -turn[0]], [-turn[1], turn[0], 0.0]], jnp.float32)
+    # sin(a)/a and (1 - cos(a))/a² through sinc, finite at a = 0, where `cross` is zero anyway.
+    first, second = jnp.sinc(angle / jnp.pi), 0.5 * jnp.sinc(angle / (2 * jnp.pi)) ** 2
+    return jnp.eye(3, dtype=jnp.float32) + first * cross + second * jnp.matmul(cross, cross, precision=_EXACT)
+
+
 @dataclasses.dataclass(frozen=True)
 class Camera:
     """A fixed MJCF camera: its body, pose in the body frame (position [3], rotation [3, 3]) and vertical
@@ -209,13 +239,19 @@ class Camera:
             fovy=float(camera.fovy[0]),
         )
 
-    def world_pose(self, xpos: jax.Array, xmat: jax.Array) -> tuple[jax.Array, jax.Array]:
+    def world_pose(
+        self, xpos: jax.Array, xmat: jax.Array, offset: PoseOffset = NO_OFFSET
+    ) -> tuple[jax.Array, jax.Array]:
         """(position [3], rotation [3, 3]) in the world, from the bodies' poses xpos [nbody, 3] and
-        xmat [nbody, 3, 3]."""
+        xmat [nbody, 3, 3], with the camera moved by `offset` in its own frame."""
+        # The offset is composed in the body's frame first: a zero one then adds exact zeros and multiplies by an
+        # exact identity, so the pose (and the image) is bit for bit the one without it.
+        position = self.position + jnp.matmul(self.rotation, jnp.asarray(offset.shift), precision=_EXACT)
+        rotation = jnp.matmul(self.rotation, rotation_of(offset.turn), precision=_EXACT)
         body_rotation = xmat[self.body].reshape(3, 3)
         return (
-            xpos[self.body] + jnp.matmul(body_rotation, self.position, precision=_EXACT),
-            jnp.matmul(body_rotation, self.rotation, precision=_EXACT),
+            xpos[self.body] + jnp.matmul(body_rotation, position, precision=_EXACT),
+            jnp.matmul(body_rotation, rotation, precision=_EXACT),
         )
 
 
@@ -279,11 +315,12 @@ def render(
     geom_xmat: jax.Array,
     xpos: jax.Array,
     xmat: jax.Array,
+    offset: PoseOffset = NO_OFFSET,
 ) -> tuple[jax.Array, jax.Array]:
     """(depth [R, R] metres along the optical axis, `FAR` where nothing is hit; gray [R, R] in [0, 1]) seen by
-    `camera` in a scene posed by geom_xpos [ngeom, 3], geom_xmat [ngeom, 3, 3] (or [ngeom, 9]), xpos [nbody, 3]
-    and xmat [nbody, 3, 3] (or [nbody, 9]) with sizes geom_size [ngeom, 3]."""
-    position, rotation = camera.world_pose(xpos, xmat.reshape(-1, 3, 3))
+    `camera`, moved by `offset` in its own frame, in a scene posed by geom_xpos [ngeom, 3], geom_xmat [ngeom, 3, 3]
+    (or [ngeom, 9]), xpos [nbody, 3] and xmat [nbody, 3, 3] (or [nbody, 9]) with sizes geom_size [ngeom, 3]."""
+    position, rotation = camera.world_pose(xpos, xmat.reshape(-1, 3, 3), offset)
     local = ray_directions(camera.fovy, resolution).reshape(-1, 3)
     distance, gray = cast(scene, geom_size, geom_xpos, geom_xmat, position, rotation, local)
     depth = jnp.where(jnp.isfinite(distance), distance * -local[:, 2], FAR)
