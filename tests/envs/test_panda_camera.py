@@ -15,8 +15,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxarm.envs.panda.base import CAMERAS, PandaOptions, image_channels
+from jaxarm.envs.panda.base import CAMERAS, DEPTH_RANGE, PandaOptions, image_channels
 from jaxarm.envs.panda.camera import AMBIENT, FAR, Camera, PoseOffset, Scene, ray_directions, render, rotation_of
+from jaxarm.envs.panda.sim_to_real import RobotParams
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.panda_sort.layout import SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE
 from jaxarm.envs.panda_sort.objects import object_geom_sizes
@@ -181,7 +182,7 @@ def test_a_state_env_resolves_no_camera_and_says_so_when_asked_for_an_image():
     env = PegInsert()
     assert env.cameras == ()
     with pytest.raises(ValueError, match="pixel obs_mode"):
-        env.camera_image(env.mjx_model, None)
+        env.camera_image(env.mjx_model, None, env.default_params(), jax.random.key(0))
 
 
 def test_a_privileged_sorter_declares_its_state_observation_beside_the_cameras():
@@ -290,32 +291,93 @@ def test_an_offset_camera_sees_what_a_camera_placed_there_in_the_mjcf_sees(scene
     assert np.abs(np.asarray(image(model, data, camera)[0]) - np.asarray(offset_depth)).max() > 0.01, "it moved"
 
 
-def test_image_channels_scale_the_gray_shift_the_depth_and_saturate():
+def test_image_channels_scale_and_shift_the_gray_shift_the_depth_and_saturate():
     # Two cameras: gray 0.5 and depth 0.2 m, then gray 0.9 and depth 0.95 m.
     pixel = jnp.array([0.5, 0.2, 0.9, 0.95])
-    np.testing.assert_array_equal(image_channels(pixel, 1.0, 0.0), [128, 51, 230, 242])
-    np.testing.assert_array_equal(image_channels(pixel, 1.5, 0.2), [191, 102, 255, 255])
-    np.testing.assert_array_equal(image_channels(pixel, 0.5, -0.4), [64, 0, 115, 140])
+    key = jax.random.key(0)
+
+    def channels(**params):
+        return image_channels(pixel, RobotParams(**params), key)
+
+    np.testing.assert_array_equal(channels(), [128, 51, 230, 242])
+    np.testing.assert_array_equal(channels(camera_gray_gain=1.5, camera_depth_offset=0.2), [191, 102, 255, 255])
+    np.testing.assert_array_equal(channels(camera_gray_gain=0.5, camera_depth_offset=-0.4), [64, 0, 115, 140])
+    # The offset adds to the gray after the gain: 0.5 + 0.1 and 0.9 + 0.1; 0.5 · 0.5 − 0.3 and 0.9 · 0.5 − 0.3.
+    np.testing.assert_array_equal(channels(camera_gray_offset=0.1), [153, 51, 255, 242])
+    np.testing.assert_array_equal(channels(camera_gray_gain=0.5, camera_gray_offset=-0.3), [0, 51, 38, 242])
+
+
+def test_depth_noise_has_its_std_and_zero_mean_on_depth_alone():
+    # 200 x 200 pixels of two cameras at gray 0.5 and depth 0.4 m (level 102): noise of 2 cm spans 5 levels, so
+    # rounding to levels adds only (1/255)² / 12 to its variance (Sheppard's correction).
+    pixels = jnp.tile(jnp.array([0.5, 0.4, 0.5, 0.4]), (200, 200, 1))
+    key = jax.random.key(1)
+    noisy = np.asarray(image_channels(pixels, RobotParams(camera_depth_noise=0.02), key)).astype(float)
+    np.testing.assert_array_equal(noisy[..., 0::2], 128)
+    depth = noisy[..., 1::2] * DEPTH_RANGE / 255
+    assert abs(depth.mean() - 0.4) < 3e-4  # 4 standard errors of the mean of 80,000
+    np.testing.assert_allclose(depth.std(), np.sqrt(0.02**2 + (DEPTH_RANGE / 255) ** 2 / 12), rtol=0.02)
+    assert abs(np.corrcoef(depth[..., 0].ravel(), depth[..., 1].ravel())[0, 1]) < 0.03, "each pixel its own"
+    np.testing.assert_array_equal(
+        image_channels(pixels, RobotParams(camera_depth_noise=0.0), key), np.tile([128, 102, 128, 102], (200, 200, 1))
+    )
+
+
+POSES = ("geom_xpos", "geom_xmat", "xpos", "xmat")
+"""The poses the caster reads, in `render`'s order."""
 
 
 def vars_of(data: mujoco.MjData) -> dict[str, np.ndarray]:
     """The poses the caster reads of MuJoCo's data."""
-    return {name: getattr(data, name) for name in ("geom_xpos", "geom_xmat", "xpos", "xmat")}
+    return {name: getattr(data, name) for name in POSES}
 
 
-def test_a_panda_cameras_gain_and_offset_change_its_images_as_image_channels_says():
-    # Posed by MuJoCo on the CPU: only the caster compiles.
+@pytest.fixture(scope="module")
+def peg_cameras():
+    """(a pixel peg env, its model's geom sizes, its poses): posed by MuJoCo on the CPU, so only the caster compiles."""
     env = PegInsert(options=PandaOptions(obs_mode="pixels", resolution=8))
     data = mujoco.MjData(env.mj_model)
     mujoco.mj_forward(env.mj_model, data)
-    model, poses = SimpleNamespace(geom_size=env.mj_model.geom_size), SimpleNamespace(**vars_of(data))
-    image = jax.jit(lambda gain, offset: env.camera_image(model, poses, gain, offset))
-    as_simulated = np.asarray(image(1.0, 0.0)).astype(int)
-    changed = np.asarray(image(0.5, 0.05)).astype(int)
+    return env, SimpleNamespace(geom_size=env.mj_model.geom_size), SimpleNamespace(**vars_of(data))
+
+
+def test_a_panda_cameras_gain_and_offset_change_its_images_as_image_channels_says(peg_cameras):
+    env, model, poses = peg_cameras
+    image = jax.jit(lambda params: env.camera_image(model, poses, params, jax.random.key(0)))
+    params = env.default_params()
+    as_simulated = np.asarray(image(params)).astype(int)
+    changed = np.asarray(image(params.replace(camera_gray_gain=0.5, camera_depth_offset=0.05))).astype(int)
     np.testing.assert_allclose(changed[..., 0::2], as_simulated[..., 0::2] / 2, atol=1.0)
     depth = as_simulated[..., 1::2] < 255 - 13  # not at the far clip, before or after the 5 cm
     assert depth.mean() > 0.5 and as_simulated[..., 0::2].mean() > 20, "the cameras see the scene"
     np.testing.assert_allclose(changed[..., 1::2][depth], as_simulated[..., 1::2][depth] + 0.05 * 255, atol=1.0)
+
+
+def test_a_pandas_default_camera_params_leave_its_images_exactly_as_cast(peg_cameras):
+    env, model, poses = peg_cameras
+    image = jax.jit(lambda params, key: env.camera_image(model, poses, params, key))(
+        env.default_params(), jax.random.key(2)
+    )
+    scene = Scene.from_model(env.mj_model)
+    for index, view in enumerate(env.cameras):
+        depth, gray = render(scene, view, env.resolution, model.geom_size, *(getattr(poses, name) for name in POSES))
+        levels = (np.clip(np.asarray(channel), 0.0, 1.0) * 255 for channel in (gray, depth / DEPTH_RANGE))
+        np.testing.assert_array_equal(image[..., 2 * index : 2 * index + 2], np.stack([*map(np.round, levels)], -1))
+
+
+def test_a_pandas_depth_noise_is_drawn_from_its_sims_noise_key(peg_cameras, monkeypatch):
+    # `images` poses the sim with MJX, minutes to compile on a CPU: here the MuJoCo-posed scene stands in for it.
+    env, model, poses = peg_cameras
+    monkeypatch.setattr(env, "episode_model", lambda sim, params: model)
+    monkeypatch.setattr(env, "poses", lambda model, sim: poses)
+    params = env.default_params().replace(camera_depth_noise=0.02)
+    images = jax.jit(lambda key: env.images(SimpleNamespace(noise_key=key), params))
+    key = jax.random.key(3)
+    first, again, next_step = (np.asarray(images(k)) for k in (key, key, jax.random.split(key)[0]))
+    np.testing.assert_array_equal(first, again)
+    np.testing.assert_array_equal(first[..., 0::2], next_step[..., 0::2])
+    seen = first[..., 1::2] < 255 - 13  # off the far clip, where the noise shows
+    assert np.count_nonzero(first[..., 1::2][seen] != next_step[..., 1::2][seen]) > seen.sum() // 2
 
 
 def test_a_sorters_cameras_see_each_objects_own_shape():

@@ -128,6 +128,8 @@ def test_robot_params_reach_the_arm_alone(franka_sorter):
         ("control_period_scale", 2.0, r"in \[0.5, 1.5\]"),
         ("object_pose_bias", -0.01, ">= 0"),
         ("camera_gray_gain", -0.5, ">= 0"),
+        ("camera_depth_noise", -0.001, ">= 0"),
+        ("camera_roll", 4.0, r"in \[-3.14159, 3.14159\]"),
     ],
 )
 def test_values_outside_a_params_range_are_refused(name, value, message):
@@ -146,6 +148,10 @@ def test_randomize_draws_the_new_params_within_their_ranges():
         "object_pose_bias": "0..0.01",
         "camera_gray_gain": "0.7..1.3",
         "camera_depth_offset": "-0.02..0.02",
+        "camera_shift_z": "-0.006..0.006",
+        "camera_pitch": "-0.0436..0.0436",
+        "camera_gray_offset": "-0.1..0.1",
+        "camera_depth_noise": "0..0.005",
     }
     env = Randomized(PandaSort(), parse_ranges(ranges))
     drawn = jax.vmap(env.episode_params, in_axes=(0, None))(

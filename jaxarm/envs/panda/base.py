@@ -24,6 +24,7 @@ from jaxarm.envs.panda import camera
 from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, pose_fixed_geoms, put_scene, resolve_impl
 from jaxarm.envs.panda.render import Drawing
 from jaxarm.envs.panda.robot import HOME_QPOS, PandaIds, ik_arm_targets, solve_arm_posture, tcp_pose_at
+from jaxarm.envs.panda.sim_to_real import with_noise
 
 CONTROL_DT = 0.04
 """Seconds of simulated time per env step, in every Panda task."""
@@ -60,22 +61,39 @@ class PandaSimState(Protocol):
     @property
     def target_velocity(self) -> jax.Array: ...
 
+    @property
+    def noise_key(self) -> jax.Array:
+        """PRNG key of the observation noise, split by the task at each step; the cameras' noise derives from it."""
+        ...
 
-class IkParams(HasEpisodeLimit, Protocol):
-    """What `PandaBase` reads of a task's params (scalars): the time limit, the IK's settings and the cameras'
-    (`RobotParams`)."""
+
+class CameraParams(Protocol):
+    """What the cameras read of a task's params (`RobotParams`, which documents them; scalars)."""
+
+    @property
+    def camera_offset(self) -> camera.PoseOffset: ...
+
+    @property
+    def camera_gray_gain(self) -> jax.Array: ...
+
+    @property
+    def camera_gray_offset(self) -> jax.Array: ...
+
+    @property
+    def camera_depth_offset(self) -> jax.Array: ...
+
+    @property
+    def camera_depth_noise(self) -> jax.Array: ...
+
+
+class IkParams(HasEpisodeLimit, CameraParams, Protocol):
+    """What `PandaBase` reads of a task's params (scalars): the time limit, the IK's settings and the cameras'."""
 
     @property
     def ik_damping(self) -> jax.Array: ...
 
     @property
     def ik_posture_gain(self) -> jax.Array: ...
-
-    @property
-    def camera_gray_gain(self) -> jax.Array: ...
-
-    @property
-    def camera_depth_offset(self) -> jax.Array: ...
 
 
 class TaskIds(Protocol):
@@ -93,13 +111,15 @@ class RestingPhysics(NamedTuple):
     qacc_warmstart: jax.Array
 
 
-def image_channels(
-    gray_and_depth: jax.Array, gray_gain: jax.Array | float, depth_offset: jax.Array | float
-) -> jax.Array:
-    """float [..., 2C]: each camera's gray (0-1) then depth (metres) -> uint8 [..., 2C]: the gray times `gray_gain`
-    and the depth plus `depth_offset` over `DEPTH_RANGE`, each clipped to 0-1 and scaled to 0-255."""
+def image_channels(gray_and_depth: jax.Array, params: CameraParams, key: jax.Array) -> jax.Array:
+    """float [..., 2C]: each camera's gray (0-1) then depth (metres) -> uint8 [..., 2C]: the gray times the params'
+    `camera_gray_gain` plus their `camera_gray_offset`, and the depth plus `camera_depth_offset` and Gaussian noise
+    of std `camera_depth_noise` (drawn from `key`, each pixel its own) over `DEPTH_RANGE`, each clipped to 0-1 and
+    scaled to 0-255. The params' defaults leave the channels exactly as cast."""
     gray, depth = gray_and_depth[..., 0::2], gray_and_depth[..., 1::2]
-    scaled = jnp.stack([gray * gray_gain, (depth + depth_offset) / DEPTH_RANGE], axis=-1).reshape(gray_and_depth.shape)
+    gray = gray * params.camera_gray_gain + params.camera_gray_offset
+    depth = with_noise(depth + params.camera_depth_offset, key, params.camera_depth_noise)
+    scaled = jnp.stack([gray, depth / DEPTH_RANGE], axis=-1).reshape(gray_and_depth.shape)
     return jnp.round(jnp.clip(scaled, 0.0, 1.0) * 255.0).astype(jnp.uint8)
 
 
@@ -263,24 +283,22 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         return bool(self.cameras)
 
     def images(self, sim: SimT, params: ParamsT) -> jax.Array:
-        """`camera_image` of `sim` posed in its episode's model, with the params' camera gain and offset. The pixel
-        observations of `_reset` and `_transition` hold `blank_image` instead, and the base env draws this once per
-        step (see `jaxarm.envs.base`)."""
+        """`camera_image` of `sim` posed in its episode's model, with the params' camera settings and this step's
+        depth noise. The pixel observations of `_reset` and `_transition` hold `blank_image` instead, and the base
+        env draws this once per step (see `jaxarm.envs.base`)."""
         model = self.episode_model(sim, params)
-        return self.camera_image(model, self.poses(model, sim), params.camera_gray_gain, params.camera_depth_offset)
+        # Folded, not split: the task splits `noise_key` itself at the next step, and a split here would hand the
+        # images that step's state-observation key.
+        key = jax.random.fold_in(sim.noise_key, 0)
+        return self.camera_image(model, self.poses(model, sim), params, key)
 
-    def camera_image(
-        self,
-        model: mjx.Model,
-        data: mjx.Data,
-        gray_gain: jax.Array | float = 1.0,
-        depth_offset: jax.Array | float = 0.0,
-    ) -> jax.Array:
+    def camera_image(self, model: mjx.Model, data: mjx.Data, params: CameraParams, key: jax.Array) -> jax.Array:
         """uint8 [R, R, 2 per camera]: each camera's grayscale, then its depth over `DEPTH_RANGE`, cast in JAX
-        (`camera.render`) from the poses in `data` (after `poses`) and the episode's geom sizes, and put through
-        `image_channels` with `gray_gain` and `depth_offset` (metres)."""
+        (`camera.render`, each camera moved by the params' `camera_offset`) from the poses in `data` (after
+        `poses`) and the episode's geom sizes, and put through `image_channels` with `params` and `key`."""
         if self._camera_scene is None:
             raise ValueError('obs_mode "state" has no camera: build the env with a pixel obs_mode')
+        offset = params.camera_offset
         channels = []
         for view in self.cameras:
             depth, gray = camera.render(
@@ -292,9 +310,10 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
                 data.geom_xmat,
                 data.xpos,
                 data.xmat,
+                offset,
             )
             channels += [gray, depth]
-        return image_channels(jnp.stack(channels, axis=-1), gray_gain, depth_offset)
+        return image_channels(jnp.stack(channels, axis=-1), params, key)
 
     def simulate(self, model: mjx.Model, data: mjx.Data) -> mjx.Data:
         """`data` after `substeps` physics steps (one env step); raises if Warp dropped contacts on the way."""

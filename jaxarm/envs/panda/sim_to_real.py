@@ -1,14 +1,16 @@
 """What separates a simulated Panda from a real one, as functions of env params: servo gains and damping, joint
-friction, force limits, the control period, action latency, sensor noise, and the cameras' gray gain and depth
-offset. Tasks apply them where they build their model, act and observe, and their params extend `RobotParams`;
+friction, force limits, the control period, action latency, sensor noise, and the cameras' pose, gray level and
+depth. Tasks apply them where they build their model, act and observe, and their params extend `RobotParams`;
 nothing here knows about a task.
 """
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 from mujoco import mjx
 
+from jaxarm.envs.panda.camera import PoseOffset
 from jaxarm.envs.panda.robot import PandaIds
 from jaxarm.ranges import NON_NEGATIVE, POSITIVE, Range, ranged
 
@@ -16,6 +18,8 @@ CONTROL_PERIOD_SCALES = Range(ge=0.5, le=1.5)
 """Allowed `control_period_scale`s. Past 1.5 (substeps of 15 ms where the scene has 10 ms) the clamped servos
 chatter harder: stepping a 0.3 rad target change and back on the sorter's arm in MuJoCo C, the fastest joint
 speed was 4.5, 5.1, 5.2, 8.4 and 14 rad/s at 1, 1.25, 1.5, 2 and 3 times the timestep."""
+CAMERA_TURNS = Range(ge=-np.pi, le=np.pi)
+"""Allowed camera pitch, yaw and roll (radians): past half a turn a rotation is the shorter one the other way."""
 
 
 @struct.dataclass
@@ -37,10 +41,20 @@ class RobotParams:
       control_period_scale: factor on the physics timestep, so each env step spans `CONTROL_DT` times this of
         simulated time (the substeps per step are fixed when the program is traced; see `CONTROL_PERIOD_SCALES`
         for the range): a control loop that runs slower or faster than its nominal rate.
+      camera_shift_x, camera_shift_y, camera_shift_z: metres every camera is moved from its MJCF pose along its
+        own x (right), y (up in the image) and z (backwards, away from what it sees) axes: a camera mounted or
+        calibrated off its nominal pose (pixel modes only; each camera by the same offset in its own frame).
+      camera_pitch, camera_yaw, camera_roll: radians every camera is turned, at its shifted position, about its
+        own x, y and z axes (one rotation vector, right-hand rule: +pitch looks up, +yaw left, +roll turns the
+        image clockwise), as the shift (`camera.PoseOffset`).
       camera_gray_gain: factor on every camera's gray image, clipped to white: lighting and exposure other than
         the simulated ones (pixel modes only).
+      camera_gray_offset: added to every camera's gray (0-1) after the gain, clipped to black and white: ambient
+        light or a sensor's black level (pixel modes only).
       camera_depth_offset: metres added to every camera's depth, clipped to its range: a depth camera's
         calibration error (pixel modes only).
+      camera_depth_noise: standard deviation (metres) of Gaussian noise on every depth pixel, drawn afresh at
+        each step from the task's observation noise key (pixel modes only).
     """
 
     action_latency: jax.Array = ranged(0, NON_NEGATIVE)
@@ -49,8 +63,24 @@ class RobotParams:
     joint_friction_scale: jax.Array = ranged(1.0, NON_NEGATIVE)
     force_limit_scale: jax.Array = ranged(1.0, POSITIVE)
     control_period_scale: jax.Array = ranged(1.0, CONTROL_PERIOD_SCALES)
+    camera_shift_x: jax.Array = ranged(0.0)
+    camera_shift_y: jax.Array = ranged(0.0)
+    camera_shift_z: jax.Array = ranged(0.0)
+    camera_pitch: jax.Array = ranged(0.0, CAMERA_TURNS)
+    camera_yaw: jax.Array = ranged(0.0, CAMERA_TURNS)
+    camera_roll: jax.Array = ranged(0.0, CAMERA_TURNS)
     camera_gray_gain: jax.Array = ranged(1.0, NON_NEGATIVE)
+    camera_gray_offset: jax.Array = ranged(0.0)
     camera_depth_offset: jax.Array = ranged(0.0)
+    camera_depth_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
+
+    @property
+    def camera_offset(self) -> PoseOffset:
+        """The cameras' pose offset from the shifts [3] and turns [3] above, each camera's in its own frame."""
+        return PoseOffset(
+            shift=jnp.stack([self.camera_shift_x, self.camera_shift_y, self.camera_shift_z]),
+            turn=jnp.stack([self.camera_pitch, self.camera_yaw, self.camera_roll]),
+        )
 
 
 def with_robot_params(model: mjx.Model, robot: PandaIds, params: RobotParams) -> mjx.Model:
