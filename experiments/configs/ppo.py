@@ -316,10 +316,20 @@ def ppo_sorter_pixels() -> PPOConfig:
 
 
 CAMERA_RANDOMIZE = (
-    # Per episode: lighting and exposure 30% either way of the simulated gray, and a depth camera's calibration
-    # error of up to 2 cm. Per-pixel depth noise and the cameras' pose are not modelled.
+    # Per episode: each camera off its nominal pose by up to 6 mm along and 2.5° about each of its axes (beyond
+    # the 5 mm / 2° a policy is asked to withstand), lighting and exposure 30% either way of the simulated gray
+    # and a tenth of the gray scale of ambient light or black level, a depth camera's calibration error of up
+    # to 2 cm, and per-pixel depth noise of up to 5 mm std, drawn afresh each step.
+    ("camera_shift_x", "-0.006..0.006"),
+    ("camera_shift_y", "-0.006..0.006"),
+    ("camera_shift_z", "-0.006..0.006"),
+    ("camera_pitch", "-0.0436..0.0436"),
+    ("camera_yaw", "-0.0436..0.0436"),
+    ("camera_roll", "-0.0436..0.0436"),
     ("camera_gray_gain", "0.7..1.3"),
+    ("camera_gray_offset", "-0.1..0.1"),
     ("camera_depth_offset", "-0.02..0.02"),
+    ("camera_depth_noise", "0..0.005"),
 )
 
 
