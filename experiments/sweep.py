@@ -18,6 +18,7 @@ import csv
 import dataclasses
 import json
 import pathlib
+import shutil
 import sys
 import time
 
@@ -123,9 +124,10 @@ def run_group(
         compiler_options=trainer.compiler_options,
     )
     num_chunks = trainer.num_updates // config.chunk_updates
-    done, chunks, spent = 0, [], 0.0
-    if saves is not None and checkpoint.latest_step(saves) is not None:
-        done, metrics, spent, state = restore_group(saves, jax.eval_shape(chunk, state, hparams), mesh)
+    done = (checkpoint.latest_step(saves) if saves is not None else None) or 0
+    chunks, spent = [], 0.0
+    if saves is not None and done:
+        metrics, spent, state = restore_group(saves, done, jax.eval_shape(chunk, state, hparams), mesh)
         chunks.append(metrics)
         progress(f"  resumed after chunk {done}/{num_chunks}")
     for index in range(done, num_chunks):
@@ -162,11 +164,9 @@ def group_checkpoint(state, chunks: list, wall: float) -> dict:
     return {"state": state, "metrics": joined(chunks), "wall": np.float32(wall)}
 
 
-def restore_group(directory: pathlib.Path, chunk_shapes, mesh: Mesh | None):
-    """(chunks done, metrics [members, updates so far], seconds spent, members' state) from the latest checkpoint
+def restore_group(directory: pathlib.Path, done: int, chunk_shapes, mesh: Mesh | None):
+    """(metrics [members, updates so far], seconds spent, members' state) from checkpoint `done` (the chunks done)
     in `directory`; `chunk_shapes`: the (state, metrics) of one chunk, as `jax.eval_shape` gives them."""
-    done = checkpoint.latest_step(directory)
-    assert done is not None
     state_like, chunk_metrics = chunk_shapes
     like = {
         "state": state_like,
@@ -184,8 +184,8 @@ def restore_group(directory: pathlib.Path, chunk_shapes, mesh: Mesh | None):
             "metrics": jax.tree.map(lambda _: whole, like["metrics"]),
             "wall": whole,
         }
-    restored = checkpoint.restore(directory, like, shardings=shardings)
-    return done, gathered(restored["metrics"]), float(gathered(restored["wall"])), restored["state"]
+    restored = checkpoint.restore(directory, like, step=done, shardings=shardings)
+    return gathered(restored["metrics"]), float(gathered(restored["wall"])), restored["state"]
 
 
 def summarise(label: str, success: np.ndarray, returns: np.ndarray, wall: float) -> dict:
@@ -383,6 +383,7 @@ def sweep(
             finished = collect(config, base, grid.dynamic, seeds, metrics, results, wall)
             if primary:
                 write_group(folder, *finished)
+                shutil.rmtree(folder / "checkpoints", ignore_errors=True)  # its members' state: kept results suffice
         rows += finished[0]
         curves.update(finished[1])
     if not primary:

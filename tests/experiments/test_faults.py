@@ -211,6 +211,7 @@ def test_a_sweep_stopped_twice_and_resumed_computes_what_an_uninterrupted_one_do
     out = capsys.readouterr().out
     assert "resumed after chunk 1/" in out and "stopped after chunk 1/" in out
     assert (stopped / "group-0" / "group.json").exists() and not (stopped / "results.csv").exists()
+    assert not (stopped / "group-0" / "checkpoints").exists(), "a finished group keeps its results, not its state"
     assert sweep.main(["--resume", str(stopped)]) == 0
     assert result_rows(stopped) == result_rows(straight)
 
