@@ -392,6 +392,8 @@ def test_a_sorters_cameras_see_each_objects_own_shape():
 
     mujoco.mj_forward(model, data)
     empty = scene_depth()  # the objects parked far out of view
+    floor = empty.max()  # past the table's edges the camera sees the floor, 0.75 m below the table top
+    assert empty[empty < floor - 0.5].max() < DEPTH_RANGE, "the depth channel spans the table and all on it"
     size, seen = 0.03, {}
     for shape in (SHAPE_CUBE, SHAPE_CYLINDER, SHAPE_SPHERE):
         model.geom_size[ids.object_geom[0]] = np.asarray(object_geom_sizes(np.array([shape]), np.array([size])))[0]
