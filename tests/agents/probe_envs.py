@@ -11,6 +11,8 @@ Each isolates one thing a learner can get wrong:
   steps. With `terminate` the episode ends by termination after one step, so V = Q = reward; without it
   the time limit truncates, and a learner that bootstraps on truncation (as it must) learns
   V = Q = reward / (1 − γ), while one that treats truncation as termination learns less.
+- `CountdownEnv`: episodes of a random length (1 to `longest` steps) whatever the action: tests what depends on
+  when episodes end, as an evaluation that stops once every episode has.
 """
 
 import jax
@@ -137,5 +139,37 @@ class ImageTargetEnv(Env[TargetActionParams, ImageTargetSim]):
             reward=-jnp.sum(jnp.square(action - sim.target)),
             terminated=jnp.ones((), jnp.bool_),
             success=jnp.ones((), jnp.bool_),
+            info=(),
+        )
+
+
+@struct.dataclass
+class CountdownParams:
+    """longest: episodes last 1 to `longest` steps; max_episode_steps: time limit."""
+
+    longest: jax.Array
+    max_episode_steps: jax.Array
+
+
+class CountdownEnv(Env[CountdownParams, ProbeSim]):
+    """Episodes of a random length: obs [1] the steps left, reward 1 a step, terminated when none is left."""
+
+    spec = EnvSpec(observation_shape=(1,), action_shape=(1,))
+
+    def default_params(self) -> CountdownParams:
+        return CountdownParams(longest=jnp.array(6, jnp.int32), max_episode_steps=jnp.array(20, jnp.int32))
+
+    def _reset(self, key, params):
+        left = jax.random.randint(key, (1,), 1, params.longest + 1).astype(jnp.float32)
+        return ProbeSim(obs=left), left, ()
+
+    def _transition(self, sim, action, params):
+        left = sim.obs - 1.0
+        return Transition(
+            sim=ProbeSim(obs=left),
+            obs=left,
+            reward=jnp.ones((), jnp.float32),
+            terminated=left[0] <= 0.0,
+            success=left[0] <= 0.0,
             info=(),
         )

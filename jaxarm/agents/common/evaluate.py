@@ -76,11 +76,21 @@ def evaluate(env, env_params, policy, key, episodes: int) -> EvalResult:
     """Runs `episodes` fresh episodes with a deterministic `policy` and returns their results (jit-able).
 
     Only the last state is kept (not every step's, as `rollout_episodes` does): camera observations of a
-    thousand episodes over every step would not fit in memory.
+    thousand episodes over every step would not fit in memory. Stepping stops once every episode has ended (at
+    the latest after the time limit): a finished env stays frozen, so the results are those of stepping the
+    whole time limit (up to the float rounding of another compiled program), and a policy whose episodes end
+    early is evaluated in a fraction of it.
     """
     max_steps = int(env_params.max_episode_steps)
     reset, step = episode_step(env, env_params, policy, episodes)
-    final = jax.lax.fori_loop(0, max_steps, lambda _, state: step(state), reset(key, env_params))
+
+    def running(carry: tuple[jax.Array, EnvState]) -> jax.Array:
+        steps, state = carry
+        return (steps < max_steps) & ~jnp.all(state.done)
+
+    _, final = jax.lax.while_loop(
+        running, lambda carry: (carry[0] + 1, step(carry[1])), (jnp.int32(0), reset(key, env_params))
+    )
     return EvalResult(
         returns=final.episode.return_,
         lengths=final.episode.length,
