@@ -15,7 +15,7 @@ from jaxarm.agents import registry as agents_registry
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
 from jaxarm.agents.common.trainer import run_updates
-from jaxarm.agents.ppo.distill import teacher_input
+from jaxarm.agents.ppo.distill import learner_as_teacher
 from jaxarm.runner import loop, rundir
 
 
@@ -52,7 +52,7 @@ def benchmark_trainer(config: RunConfig):
     teacher = agents_registry.make_trainer(teacher_config)
     key, hparams = jax.random.PRNGKey(teacher_config.seed), teacher_config.hparams()
     state = jax.jit(teacher.init)(key, hparams)
-    return agents_registry.make_trainer(config, teacher=lambda obs: teacher.act(state, teacher_input(obs)))
+    return agents_registry.make_trainer(config, teacher=learner_as_teacher(teacher, state))
 
 
 def compile_updates(config: RunConfig, num_updates: int, devices: Sequence[jax.Device] | None = None):

@@ -45,7 +45,7 @@ from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
-from jaxarm.agents.ppo.distill import teacher_input, teacher_preset_name
+from jaxarm.agents.ppo.distill import learner_as_teacher, teacher_preset_name
 from jaxarm.runner import provenance
 
 PROVENANCE_FILE = "provenance.json"
@@ -335,13 +335,12 @@ def make_trainer(config: RunConfig, run_dir: pathlib.Path | None = None):
 
 
 def load_teacher(run_dir: pathlib.Path):
-    """The deterministic policy of the run in `run_dir` (its latest checkpoint), reading `teacher_input`: obs
-    [N, ...] -> actions [N, A]; its arrays become constants of the program that calls it. RunDirError or
-    CheckpointError for a run that cannot be read."""
+    """The policy of the run in `run_dir` (its latest checkpoint) as a teacher (`learner_as_teacher`); RunDirError
+    or CheckpointError for a run that cannot be read."""
     config, _ = read_config(run_dir)
     trainer = make_trainer(config, run_dir)
     state = restore_state(run_dir, trainer, config)
-    return lambda obs: trainer.act(state, teacher_input(obs))
+    return learner_as_teacher(trainer, state)
 
 
 def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig, best: bool = False, shardings=None):

@@ -33,3 +33,10 @@ def teacher_input(obs: Observation) -> Observation:
     if isinstance(obs, Mapping) and PRIVILEGED in obs:
         return obs[PRIVILEGED]
     return obs
+
+
+def learner_as_teacher(trainer, state) -> Teacher:
+    """The deterministic policy of a learner's `state` (its `trainer.act`) as a teacher, reading `teacher_input` of
+    the student's observations: obs [N, ...] -> actions [N, A]; the state's arrays become constants of the program
+    that calls it."""
+    return lambda obs: trainer.act(state, teacher_input(obs))
