@@ -302,9 +302,9 @@ SORTER_PIXELS_PPO = dataclasses.replace(
     # (pre-tanh) instead of 1 keeps the student near the states its own mean policy reaches, which DAgger labels.
     initial_log_std=-1.0,
     # Regressing onto a teacher needs far fewer samples than finding the task by reward, and a pixel step costs
-    # more than a state step (two images cast, an encoder): a budget meant to keep teacher and student together
-    # well inside 20 minutes on one GPU.
-    total_env_steps=10_000_000,
+    # more than a state step (two images cast, an encoder): 25M student steps keep teacher and student together
+    # well inside 20 minutes on one GPU (BENCHMARKS.md#sorter-pixels).
+    total_env_steps=25_000_000,
 )
 
 
@@ -336,11 +336,11 @@ CAMERA_RANDOMIZE = (
 @preset("PPO sorter from cameras under randomised physics, sensing and cameras, from a ppo_sorter_dr teacher")
 def ppo_sorter_pixels_dr() -> PPOConfig:
     # The student meets SORTER_RANDOMIZE as its teacher did, so the teacher's labels hold over every draw, and
-    # the cameras' own ranges, which the state teacher does not see; twice the budget, as ppo_sorter_dr takes
-    # over ppo_sorter.
+    # the cameras' own ranges, which the state teacher does not see; more budget than ppo_sorter_pixels, as
+    # ppo_sorter_dr takes over ppo_sorter.
     return dataclasses.replace(
         SORTER_PIXELS_PPO,
         teacher=f"{PRESET_TEACHER}ppo_sorter_dr",
         randomize=(*SORTER_RANDOMIZE, *CAMERA_RANDOMIZE),
-        total_env_steps=20_000_000,
+        total_env_steps=40_000_000,
     )
