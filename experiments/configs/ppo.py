@@ -245,6 +245,14 @@ def ppo_sorter_dr() -> PPOConfig:
     return dataclasses.replace(SORTER_PPO, randomize=SORTER_RANDOMIZE, total_env_steps=150_000_000)
 
 
+@preset("PPO tosser under randomised physics and sensing, Franka's arm (one NVIDIA GPU)")
+def ppo_sorter_toss_dr() -> PPOConfig:
+    # ppo_sorter_toss drawing SORTER_RANDOMIZE as ppo_sorter_dr does: a throw lands only where the release is timed
+    # right, and damping, servo gains, latency and the control period all move the release. Twice the tosser's
+    # budget, as ppo_sorter_dr takes over ppo_sorter.
+    return dataclasses.replace(ppo_sorter_toss(), randomize=SORTER_RANDOMIZE, total_env_steps=400_000_000)
+
+
 @preset("PPO inserting a peg into a hole shifted at random (one GPU; on a CPU, num_envs=128)")
 def ppo_peg() -> PPOConfig:
     # Measured on the 2-core CPU with num_envs=128: 100% of training episodes inserted from 120k env steps
