@@ -281,9 +281,12 @@ def check_config_unedited(run_dir: pathlib.Path, config: RunConfig) -> None:
         )
 
 
-def read_config(run_dir: pathlib.Path, path: pathlib.Path | None = None) -> tuple[RunConfig, str]:
-    """The config saved in `run_dir` (or at `path`) (validated) and its preset name; ValueError if missing,
-    unreadable or invalid."""
+def read_config(
+    run_dir: pathlib.Path, path: pathlib.Path | None = None, validate: bool = True
+) -> tuple[RunConfig, str]:
+    """The config saved in `run_dir` (or at `path`) and its preset name; ValueError if missing, unreadable or
+    invalid. `validate=False` leaves out `config.validate()`, which builds the env and with it starts JAX's
+    backend."""
     path = run_dir / "config.json" if path is None else path
     if not path.exists():
         raise RunDirError(f"{run_dir} is not a run directory: no config.json")
@@ -301,7 +304,8 @@ def read_config(run_dir: pathlib.Path, path: pathlib.Path | None = None) -> tupl
         raise RunDirError(
             f"{path} is corrupt or from another version ({type(error).__name__}: {error}); fix or restore that file"
         ) from None
-    config.validate()
+    if validate:
+        config.validate()
     return config, preset
 
 

@@ -242,8 +242,9 @@ def with_pairs(pairs: Pairs, changes: Pairs) -> Pairs:
 AnyConfig = TypeVar("AnyConfig", bound=RunConfig)
 
 
-def apply_overrides(config: AnyConfig, overrides: Iterable[str]) -> AnyConfig:
-    """Returns `config` with `key=value` overrides applied, each parsed to its field's type.
+def apply_overrides(config: AnyConfig, overrides: Iterable[str], validate: bool = True) -> AnyConfig:
+    """Returns `config` with `key=value` overrides applied, each parsed to its field's type, then validated
+    (`validate=False` leaves out `config.validate()`, which builds the env and with it starts JAX's backend).
 
     Raises ValueError with a one-line message (naming the closest key for a typo) on any bad override.
     """
@@ -266,5 +267,6 @@ def apply_overrides(config: AnyConfig, overrides: Iterable[str]) -> AnyConfig:
         except ValueError as error:
             raise ValueError(f"bad value for {key}: {error}") from None
         config = dataclasses.replace(config, **{key: value})
-    config.validate()
+    if validate:
+        config.validate()
     return config
