@@ -1,21 +1,27 @@
 """The command-line options that make a command one of several processes (`jax.distributed`), shared by run
 and sweep: on SLURM the processes find each other alone; elsewhere `--coordinator`, `--num-processes` and
-`--process-id` say how; `--local-processes N` starts N of them on this host, one GPU each.
+`--process-id` say how; `--local-processes N` starts N of them on this host, one GPU each (1: the command
+runs alone, on every GPU).
 
 One process per GPU is how Warp's own multi-GPU examples run; BENCHMARKS.md#devices compares it with one process
-driving every GPU.
+driving every GPU. Where a run on this host steps MJX Warp and sees several GPUs, it starts one process per GPU
+by itself (`local_process_count`). That decision is taken before JAX starts its backend, which takes most of
+every GPU's memory: GPUs are counted with `nvidia-smi`, never through JAX.
 """
 
 import argparse
+import itertools
 import os
 import signal
 import socket
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import jax
+
+from jaxarm.envs.panda.mjx_impl import Impl
 
 LOCAL_PROCESSES = "--local-processes"
 STOP_GRACE_S = 60.0
@@ -39,7 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
         type=int,
         metavar="N",
         help="start N processes of this command on this host, one GPU each (CUDA_VISIBLE_DEVICES), joined as "
-        "--distributed: the way MJX Warp uses several GPUs",
+        "--distributed: the way MJX Warp uses several GPUs. A run on MJX Warp starts one per visible GPU by "
+        "itself; 1 keeps it one process, driving every GPU",
     )
 
 
@@ -50,6 +57,58 @@ def check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -
         parser.error("--coordinator, --num-processes and --process-id go with --distributed")
     if args.local_processes is not None and (args.distributed or args.local_processes < 1):
         parser.error(f"{LOCAL_PROCESSES} takes a count of 1 or more, without --distributed (it adds it)")
+
+
+def listed_gpus(listing: str) -> int:
+    """How many GPUs `nvidia-smi -L` lists in `listing`, its output: a line "GPU i: NAME (UUID: ...)" each (MIG
+    instances are listed indented under their GPU)."""
+    return sum(line.startswith("GPU ") for line in listing.splitlines())
+
+
+def visible_gpus(listed: int, cuda_visible_devices: str | None, jax_platforms: str | None) -> int:
+    """How many of the `listed` GPUs a JAX process started here uses. CUDA_VISIBLE_DEVICES, where set, names
+    them ("" none), up to its first entry that is neither an index below `listed` nor a UUID, as CUDA reads it
+    ("-1" hides all); JAX_PLATFORMS set without "cuda" (or "gpu") uses none."""
+    if jax_platforms and not {"cuda", "gpu"} & {name.strip() for name in jax_platforms.split(",")}:
+        return 0
+    if cuda_visible_devices is None:
+        return listed
+    entries = (entry.strip() for entry in cuda_visible_devices.split(","))
+    valid = itertools.takewhile(
+        lambda entry: entry.startswith(("GPU-", "MIG-")) or (entry.isdigit() and int(entry) < listed), entries
+    )
+    return min(listed, sum(1 for _ in valid))
+
+
+def nvidia_smi_listing() -> str:
+    """`nvidia-smi -L`'s output; "" where the tool is missing or fails."""
+    try:
+        return subprocess.run(["nvidia-smi", "-L"], capture_output=True, text=True, timeout=60, check=True).stdout
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+def gpus_here() -> int:
+    """The GPUs a JAX process started on this host would use, counted without starting JAX."""
+    listed = listed_gpus(nvidia_smi_listing())
+    return visible_gpus(listed, os.environ.get("CUDA_VISIBLE_DEVICES"), os.environ.get("JAX_PLATFORMS"))
+
+
+def local_process_count(given: int | None, joined: bool, env_kwargs: Mapping, warp_installed: bool, gpus: int) -> int:
+    """How many processes of a run to start on this host; 1: the command runs in its own process, driving every
+    GPU it sees.
+
+    `given` (`--local-processes`) where the command says; 1 where it is one of several already (`joined`:
+    `--distributed`); else one per GPU (`gpus`) where the env steps MJX Warp on them (`env_kwargs` "impl" is
+    "warp", or "auto" with warp-lang installed: `warp_installed`): Warp scales better that way than in one
+    process driving every GPU (BENCHMARKS.md#devices). MJX-JAX, and envs without MJX (no "impl"), scale about
+    linearly in one process.
+    """
+    if given is not None:
+        return given
+    impl = env_kwargs.get("impl", Impl.JAX)
+    on_warp = impl == Impl.WARP or (impl == Impl.AUTO and warp_installed)
+    return gpus if on_warp and not joined and gpus > 1 else 1
 
 
 def join(args: argparse.Namespace) -> None:

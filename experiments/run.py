@@ -4,7 +4,8 @@ A thin CLI over the library loop `jaxarm.runner` (chunks of compiled updates; be
 NaN stop, evaluation and checkpoints of the whole learner state). `--resume RUN_DIR [key=value ...]` continues
 from the latest checkpoint, bit-identical to an uninterrupted run on CPU; it may extend the budget or change
 evaluation and checkpoint cadence. Ctrl-C or SIGTERM checkpoints at the next chunk end. `--show` lists every
-config field and env param with its default and meaning.
+config field and env param with its default and meaning. On a host of several GPUs a run on MJX Warp starts one
+process per GPU by itself (`--local-processes 1` keeps one process); `num_envs` is the total over all of them.
 """
 
 import os
@@ -29,7 +30,8 @@ import pathlib  # noqa: E402
 
 from experiments import configs, distributed  # noqa: E402
 from jaxarm.agents.common import checkpoint  # noqa: E402
-from jaxarm.agents.common.config import apply_overrides  # noqa: E402
+from jaxarm.agents.common.config import RunConfig, apply_overrides  # noqa: E402
+from jaxarm.envs.panda.mjx_impl import warp_available  # noqa: E402
 from jaxarm.runner import loop, processes, rundir, show  # noqa: E402
 from jaxarm.runner.cache import enable_compilation_cache  # noqa: E402
 from jaxarm.runner.sinks import WandbOptions  # noqa: E402
@@ -85,9 +87,8 @@ def parse_args(argv):
     if args.resume and args.config:
         parser.error("--resume takes the config saved in the run directory; give no --config")
     distributed.check_arguments(parser, args)
-    several = args.distributed or args.local_processes is not None
-    if several and args.config and not args.out and not (args.list or args.show):
-        parser.error("with --distributed or --local-processes give --out: every process writes to one run directory")
+    if args.distributed and args.config and not args.out and not (args.list or args.show):
+        parser.error("with --distributed give --out: every process writes to one run directory")
     return args
 
 
@@ -107,6 +108,41 @@ def cli_message(error: BaseException) -> str:
     return f"{error}; continue with: python -m experiments.run --resume {resume_dir}"
 
 
+def planned_config(args: argparse.Namespace) -> RunConfig:
+    """The run's config (`--resume`'s saved one, or the preset with its overrides), not validated: validating
+    builds the env, which starts JAX's backend, and JAX takes most of every GPU's memory at start, which a
+    process that may only start others must leave to them."""
+    if args.resume:
+        return rundir.read_config(pathlib.Path(args.resume), validate=False)[0]
+    return apply_overrides(configs.get(args.config, validate=False), args.overrides, validate=False)
+
+
+def local_processes(args: argparse.Namespace) -> int:
+    """How many processes of this run to start on this host (`distributed.local_process_count`)."""
+    env_kwargs = dict(planned_config(args).env_kwargs)
+    return distributed.local_process_count(
+        args.local_processes, args.distributed, env_kwargs, warp_available(), distributed.gpus_here()
+    )
+
+
+def start_local_processes(args: argparse.Namespace, argv: list[str], count: int) -> int:
+    """Runs this command as `count` processes of one run on this host (`distributed.spawn`), all given the run
+    directory they share: `--out`, or one named and made here as a run of one process would make it."""
+    if args.out:
+        rundir.check_output_dir(pathlib.Path(args.out), "--out")  # here once, not in every process
+    run_dir = args.resume or args.out
+    if run_dir is None:
+        run_dir = str(rundir.new_run_dir(args.config))
+        argv = ["--out", run_dir, *argv]
+    if args.local_processes is None:
+        print(
+            f"{run_dir}: MJX Warp on {count} GPUs, one process each (faster than one process driving them all; "
+            "--local-processes 1 for that)",
+            flush=True,
+        )
+    return distributed.spawn("experiments.run", argv, count)
+
+
 def main(argv=None) -> int:
     # Start-up is over: from here Ctrl-C raises KeyboardInterrupt (caught below), and the loop checkpoints on it.
     signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -120,14 +156,6 @@ def main(argv=None) -> int:
 
 def _main(argv) -> int:
     args = parse_args(argv)
-    if args.local_processes is not None and not (args.list or args.show):
-        return distributed.spawn("experiments.run", argv, args.local_processes)
-    if args.distributed:
-        try:
-            distributed.join(args)
-        except ValueError as error:
-            print(f"error: {error}", file=sys.stderr)
-            return 2
     if args.list:
         for name, description in configs.describe().items():
             print(f"{name:24s} {description}")
@@ -147,6 +175,11 @@ def _main(argv) -> int:
                 config = apply_overrides(configs.get(preset), args.overrides)
             print(show.describe(config, preset))
             return 0
+        count = local_processes(args)
+        if count > 1:
+            return start_local_processes(args, list(argv), count)
+        if args.distributed:
+            distributed.join(args)
         enable_compilation_cache()
         if args.resume:
             run_dir = pathlib.Path(args.resume)

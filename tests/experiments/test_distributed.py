@@ -4,6 +4,7 @@ one device does."""
 
 import csv
 import os
+import pathlib
 import socket
 import subprocess
 import sys
@@ -14,8 +15,8 @@ import jax
 import numpy as np
 import pytest
 
-from experiments import distributed
-from jaxarm.runner import load_run, read_metrics
+from experiments import configs, distributed, run
+from jaxarm.runner import load_run, read_metrics, rundir
 
 OVERRIDES = [
     "num_envs=16",
@@ -92,10 +93,10 @@ def test_two_processes_compute_one_process_run_and_resume_across(tmp_path):
     assert_codes(run_processes(1, ["--resume", str(one_then_two), "--local-processes", "2"]), 0)
 
     updates = [row["updates"] for row in read_metrics(one)]
-    for run in (two_then_one, one_then_two):
-        assert [row["updates"] for row in read_metrics(run)] == updates
+    for resumed in (two_then_one, one_then_two):
+        assert [row["updates"] for row in read_metrics(resumed)] == updates
         # Identical up to the order in which the devices' gradients are summed.
-        assert params_gap(one, run) < 1e-4
+        assert params_gap(one, resumed) < 1e-4
 
 
 def test_distributed_without_its_processes_is_one_line(tmp_path):
@@ -127,6 +128,126 @@ def test_local_processes_are_checked_and_leave_the_children_their_arguments(monk
         timeout=120,
     )
     assert result.returncode == 2 and "--local-processes takes a count of 1 or more" in result.stderr
+
+
+def test_non_dividing_num_envs_stop_local_processes_with_one_clear_error(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "experiments.run", "--config", "ppo_arm2d", "--local-processes", "2"]
+        + ["--out", str(tmp_path / "run"), *OVERRIDES[2:], "num_envs=9"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert result.returncode == 2
+    assert "error: num_envs=9 must divide by the 2 devices it is split over" in result.stderr, result.stderr[-3000:]
+
+
+H100 = "GPU {index}: NVIDIA H100 80GB HBM3 (UUID: GPU-{index}b4f-0e1c)"
+MIG = "  MIG 3g.40gb     Device  0: (UUID: MIG-9d1e-7a41)"
+
+
+def test_gpus_are_counted_from_nvidia_smi_as_cuda_visible_devices_and_jax_platforms_allow():
+    listing = "\n".join(H100.format(index=index) for index in range(4)) + "\n"
+    assert distributed.listed_gpus(listing) == 4
+    assert distributed.listed_gpus(f"{H100.format(index=0)}\n{MIG}\n") == 1  # a MIG instance under its GPU
+    assert distributed.listed_gpus("") == 0  # no nvidia-smi, or it failed
+    visible = {
+        None: 4,
+        "": 0,
+        "2,3": 2,
+        " 1 , 3 ": 2,
+        "0,1,2,3,4,5": 4,  # CUDA stops at the first index that does not exist
+        "-1": 0,
+        "1,-1,2": 1,
+        "GPU-0b4f-0e1c,GPU-1b4f-0e1c": 2,
+    }
+    for cuda_visible_devices, count in visible.items():
+        assert distributed.visible_gpus(4, cuda_visible_devices, None) == count, cuda_visible_devices
+    assert distributed.visible_gpus(0, "0,1", None) == 0
+    assert distributed.visible_gpus(4, None, "cpu") == 0
+    assert distributed.visible_gpus(4, "0,1", "cuda,cpu") == 2
+    assert distributed.visible_gpus(4, None, "") == 4
+
+
+def test_gpus_here_asks_nvidia_smi_and_counts_none_where_it_is_missing_or_fails(tmp_path, monkeypatch):
+    monkeypatch.delenv("JAX_PLATFORMS", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path))
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "1,2")
+    assert distributed.gpus_here() == 0  # no nvidia-smi
+    tool = tmp_path / "nvidia-smi"
+    lines = "\n".join(H100.format(index=index) for index in range(4))
+    tool.write_text(f'#!/bin/sh\n[ "$1" = "-L" ] && printf "{lines}\\n"\n')
+    tool.chmod(0o755)
+    assert distributed.gpus_here() == 2
+    tool.write_text("#!/bin/sh\necho 'NVIDIA-SMI has failed'; exit 9\n")
+    assert distributed.gpus_here() == 0
+
+
+@pytest.mark.parametrize(
+    ("given", "joined", "impl", "warp_installed", "gpus", "count"),
+    [
+        (None, False, "warp", True, 4, 4),
+        (None, False, "auto", True, 4, 4),
+        (None, False, "auto", False, 4, 1),  # auto without warp-lang: MJX-JAX
+        (None, False, "jax", True, 4, 1),
+        (None, False, None, True, 4, 1),  # an env without MJX
+        (None, False, "warp", True, 1, 1),
+        (None, False, "warp", True, 0, 1),
+        (1, False, "warp", True, 4, 1),  # the opt-out
+        (2, False, "jax", True, 4, 2),
+        (None, True, "warp", True, 4, 1),  # one of several already
+    ],
+)
+def test_a_run_on_mjx_warp_starts_one_process_per_gpu_unless_told(given, joined, impl, warp_installed, gpus, count):
+    env_kwargs = {} if impl is None else {"impl": impl, "max_envs": 8192}
+    assert distributed.local_process_count(given, joined, env_kwargs, warp_installed, gpus) == count
+
+
+@pytest.fixture
+def started(monkeypatch, tmp_path):
+    """The processes `run` would start on a host of 4 GPUs with warp-lang, as (module, argv, count), none started;
+    building an env (which would start JAX's backend on every GPU) fails the test."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(distributed, "gpus_here", lambda: 4)
+    monkeypatch.setattr(run, "warp_available", lambda: True)
+    calls = []
+    monkeypatch.setattr(distributed, "spawn", lambda module, argv, count: calls.append((module, argv, count)) or 0)
+
+    def no_backend(*args, **kwargs):
+        raise AssertionError("the launching process asked JAX for its devices")
+
+    monkeypatch.setattr(jax, "devices", no_backend)
+    return calls
+
+
+def test_a_warp_run_hands_its_processes_one_run_directory(started, tmp_path, capsys):
+    assert run._main(["--config", "ppo_sorter", "num_envs=64"]) == 0
+    (run_dir,) = (tmp_path / "runs").iterdir()  # named as a run of one process names it
+    assert run_dir.name.startswith("ppo_sorter-")
+    out = str(pathlib.Path("runs") / run_dir.name)
+    assert started.pop() == ("experiments.run", ["--out", out, "--config", "ppo_sorter", "num_envs=64"], 4)
+    told = "one process each (faster than one process driving them all; --local-processes 1 for that)"
+    assert capsys.readouterr().out == f"{out}: MJX Warp on 4 GPUs, {told}\n"
+
+    given = ["--config", "ppo_sorter", "--out", "mine", "--local-processes", "2"]
+    assert run._main(given) == 0
+    assert started.pop() == ("experiments.run", given, 2) and capsys.readouterr().out == ""
+
+    saved = tmp_path / "saved"
+    rundir.write_config(saved, configs.get("ppo_sorter", validate=False), "ppo_sorter")
+    assert run._main(["--resume", str(saved), "total_env_steps=1000000"]) == 0
+    assert started.pop() == ("experiments.run", ["--resume", str(saved), "total_env_steps=1000000"], 4)
+
+
+def test_overrides_and_saved_configs_decide_the_engine_without_building_it(started, tmp_path):
+    planned = run.planned_config(run.parse_args(["--config", "ppo_sorter", "env_kwargs.impl=jax"]))
+    assert dict(planned.env_kwargs)["impl"] == "jax"
+    saved = tmp_path / "saved"
+    rundir.write_config(saved, planned, "ppo_sorter")
+    assert dict(run.planned_config(run.parse_args(["--resume", str(saved)])).env_kwargs)["impl"] == "jax"
+    assert run.local_processes(run.parse_args(["--resume", str(saved)])) == 1
+    assert run.local_processes(run.parse_args(["--config", "ppo_sorter"])) == 4
+    assert run.local_processes(run.parse_args(["--config", "ppo_arm2d"])) == 1
 
 
 def sweep_results(out, device_count: int, stopped: bool = False) -> list[dict]:
