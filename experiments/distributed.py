@@ -4,8 +4,8 @@ and sweep: on SLURM the processes find each other alone; elsewhere `--coordinato
 runs alone, on every GPU).
 
 One process per GPU is how Warp's own multi-GPU examples run; BENCHMARKS.md#devices compares it with one process
-driving every GPU. Where a run on this host steps MJX Warp and sees several GPUs, it starts one process per GPU
-by itself (`local_process_count`). That decision is taken before JAX starts its backend, which takes most of
+driving every GPU. Where a PPO run on this host steps MJX Warp and sees several GPUs, it starts one process per
+GPU by itself (`local_process_count`). That decision is taken before JAX starts its backend, which takes most of
 every GPU's memory: GPUs are counted with `nvidia-smi`, never through JAX.
 """
 
@@ -45,8 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
         type=int,
         metavar="N",
         help="start N processes of this command on this host, one GPU each (CUDA_VISIBLE_DEVICES), joined as "
-        "--distributed: the way MJX Warp uses several GPUs. A run on MJX Warp starts one per visible GPU by "
-        "itself; 1 keeps it one process, driving every GPU",
+        "--distributed: the way MJX Warp uses several GPUs. A PPO run on MJX Warp starts one per visible GPU "
+        "by itself; 1 keeps it one process, driving every GPU",
     )
 
 
@@ -94,21 +94,25 @@ def gpus_here() -> int:
     return visible_gpus(listed, os.environ.get("CUDA_VISIBLE_DEVICES"), os.environ.get("JAX_PLATFORMS"))
 
 
-def local_process_count(given: int | None, joined: bool, env_kwargs: Mapping, warp_installed: bool, gpus: int) -> int:
+def steps_on_warp(env_kwargs: Mapping, warp_installed: bool) -> bool:
+    """Whether an env built with `env_kwargs` steps MJX Warp on a GPU: "impl" is "warp", or "auto" with warp-lang
+    installed (`warp_installed`); envs without MJX have no "impl"."""
+    impl = env_kwargs.get("impl", Impl.JAX)
+    return impl == Impl.WARP or (impl == Impl.AUTO and warp_installed)
+
+
+def local_process_count(given: int | None, joined: bool, spreads: bool, gpus: int) -> int:
     """How many processes of a run to start on this host; 1: the command runs in its own process, driving every
     GPU it sees.
 
     `given` (`--local-processes`) where the command says; 1 where it is one of several already (`joined`:
-    `--distributed`); else one per GPU (`gpus`) where the env steps MJX Warp on them (`env_kwargs` "impl" is
-    "warp", or "auto" with warp-lang installed: `warp_installed`): Warp scales better that way than in one
-    process driving every GPU (BENCHMARKS.md#devices). MJX-JAX, and envs without MJX (no "impl"), scale about
-    linearly in one process.
+    `--distributed`); else one per GPU (`gpus`) where the run gains from it (`spreads`: it steps MJX Warp, which
+    scales better that way than in one process driving every GPU, BENCHMARKS.md#devices). MJX-JAX, and envs
+    without MJX, scale about linearly in one process.
     """
     if given is not None:
         return given
-    impl = env_kwargs.get("impl", Impl.JAX)
-    on_warp = impl == Impl.WARP or (impl == Impl.AUTO and warp_installed)
-    return gpus if on_warp and not joined and gpus > 1 else 1
+    return gpus if spreads and not joined and gpus > 1 else 1
 
 
 def join(args: argparse.Namespace) -> None:

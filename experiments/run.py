@@ -4,7 +4,7 @@ A thin CLI over the library loop `jaxarm.runner` (chunks of compiled updates; be
 NaN stop, evaluation and checkpoints of the whole learner state). `--resume RUN_DIR [key=value ...]` continues
 from the latest checkpoint, bit-identical to an uninterrupted run on CPU; it may extend the budget or change
 evaluation and checkpoint cadence. Ctrl-C or SIGTERM checkpoints at the next chunk end. `--show` lists every
-config field and env param with its default and meaning. On a host of several GPUs a run on MJX Warp starts one
+config field and env param with its default and meaning. On a host of several GPUs a PPO run on MJX Warp starts one
 process per GPU by itself (`--local-processes 1` keeps one process); `num_envs` is the total over all of them.
 """
 
@@ -31,6 +31,7 @@ import pathlib  # noqa: E402
 from experiments import configs, distributed  # noqa: E402
 from jaxarm.agents.common import checkpoint  # noqa: E402
 from jaxarm.agents.common.config import RunConfig, apply_overrides  # noqa: E402
+from jaxarm.agents.ppo import PPOConfig  # noqa: E402
 from jaxarm.envs.panda.mjx_impl import warp_available  # noqa: E402
 from jaxarm.runner import loop, processes, rundir, show  # noqa: E402
 from jaxarm.runner.cache import enable_compilation_cache  # noqa: E402
@@ -117,12 +118,21 @@ def planned_config(args: argparse.Namespace) -> RunConfig:
     return apply_overrides(configs.get(args.config, validate=False), args.overrides, validate=False)
 
 
+def spreads_over_gpus(config: RunConfig) -> bool:
+    """Whether a run of `config` starts one process per GPU by itself: one on MJX Warp, of the learner measured so
+    (PPO without a teacher, BENCHMARKS.md#devices); TD3 and distillation have not run as several processes, so
+    they take several only where `--local-processes` asks."""
+    measured = isinstance(config, PPOConfig) and not config.teacher
+    return measured and distributed.steps_on_warp(dict(config.env_kwargs), warp_available())
+
+
 def local_processes(args: argparse.Namespace) -> int:
     """How many processes of this run to start on this host (`distributed.local_process_count`)."""
-    env_kwargs = dict(planned_config(args).env_kwargs)
-    return distributed.local_process_count(
-        args.local_processes, args.distributed, env_kwargs, warp_available(), distributed.gpus_here()
-    )
+    if args.local_processes is not None or args.distributed:
+        # Told, or one of several already: no config to read, no GPUs to count (in each of the processes).
+        return distributed.local_process_count(args.local_processes, args.distributed, False, 0)
+    spreads = spreads_over_gpus(planned_config(args))
+    return distributed.local_process_count(None, False, spreads, distributed.gpus_here() if spreads else 0)
 
 
 def start_local_processes(args: argparse.Namespace, argv: list[str], count: int) -> int:

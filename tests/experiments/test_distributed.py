@@ -184,23 +184,28 @@ def test_gpus_here_asks_nvidia_smi_and_counts_none_where_it_is_missing_or_fails(
 
 
 @pytest.mark.parametrize(
-    ("given", "joined", "impl", "warp_installed", "gpus", "count"),
+    ("impl", "warp_installed", "on_warp"),
+    [("warp", True, True), ("auto", True, True), ("auto", False, False), ("jax", True, False), (None, True, False)],
+)
+def test_an_env_steps_warp_where_asked_or_left_to_auto_with_warp_installed(impl, warp_installed, on_warp):
+    env_kwargs = {} if impl is None else {"impl": impl, "max_envs": 8192}  # None: an env without MJX
+    assert distributed.steps_on_warp(env_kwargs, warp_installed) is on_warp
+
+
+@pytest.mark.parametrize(
+    ("given", "joined", "spreads", "gpus", "count"),
     [
-        (None, False, "warp", True, 4, 4),
-        (None, False, "auto", True, 4, 4),
-        (None, False, "auto", False, 4, 1),  # auto without warp-lang: MJX-JAX
-        (None, False, "jax", True, 4, 1),
-        (None, False, None, True, 4, 1),  # an env without MJX
-        (None, False, "warp", True, 1, 1),
-        (None, False, "warp", True, 0, 1),
-        (1, False, "warp", True, 4, 1),  # the opt-out
-        (2, False, "jax", True, 4, 2),
-        (None, True, "warp", True, 4, 1),  # one of several already
+        (None, False, True, 4, 4),
+        (None, False, False, 4, 1),
+        (None, False, True, 1, 1),
+        (None, False, True, 0, 1),
+        (1, False, True, 4, 1),  # the opt-out
+        (2, False, False, 4, 2),
+        (None, True, True, 4, 1),  # one of several already
     ],
 )
-def test_a_run_on_mjx_warp_starts_one_process_per_gpu_unless_told(given, joined, impl, warp_installed, gpus, count):
-    env_kwargs = {} if impl is None else {"impl": impl, "max_envs": 8192}
-    assert distributed.local_process_count(given, joined, env_kwargs, warp_installed, gpus) == count
+def test_a_run_that_spreads_starts_one_process_per_gpu_unless_told(given, joined, spreads, gpus, count):
+    assert distributed.local_process_count(given, joined, spreads, gpus) == count
 
 
 @pytest.fixture
@@ -248,6 +253,10 @@ def test_overrides_and_saved_configs_decide_the_engine_without_building_it(start
     assert run.local_processes(run.parse_args(["--resume", str(saved)])) == 1
     assert run.local_processes(run.parse_args(["--config", "ppo_sorter"])) == 4
     assert run.local_processes(run.parse_args(["--config", "ppo_arm2d"])) == 1
+    # Learners not yet run as several processes stay one unless told.
+    assert run.local_processes(run.parse_args(["--config", "td3_sorter"])) == 1
+    assert run.local_processes(run.parse_args(["--config", "ppo_sorter_pixels"])) == 1
+    assert run.local_processes(run.parse_args(["--config", "td3_sorter", "--local-processes", "2"])) == 2
 
 
 def sweep_results(out, device_count: int, stopped: bool = False) -> list[dict]:
