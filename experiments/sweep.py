@@ -5,7 +5,9 @@ compiled call; static choices (num_envs, sizes, ...) form separate groups, each 
 results.csv and results.md (mean, std and 95% CI over seeds of final return and success, wall time) and
 curves.png (mean success rate and return over env steps with 95% CI bands) into the sweep directory, a new or
 empty one, locked while the sweep runs: a sweep never replaces another's results. With several devices the
-seeds and values are shared out over them, each run whole on one device (as many devices as divide their count).
+seeds and values are shared out over them, each run whole on one device (as many devices as divide their count);
+`--local-processes N` runs the sweep as N processes of this host, one GPU each, and `--distributed` as one of
+several processes on several hosts.
 
 `--stop-after-minutes M` checkpoints every member after the chunk that passes M minutes and stops;
 `python -m experiments.sweep --resume SWEEP_DIR [--stop-after-minutes M]` continues it, computing what an
@@ -271,7 +273,8 @@ def main(argv=None) -> int:
     )
     distributed.add_arguments(parser, "--out")
     parser.add_argument("assignments", nargs="*", help="key=v1,v2,... (one value: a plain override)")
-    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = parser.parse_args(argv)
     distributed.check_arguments(parser, args)
     if bool(args.config) == bool(args.resume):
         parser.error("give --config NAME (a new sweep) or --resume SWEEP_DIR (a stopped one)")
@@ -279,6 +282,10 @@ def main(argv=None) -> int:
         parser.error("--resume takes the sweep's own preset, seeds and assignments; give no --out or key=values")
     if args.distributed and not (args.out or args.resume):
         parser.error("with --distributed give --out: every process must write to the same sweep directory")
+    if args.local_processes is not None and args.local_processes > 1:
+        if not (args.out or args.resume):  # one directory for all of them, named here as a sweep of one names it
+            argv = ["--out", str(rundir.new_run_dir(f"sweep-{args.config}")), *argv]
+        return distributed.spawn("experiments.sweep", argv, args.local_processes)
     try:
         if args.distributed:
             distributed.join(args)

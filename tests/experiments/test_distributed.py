@@ -15,7 +15,7 @@ import jax
 import numpy as np
 import pytest
 
-from experiments import configs, distributed, run
+from experiments import configs, distributed, run, sweep
 from jaxarm.runner import load_run, read_metrics, rundir
 
 OVERRIDES = [
@@ -257,6 +257,19 @@ def test_overrides_and_saved_configs_decide_the_engine_without_building_it(start
     assert run.local_processes(run.parse_args(["--config", "td3_sorter"])) == 1
     assert run.local_processes(run.parse_args(["--config", "ppo_sorter_pixels"])) == 1
     assert run.local_processes(run.parse_args(["--config", "td3_sorter", "--local-processes", "2"])) == 2
+
+
+def test_a_sweep_over_local_processes_starts_them_on_one_directory(monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)
+    started = []
+    monkeypatch.setattr(distributed, "spawn", lambda module, argv, count: started.append((module, argv, count)) or 0)
+    asked = ["--config", "ppo_arm2d", "--seeds", "2", "--local-processes", "2", "learning_rate=3e-4,1e-3"]
+    assert sweep.main(asked) == 0
+    (out,) = (tmp_path / "runs").iterdir()
+    assert out.name.startswith("sweep-ppo_arm2d-")
+    assert started == [("experiments.sweep", ["--out", str(pathlib.Path("runs") / out.name), *asked], 2)]
+    assert sweep.main(["--resume", "stopped", "--local-processes", "2"]) == 0
+    assert started[-1] == ("experiments.sweep", ["--resume", "stopped", "--local-processes", "2"], 2)
 
 
 def sweep_results(out, device_count: int, stopped: bool = False) -> list[dict]:
