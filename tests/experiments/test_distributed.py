@@ -272,17 +272,18 @@ def test_a_sweep_over_local_processes_starts_them_on_one_directory(monkeypatch, 
     assert started[-1] == ("experiments.sweep", ["--resume", "stopped", "--local-processes", "2"], 2)
 
 
-def sweep_results(out, device_count: int, stopped: bool = False) -> list[dict]:
-    """results.csv of a 2-value × 2-seed ppo_arm2d sweep run on `device_count` forced host devices (`stopped`:
-    checkpointed after its first chunk, then resumed)."""
+def sweep_results(out, device_count: int, stopped: bool = False, processes: int = 1) -> list[dict]:
+    """results.csv of a 2-value × 2-seed ppo_arm2d sweep run on `device_count` forced host devices per process, in
+    `processes` processes (`stopped`: checkpointed after its first chunk, then resumed)."""
     command = [sys.executable, "-m", "experiments.sweep", "--config", "ppo_arm2d", "--seeds", "2", "--out", str(out)]
+    command += ["--local-processes", str(processes)]
     command += [*OVERRIDES[:6], "eval_episodes=16", "learning_rate=3e-4,1e-3"]
     commands = [[*command, "--stop-after-minutes", "0"], command[:3] + ["--resume", str(out)]] if stopped else [command]
     env = {**os.environ, "XLA_FLAGS": f"--xla_force_host_platform_device_count={device_count}"}
     for each in commands:
         result = subprocess.run(each, capture_output=True, text=True, timeout=600, env=env)
         assert result.returncode == 0, result.stderr[-3000:]
-    assert (f"4 runs shared over {device_count} devices" in result.stdout) == (device_count > 1)
+    assert (f"4 runs shared over {device_count * processes} devices" in result.stdout) == (device_count * processes > 1)
     with (out / "results.csv").open() as handle:
         return [{key: value for key, value in row.items() if key != "group_wall_s"} for row in csv.DictReader(handle)]
 
@@ -291,10 +292,12 @@ def sweep_results(out, device_count: int, stopped: bool = False) -> list[dict]:
 def test_a_sweep_shared_over_devices_computes_what_one_device_does(tmp_path):
     one, four = sweep_results(tmp_path / "one", 1), sweep_results(tmp_path / "four", 4)
     assert sweep_results(tmp_path / "resumed", 4, stopped=True) == four  # its members restored onto their devices
-    assert [row["setting"] for row in one] == [row["setting"] for row in four]
-    for single, shared in zip(one, four, strict=True):
-        for column in ("success_mean", "return_mean", "return_std"):
-            assert float(shared[column]) == pytest.approx(float(single[column]), abs=1e-4)
+    two_processes = sweep_results(tmp_path / "two", 1, processes=2)
+    for shared_out in (four, two_processes):
+        assert [row["setting"] for row in one] == [row["setting"] for row in shared_out]
+        for single, shared in zip(one, shared_out, strict=True):
+            for column in ("success_mean", "return_mean", "return_std"):
+                assert float(shared[column]) == pytest.approx(float(single[column]), abs=1e-4)
 
 
 SORTER_START = textwrap.dedent("""
