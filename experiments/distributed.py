@@ -45,8 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
         type=int,
         metavar="N",
         help="start N processes of this command on this host, one GPU each (CUDA_VISIBLE_DEVICES), joined as "
-        "--distributed: the way MJX Warp uses several GPUs. A PPO run on MJX Warp starts one per visible GPU "
-        "by itself; 1 keeps it one process, driving every GPU",
+        "--distributed: the way MJX Warp uses several GPUs. `run` starts one per visible GPU by itself for PPO "
+        "on MJX Warp; 1 keeps it one process, driving every GPU",
     )
 
 
