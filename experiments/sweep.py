@@ -22,6 +22,7 @@ import json
 import pathlib
 import shutil
 import sys
+import textwrap
 import time
 
 import jax
@@ -205,8 +206,18 @@ def summarise(label: str, success: np.ndarray, returns: np.ndarray, wall: float)
     }
 
 
-def collect(config: RunConfig, base: RunConfig, dynamic: list[dict], seeds: int, metrics, results, wall: float):
-    """One group's outputs -> (results rows, {label: (env_steps, success, return) curves [seeds, updates]}).
+def collect(
+    config: RunConfig,
+    base: RunConfig,
+    shared: list[str],
+    dynamic: list[dict],
+    seeds: int,
+    metrics,
+    results,
+    wall: float,
+):
+    """One group's outputs -> (results rows, {label: (env_steps, success, return) curves [seeds, updates]}); labels
+    leave out the `shared` changes.
 
     Curve points of updates in which a seed finished no episode are NaN.
     """
@@ -217,7 +228,7 @@ def collect(config: RunConfig, base: RunConfig, dynamic: list[dict], seeds: int,
     ).astype(np.float64)
     for index, combo in enumerate(dynamic):
         members = slice(index * seeds, (index + 1) * seeds)
-        label = describe(config, base, combo)
+        label = describe(changes(config, base, combo), shared)
         rows.append(
             summarise(label, results.successes[members].mean(axis=1), results.returns[members].mean(axis=1), wall)
         )
@@ -232,21 +243,41 @@ def collect(config: RunConfig, base: RunConfig, dynamic: list[dict], seeds: int,
     return rows, curves
 
 
-def describe(config: RunConfig, base: RunConfig, combo: dict) -> str:
-    changed = [
-        f"{field.name}={getattr(config, field.name)}"
-        for field in dataclasses.fields(config)
-        if getattr(config, field.name) != getattr(base, field.name)
-    ]
-    return " ".join(changed + [f"{name}={value:g}" for name, value in combo.items()]) or "base"
+PAIRED_FIELDS = ("env_kwargs", "env_params", "eval_env_params", "randomize")
+"""Config fields of (name, value) pairs: a setting names each changed pair as on the CLI, `field.name=value`."""
 
 
-def write_tables(rows: list[dict], out: pathlib.Path) -> None:
+def changes(config: RunConfig, base: RunConfig, combo: dict) -> list[str]:
+    """What sets this (group config, dynamic combination) apart from the preset `base`, as CLI-like
+    `key=value` items without spaces."""
+    items = []
+    for field in dataclasses.fields(config):
+        value, preset = getattr(config, field.name), getattr(base, field.name)
+        if field.name in PAIRED_FIELDS:
+            items += [f"{field.name}.{k}={v}" for k, v in value if (k, v) not in preset]
+        elif value != preset:
+            items.append(f"{field.name}={value}".replace(" ", ""))
+    return items + [f"{name}={value:g}" for name, value in combo.items()]
+
+
+def describe(items: list[str], shared: list[str]) -> str:
+    """A setting's label: its `changes` less those every setting of the sweep shares."""
+    return " ".join(item for item in items if item not in shared) or "base"
+
+
+def shared_changes(grid: Grid, base: RunConfig) -> list[str]:
+    """The changes from the preset that every setting of the sweep makes (said once, above the rows)."""
+    each = [changes(config, base, combo) for config in grid.groups for combo in grid.dynamic]
+    return [item for item in each[0] if all(item in items for items in each[1:])] if len(each) > 1 else []
+
+
+def write_tables(rows: list[dict], out: pathlib.Path, shared: list[str]) -> None:
     with (out / "results.csv").open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    lines = [
+    lines = [f"Every setting: {' '.join(shared)}", ""] if shared else []
+    lines += [
         "| setting | seeds | success (mean ± 95% CI) | return (mean ± 95% CI) | group wall s |",
         "|---|---:|---:|---:|---:|",
     ]
@@ -381,13 +412,17 @@ def sweep(
     deadline = None if stop_after_s is None else time.perf_counter() + stop_after_s
     rows: list[dict] = []
     curves: dict = {}
+    shared = shared_changes(grid, base)
     for index, config in enumerate(grid.groups):
         folder = out / f"group-{index}"
         finished = read_group(folder)
         if finished is None:
-            print(f"group {describe(config, base, {})}: {len(grid.dynamic)} settings × {seeds} seeds", flush=True)
+            print(
+                f"group {describe(changes(config, base, {}), [])}: {len(grid.dynamic)} settings × {seeds} seeds",
+                flush=True,
+            )
             metrics, results, wall = run_group(config, grid.dynamic, seeds, folder / "checkpoints", deadline)
-            finished = collect(config, base, grid.dynamic, seeds, metrics, results, wall)
+            finished = collect(config, base, shared, grid.dynamic, seeds, metrics, results, wall)
             if primary:
                 write_group(folder, *finished)
                 shutil.rmtree(folder / "checkpoints", ignore_errors=True)  # its members' state: kept results suffice
@@ -395,8 +430,8 @@ def sweep(
         curves.update(finished[1])
     if not primary:
         return
-    write_tables(rows, out)
-    plots.sweep_curves(curves, out / "curves.png", title=title)
+    write_tables(rows, out, shared)
+    plots.sweep_curves(curves, out / "curves.png", title="\n".join([title, *textwrap.wrap(" ".join(shared), 110)]))
     print((out / "results.md").read_text())
     print(f"wrote {out}/results.csv, results.md, curves.png")
 

@@ -304,3 +304,13 @@ def test_sweep_bands_stay_in_0_1_and_numpy_stays_quiet(tmp_path):
     assert np.all(lower[[0, 2, 3]] >= 0.0) and np.all(upper[[0, 2, 3]] <= 1.0) and lower[0] == 0.0
     assert np.isnan(mean[1]) and mean[2] == lower[2] == upper[2] == 0.9
     assert (tmp_path / "curves.png").stat().st_size > 0
+
+
+def test_a_sweep_labels_its_settings_by_what_sets_them_apart():
+    base = configs.get("ppo_sorter")
+    assignments = ["num_envs=1024", "env_kwargs.max_envs=16384", "learning_rate=2e-4,8e-4"]
+    grid = sweep.parse_grid(base, assignments)
+    shared = sweep.shared_changes(grid, base)
+    assert shared == ["env_kwargs.max_envs=16384", "num_envs=1024"]
+    labels = [sweep.describe(sweep.changes(grid.groups[0], base, combo), shared) for combo in grid.dynamic]
+    assert labels == ["learning_rate=0.0002", "learning_rate=0.0008"]
