@@ -85,10 +85,9 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
     """Evaluates (or draws, or perturbs) the run as `args` ask, prints and writes the results; the exit status."""
     import jax
 
-    from experiments import configs
     from experiments.run import quiet_libraries
     from jaxarm.agents.common import checkpoint
-    from jaxarm.runner import rundir, video
+    from jaxarm.runner import learners, rundir, video
     from jaxarm.runner.cache import enable_compilation_cache
 
     phases = {"imports": time.perf_counter() - began}
@@ -101,17 +100,17 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
         phases["devices"] = time.perf_counter() - clock
         clock = time.perf_counter()
         config, _ = rundir.read_config(run_dir)  # validating the config builds the env, which the trainer reuses
-        trainer = configs.make_trainer(config, run_dir)
+        trainer = learners.make_trainer(config, run_dir)
         phases["env"] = time.perf_counter() - clock
         with rundir.locked(run_dir):
             clock = time.perf_counter()
-            state = rundir.restore_state(run_dir, trainer, config, best=args.best)
+            state = learners.restore_state(run_dir, trainer, config, best=args.best)
             phases["checkpoint"] = time.perf_counter() - clock
             if args.perturb or args.randomized_ends:
                 write_robustness(run_dir, config, trainer, state, args)
                 return 0
             start = time.perf_counter()
-            result = rundir.evaluate_state(trainer, config, state, args.episodes, args.seed)
+            result = learners.evaluate_state(trainer, config, state, args.episodes, args.seed)
             result["checkpoint_update"] = int(state.updates)
             print(
                 f"{run_dir}: success_rate {result['success_rate']:.3f} return_mean {result['return_mean']:.2f} "

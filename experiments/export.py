@@ -15,12 +15,11 @@ import argparse
 import pathlib
 import sys
 
-from experiments import configs
 from jaxarm.agents.common import checkpoint
 from jaxarm.deploy import files as deploy_files
 from jaxarm.deploy import from_env
 from jaxarm.export import policy
-from jaxarm.runner import rundir
+from jaxarm.runner import learners, rundir
 
 
 def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Path]:
@@ -31,8 +30,8 @@ def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Pat
     config, _ = rundir.read_config(run_dir)
     env, _ = config.make_env()
     observation_size = policy.check_flat_observations(env.spec)
-    trainer = configs.make_trainer(config, run_dir)
-    state = rundir.restore_state(run_dir, trainer, config)
+    trainer = learners.make_trainer(config, run_dir)
+    state = learners.restore_state(run_dir, trainer, config)
     arrays = policy.numpy_policy(trainer, state)
     serialized = policy.serialized_jax_policy(trainer, state, observation_size)
     try:

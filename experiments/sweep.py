@@ -37,7 +37,7 @@ from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.sharding import ENV_AXIS, gathered, members_mesh, over_members
 from jaxarm.agents.common.trainer import Trainer, run_updates
-from jaxarm.runner import plots, processes, rundir
+from jaxarm.runner import learners, plots, processes, rundir
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.stats import confidence_halfwidth
 
@@ -107,7 +107,7 @@ def run_group(
     (`time.perf_counter`) passes `deadline` with chunks left, the members and their metrics so far are
     checkpointed there and Stopped is raised. Every process calls this alike.
     """
-    trainer = configs.make_trainer(config)
+    trainer = learners.make_trainer(config)
     members = [(combo, seed) for combo in dynamic for seed in range(seeds)]
     mesh = members_mesh(len(members))
     if mesh is not None:
@@ -121,7 +121,7 @@ def run_group(
     start = time.perf_counter()
     state = init_members(trainer, keys, hparams, mesh)
     if config.init_from:
-        state = jax.jit(over_members(jax.vmap(rundir.warm_starter(config)), mesh))(state)
+        state = jax.jit(over_members(jax.vmap(learners.warm_starter(config)), mesh))(state)
     chunk = jax.jit(
         over_members(jax.vmap(lambda s, h: run_updates(trainer, s, h, config.chunk_updates)), mesh),
         compiler_options=trainer.compiler_options,

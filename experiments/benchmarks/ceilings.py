@@ -37,6 +37,7 @@ from experiments.sweep import init_members
 from jaxarm import envs
 from jaxarm.agents.common.trainer import run_updates
 from jaxarm.agents.ppo import PPOConfig
+from jaxarm.runner import learners
 
 GOAL_RATIO = 10_000
 """arm2d's CPU goal: env steps/s as a multiple of the numpy reference's single env."""
@@ -67,7 +68,7 @@ def ppo_update_flops(config: PPOConfig, observation_size: int, action_size: int)
 
 def ppo_update_seconds(config: PPOConfig, seeds: int, repeats: int = 2) -> float:
     """Best seconds of one update of `seeds` vmapped seeds of `config`: the sweep's program, compile excluded."""
-    trainer = configs.make_trainer(config)
+    trainer = learners.make_trainer(config)
     hparams = jax.tree.map(lambda leaf: jnp.stack([leaf] * seeds), config.hparams())
     state = init_members(trainer, jax.random.split(jax.random.PRNGKey(config.seed), seeds), hparams)
     update = jax.jit(jax.vmap(lambda s, h: run_updates(trainer, s, h, 1)[0]), compiler_options=trainer.compiler_options)

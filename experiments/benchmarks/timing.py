@@ -16,7 +16,7 @@ from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
 from jaxarm.agents.common.trainer import run_updates
 from jaxarm.agents.ppo.distill import learner_as_teacher
-from jaxarm.runner import loop, rundir
+from jaxarm.runner import learners, loop, rundir
 
 
 def time_jitted(run, state, repeats: int) -> tuple[float, float]:
@@ -47,7 +47,7 @@ def benchmark_trainer(config: RunConfig):
     """`config`'s trainer; a teacher named by preset (`teacher=preset:NAME`) is that preset's policy untrained, so
     that a distilled student's program compiles and runs as in its run, with no teacher trained first."""
     if not rundir.teacher_preset(config):
-        return configs.make_trainer(config)
+        return learners.make_trainer(config)
     teacher_config = loop.teacher_config(config, configs.get)
     teacher = agents_registry.make_trainer(teacher_config)
     key, hparams = jax.random.PRNGKey(teacher_config.seed), teacher_config.hparams()

@@ -10,9 +10,8 @@ from experiments.configs import ppo, td3  # noqa: F401
 from experiments.configs.registry import PRESETS
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.envs.registry import closest_match_hint
-from jaxarm.runner.rundir import make_trainer
 
-__all__ = ["describe", "get", "make_trainer", "names"]
+__all__ = ["describe", "get", "names"]
 
 
 def names() -> list[str]:

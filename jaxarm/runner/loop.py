@@ -34,7 +34,7 @@ from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
 from jaxarm.agents.common.trainer import Trainer, make_chunk_runner
 from jaxarm.agents.ppo.distill import teacher_input
-from jaxarm.runner import plots, processes, progress, rundir
+from jaxarm.runner import learners, plots, processes, progress, rundir
 from jaxarm.runner.sinks import Sink, TensorBoardSink, WandbOptions, WandbSink
 
 FINAL_EVAL_SEED_OFFSET = 1_000_003
@@ -231,7 +231,7 @@ def _train_locked(
         if options.stop_after_s is not None:
             spent = time.perf_counter() - clock
             options = dataclasses.replace(options, stop_after_s=max(0.0, options.stop_after_s - spent))
-    trainer = rundir.make_trainer(config, run_dir)
+    trainer = learners.make_trainer(config, run_dir)
     if processes.is_primary():
         progress.explain_slow_compiles(config.make_env(randomized=False)[0])
     run_steps = config.num_updates * config.env_steps_per_update
@@ -360,7 +360,7 @@ def _start(
     like = jax.eval_shape(trainer.init, jax.random.PRNGKey(config.seed), config.hparams())
     shardings = state_shardings(like, mesh)
     if resume:
-        state = rundir.restore_state(run_dir, trainer, config, shardings=shardings)
+        state = learners.restore_state(run_dir, trainer, config, shardings=shardings)
         done_updates = int(state.updates)
         rundir.check_budget(config, done_updates)
         if primary:
@@ -374,7 +374,7 @@ def _start(
         return _Start(state, done_updates, wall_offset, best)
     state = jax.jit(trainer.init, out_shardings=shardings)(jax.random.PRNGKey(config.seed), config.hparams())
     if config.init_from:
-        state = jax.device_put(rundir.warm_starter(config)(state), shardings)
+        state = jax.device_put(learners.warm_starter(config)(state), shardings)
     if primary:
         # Written once the start state exists: a warm start that fails leaves no half-made run directory.
         rundir.write_config(run_dir, config, preset)
@@ -390,7 +390,7 @@ def _train_chunks(
     in all, earlier segments included)."""
     hparams = config.hparams()
     primary = processes.is_primary()
-    evaluator = rundir.make_evaluator(trainer, config, config.eval_episodes)
+    evaluator = learners.make_evaluator(trainer, config, config.eval_episodes)
     eval_key = jax.random.PRNGKey(config.seed + FINAL_EVAL_SEED_OFFSET)
     checkpoints = run_dir / "checkpoints"
     shardings = state_shardings(start.state, mesh)
@@ -501,9 +501,9 @@ def _final_evaluation(
     """Evaluates the final state (also under the randomised params, if any), writes eval.json and curve.png
     (the primary process) and returns the results."""
     eval_key = jax.random.PRNGKey(config.seed + FINAL_EVAL_SEED_OFFSET)
-    result = rundir.make_evaluator(trainer, config, config.eval_episodes)(state, eval_key)
+    result = learners.make_evaluator(trainer, config, config.eval_episodes)(state, eval_key)
     if config.randomize:
-        randomized = rundir.make_evaluator(trainer, config, config.eval_episodes, randomized=True)(state, eval_key)
+        randomized = learners.make_evaluator(trainer, config, config.eval_episodes, randomized=True)(state, eval_key)
         result.update({f"randomized/{name}": value for name, value in randomized.items() if name != "device"})
     result["train_wall_time"] = train_time
     result["env_steps"] = done_updates * trainer.env_steps_per_update
@@ -564,4 +564,4 @@ def diverged_message(bad: tuple[int, str] | None, done_updates: int, count: int,
 def load_run(run_dir: pathlib.Path) -> tuple[RunConfig, Any]:
     """(config, latest learner state) of the run in `run_dir`, for notebooks and scripts."""
     config, _ = rundir.read_config(run_dir)
-    return config, rundir.restore_state(run_dir, rundir.make_trainer(config, run_dir), config)
+    return config, learners.restore_state(run_dir, learners.make_trainer(config, run_dir), config)

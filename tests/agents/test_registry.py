@@ -5,7 +5,7 @@ import pytest
 from jaxarm.agents import registry
 from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
-from jaxarm.runner import rundir
+from jaxarm.runner import learners, rundir
 
 
 @pytest.mark.parametrize("name", sorted(registry.LEARNERS))
@@ -25,4 +25,4 @@ def test_a_warm_start_needs_a_learner_that_has_one_and_a_run_of_the_same(tmp_pat
     rundir.write_config(td3_run, TD3Config(), "td3_arm2d")
     for config in (PPOConfig(init_from=str(td3_run)), TD3Config(init_from=str(td3_run))):
         with pytest.raises(ValueError, match="warm starts exist for ppo only"):
-            rundir.warm_starter(config)
+            learners.warm_starter(config)

@@ -16,7 +16,7 @@ from experiments import eval as eval_cli
 from experiments.configs.td3 import td3_peg
 from jaxarm import headless
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import cache, rundir, sinks, video
+from jaxarm.runner import cache, learners, rundir, sinks, video
 
 README = (pathlib.Path(__file__).resolve().parents[2] / "README.md").read_text()
 
@@ -251,7 +251,7 @@ def test_eval_video_without_gl_fails_at_once_with_the_readmes_hint(tmp_path, mon
     config = apply_overrides(td3_peg(), ["num_envs=2"])
     rundir.write_config(run_dir, config, "td3_peg")
     monkeypatch.setattr(headless, "probe_gl", no_gl)
-    monkeypatch.setattr(rundir, "restore_state", never)
+    monkeypatch.setattr(learners, "restore_state", never)
     start = time.perf_counter()
     assert eval_cli.main([str(run_dir), "--video"]) == 2
     error = capsys.readouterr().err

@@ -307,12 +307,12 @@ SORTER_START = textwrap.dedent("""
     from experiments import configs
     from jaxarm.agents.common.config import apply_overrides
     from jaxarm.agents.common.sharding import data_mesh, envs_split_over
-    from jaxarm.runner import rundir
+    from jaxarm.runner import learners
 
     overrides = ["env_kwargs.impl=jax", "num_envs=16", "rollout_length=8", "num_minibatches=2"]
     config = apply_overrides(configs.get("ppo_sorter"), overrides)
     with envs_split_over(data_mesh()):
-        trainer = rundir.make_trainer(config)
+        trainer = learners.make_trainer(config)
         # Lowering embeds every array the program closes over: one on another process's device fails here.
         jax.jit(trainer.init).lower(jax.random.PRNGKey(0), config.hparams())
     print("lowered")

@@ -12,7 +12,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments import configs
 from experiments import export as export_cli
 from jaxarm import envs
 from jaxarm.agents.common import checkpoint
@@ -20,7 +19,7 @@ from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.export import numpy_policy
 from jaxarm.interop.gymnasium_env import GymnasiumEnv
-from jaxarm.runner import rundir
+from jaxarm.runner import learners, rundir
 
 TOLERANCE = 1e-5
 CONFIGS = {
@@ -71,7 +70,7 @@ def exported(request, tmp_path_factory):
     """(run dir, trainer, learner state, files written) of a checkpointed tiny run and its export."""
     config = CONFIGS[request.param]
     run_dir = tmp_path_factory.mktemp(request.param)
-    trainer = configs.make_trainer(config)
+    trainer = learners.make_trainer(config)
     state = learner_state(request.param, trainer, config)
     rundir.write_config(run_dir, config, f"tiny_{request.param}")
     checkpoint.save(run_dir / "checkpoints", 1, state)

@@ -14,12 +14,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments import configs, run
 from experiments import eval as eval_cli
+from experiments import run
 from jaxarm import envs
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.ppo.warm_start import warm_start
-from jaxarm.runner import loop, robustness, rundir
+from jaxarm.runner import learners, loop, robustness, rundir
 
 SMALL = [
     "num_envs=64",
@@ -38,7 +38,7 @@ def run_cli(*args):
 
 def final_params(run_dir: pathlib.Path):
     config, _ = rundir.read_config(run_dir)
-    return rundir.restore_state(run_dir, configs.make_trainer(config), config)
+    return learners.restore_state(run_dir, learners.make_trainer(config), config)
 
 
 @pytest.fixture(scope="module")
@@ -194,9 +194,9 @@ def test_a_warm_start_begins_from_the_trained_networks_and_statistics(finished_r
     config, _ = rundir.read_config(finished_run)
     trained = final_params(finished_run)
     warm = dataclasses.replace(config, init_from=str(finished_run))
-    trainer = configs.make_trainer(warm)
+    trainer = learners.make_trainer(warm)
     fresh = jax.jit(trainer.init)(jax.random.PRNGKey(5), warm.hparams())
-    started = rundir.warm_starter(warm)(fresh)
+    started = learners.warm_starter(warm)(fresh)
     for copied, source in zip(
         jax.tree.leaves((started.params, started.normalizer)),
         jax.tree.leaves((trained.params, trained.normalizer)),
@@ -313,13 +313,13 @@ def test_a_ten_billion_step_budget_runs_resumes_and_counts_past_int32(tmp_path):
 def test_a_teacher_loads_from_a_finished_run_and_labels_a_students_rollouts(finished_run):
     config, _ = rundir.read_config(finished_run)
     trained = final_params(finished_run)
-    teacher = rundir.load_teacher(finished_run)
+    teacher = learners.load_teacher(finished_run)
     obs = jax.random.normal(jax.random.PRNGKey(7), (16, 9))
-    expected = configs.make_trainer(config).act(trained, obs)
+    expected = learners.make_trainer(config).act(trained, obs)
     np.testing.assert_array_equal(teacher(obs), expected)
     np.testing.assert_array_equal(teacher({"image": jnp.zeros((16, 8, 8, 1), jnp.uint8), "privileged": obs}), expected)
     student = dataclasses.replace(config, teacher=str(finished_run), num_envs=16, rollout_length=4)
-    trainer = configs.make_trainer(student)
+    trainer = learners.make_trainer(student)
     state = jax.jit(trainer.init)(jax.random.PRNGKey(0), student.hparams())
     _, metrics = jax.jit(trainer.update)(state, student.hparams())
     assert float(metrics.loss.imitation) > 0 and np.isfinite(float(metrics.loss.imitation))

@@ -15,7 +15,7 @@ import pytest
 from experiments import configs, run
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import loop, provenance, rundir
+from jaxarm.runner import learners, loop, provenance, rundir
 from tests.experiments.test_run import SMALL  # the same compiled chunk as there
 
 
@@ -25,7 +25,7 @@ def run_cli(*args):
 
 def final_leaves(run_dir: pathlib.Path):
     config, _ = rundir.read_config(run_dir)
-    return jax.tree.leaves(rundir.restore_state(run_dir, configs.make_trainer(config), config))
+    return jax.tree.leaves(learners.restore_state(run_dir, learners.make_trainer(config), config))
 
 
 def assert_same_learner(run_dir: pathlib.Path, other: pathlib.Path):

@@ -12,7 +12,7 @@ import pytest
 from experiments import configs, run
 from experiments.benchmarks.timing import compile_updates
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import loop, rundir
+from jaxarm.runner import learners, loop, rundir
 
 TINY = ["num_envs=16", "rollout_length=4", "num_minibatches=2", "updates_per_chunk=2", "eval_episodes=4"]
 """Both stages at a size that compiles and trains in seconds on a CPU."""
@@ -52,14 +52,14 @@ def test_a_preset_teacher_trains_first_and_each_stop_resumes_its_own_stage(tmp_p
 
     # Stopped between the stages (as a kill would, before the student's first program compiled). A started
     # teacher is read back from its own directory: no lookup of presets is needed to resume it.
-    make_trainer = rundir.make_trainer
+    make_trainer = learners.make_trainer
 
     def stop_at_the_student(config, run_dir=None):
         if rundir.teacher_preset(config):
             raise loop.TrainingInterrupted("stopped between the stages")
         return make_trainer(config, run_dir)
 
-    monkeypatch.setattr(rundir, "make_trainer", stop_at_the_student)
+    monkeypatch.setattr(learners, "make_trainer", stop_at_the_student)
     with pytest.raises(loop.TrainingInterrupted):
         loop.resume(run_dir)
     monkeypatch.undo()

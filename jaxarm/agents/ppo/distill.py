@@ -4,7 +4,7 @@ The student drives its own rollouts (DAgger: it is labelled where it goes, not w
 and every observation of a rollout is labelled with the teacher's action inside the same compiled update
 (`PPOConfig.teacher`, `imitation_coef`, `imitation_only`). A teacher reads the observation's privileged part
 where it has one (a state policy teaching a camera policy), else the observation itself. A teacher run is loaded
-by the runner (`jaxarm.runner.rundir.make_trainer`), which knows every learner; PPO takes the loaded policy. A teacher
+by the runner (`jaxarm.runner.learners.make_trainer`), which knows every learner; PPO takes the loaded policy. A teacher
 named by preset (`teacher=preset:NAME`) is trained by the runner first, into the student's run directory.
 """
 

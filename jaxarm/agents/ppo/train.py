@@ -351,12 +351,12 @@ def numpy_policy(config: PPOConfig, spec: EnvSpec, state: PPOState) -> NumpyPoli
 
 def make_trainer(config: PPOConfig, env=None, env_params=None, teacher: Teacher | None = None) -> Trainer:
     """PPO for `config` (see the module docstring). `env`, `env_params` replace the config's env (probes);
-    `teacher` is the policy of `config.teacher`'s run (`jaxarm.runner.rundir.make_trainer` loads it; a scripted
+    `teacher` is the policy of `config.teacher`'s run (`jaxarm.runner.learners.make_trainer` loads it; a scripted
     one in tests)."""
     config.validate()
     if config.teacher and teacher is None:
         raise ValueError(
-            f"teacher={config.teacher}: build this trainer with jaxarm.runner.rundir.make_trainer, which loads the "
+            f"teacher={config.teacher}: build this trainer with jaxarm.runner.learners.make_trainer, which loads the "
             "teacher's run"
         )
     if env is None:

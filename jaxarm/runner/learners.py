@@ -1,0 +1,83 @@
+"""A run's learner built from its config and run directory: its trainer (with a teacher's policy loaded where it
+has one), its state restored from a checkpoint or warm-started from another run, and its evaluator.
+
+The run directory's files (its config, metrics, lock, records) are rundir.py's; this module reads a run and
+writes nothing into it.
+"""
+
+import functools
+import pathlib
+from collections.abc import Callable
+from typing import Any
+
+import jax
+
+from jaxarm.agents import registry
+from jaxarm.agents.common import checkpoint
+from jaxarm.agents.common.config import RunConfig
+from jaxarm.agents.common.evaluate import evaluate
+from jaxarm.agents.ppo.distill import learner_as_teacher
+from jaxarm.runner.rundir import read_config, teacher_run
+
+
+def make_trainer(config: RunConfig, run_dir: pathlib.Path | None = None):
+    """The trainer of `config`'s learner, with its teacher's policy loaded where it has one (distillation,
+    `jaxarm.agents.ppo.distill`): from the run `config.teacher` names, or, named by preset, from `run_dir/teacher`."""
+    teacher = teacher_run(config, run_dir)
+    if teacher is None:
+        return registry.make_trainer(config)
+    return registry.make_trainer(config, teacher=load_teacher(teacher))
+
+
+def load_teacher(run_dir: pathlib.Path):
+    """The policy of the run in `run_dir` (its latest checkpoint) as a teacher (`learner_as_teacher`); RunDirError
+    or CheckpointError for a run that cannot be read."""
+    config, _ = read_config(run_dir)
+    trainer = make_trainer(config, run_dir)
+    state = restore_state(run_dir, trainer, config)
+    return learner_as_teacher(trainer, state)
+
+
+def restore_state(run_dir: pathlib.Path, trainer, config: RunConfig, best: bool = False, shardings=None):
+    """The latest checkpointed learner state of `run_dir`, or with `best` the one that scored best in evaluation
+    during training (CheckpointError if none or mismatched), placed with `shardings` (a pytree like the state;
+    None: on this process's first device); leaves added to the learner since it was saved start fresh."""
+    key, hparams = jax.random.PRNGKey(config.seed), config.hparams()
+    like = jax.eval_shape(trainer.init, key, hparams)
+    fresh = functools.partial(jax.jit(trainer.init, out_shardings=shardings), key, hparams)
+    return checkpoint.restore(run_dir / ("best" if best else "checkpoints"), like, shardings=shardings, fresh=fresh)
+
+
+def warm_starter(config: RunConfig) -> Callable[[Any], Any]:
+    """fresh learner state -> the same warm-started from the latest checkpoint of the run in `config.init_from`,
+    by the learner's own warm start (`jaxarm.agents.registry.Learner.warm_start`). ValueError or CheckpointError
+    when that run cannot serve."""
+    source_dir = pathlib.Path(config.init_from)
+    source, _ = read_config(source_dir)
+    learner = registry.learner_for(config)
+    warm_start = learner.warm_start
+    if warm_start is None or registry.learner_for(source) is not learner:
+        with_warm_starts = [name for name, each in registry.LEARNERS.items() if each.warm_start is not None]
+        raise ValueError(
+            f"init_from: warm starts exist for {', '.join(with_warm_starts)} only, from a run of the same learner "
+            f"({source_dir} is {registry.name_of(source)}, this run {registry.name_of(config)})"
+        )
+    trained = restore_state(source_dir, make_trainer(source, source_dir), source)
+    index = config.make_env()[0].observation_source_index(source.make_env()[0])
+    return lambda state: warm_start(state, trained, index)
+
+
+def make_evaluator(
+    trainer, config: RunConfig, episodes: int, randomized: bool = False
+) -> Callable[[Any, jax.Array], dict]:
+    """(learner state, key) -> deterministic-policy results on `episodes` fresh episodes of the eval env (with
+    the config's `randomize` params drawn per episode if `randomized`), as a JSON-ready dict; compiled once, on
+    the first call."""
+    env, env_params = config.make_eval_env(randomized)
+    run = jax.jit(lambda learner, key: evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, episodes))
+    return lambda state, key: {**run(state, key).summary(), "device": jax.devices()[0].device_kind}
+
+
+def evaluate_state(trainer, config: RunConfig, state, episodes: int, seed: int) -> dict:
+    """Deterministic-policy results on `episodes` fresh episodes, as a JSON-ready dict."""
+    return make_evaluator(trainer, config, episodes)(state, jax.random.PRNGKey(seed))
