@@ -104,7 +104,7 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
         phases["env"] = time.perf_counter() - clock
         with rundir.locked(run_dir):
             clock = time.perf_counter()
-            state = learners.restore_state(run_dir, trainer, config, best=args.best)
+            state = learners.restore_state(run_dir, trainer, config, best=args.best, acting=True)
             phases["checkpoint"] = time.perf_counter() - clock
             if args.perturb or args.randomized_ends:
                 write_robustness(run_dir, config, trainer, state, args)

@@ -31,7 +31,7 @@ def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Pat
     env, _ = config.make_env()
     observation_size = policy.check_flat_observations(env.spec)
     trainer = learners.make_trainer(config, run_dir)
-    state = learners.restore_state(run_dir, trainer, config)
+    state = learners.restore_state(run_dir, trainer, config, acting=True)
     arrays = policy.numpy_policy(trainer, state)
     serialized = policy.serialized_jax_policy(trainer, state, observation_size)
     try:

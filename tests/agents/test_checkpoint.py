@@ -69,3 +69,24 @@ def test_a_checkpoint_lacking_leaves_added_since_takes_them_from_a_fresh_state(t
     for other in ({"params": jnp.zeros(3), "env": {"gain": jnp.ones(4)}}, {**fresh, "params": jnp.zeros(2)}):
         with pytest.raises(checkpoint.CheckpointError, match="cannot be restored"):
             checkpoint.restore(tmp_path, jax.eval_shape(lambda other=other: other), fresh=lambda other=other: other)
+
+
+def test_a_partial_restore_reads_only_the_parts_it_is_given(tmp_path):
+    saved = {"params": jnp.arange(3.0), "env": {"mass": jnp.ones(4)}}
+    checkpoint.save(tmp_path, 5, saved)
+    acting = {"params": jnp.zeros(3), "env": None}  # a state for acting: its envs are not read
+
+    restored = checkpoint.restore(tmp_path, jax.eval_shape(lambda: acting), partial=True)
+
+    np.testing.assert_array_equal(restored["params"], saved["params"])
+    assert restored["env"] is None
+    # The part it reads is held to the same standard: a leaf added since comes fresh, with a warning ...
+    grown = {"params": jnp.zeros(3), "gain": jnp.full(2, 2.0), "env": None}
+    with pytest.warns(UserWarning, match=r"predates 1 leaves of this learner \(gain\)"):
+        restored = checkpoint.restore(tmp_path, jax.eval_shape(lambda: grown), fresh=lambda: grown, partial=True)
+    np.testing.assert_array_equal(restored["params"], saved["params"])
+    np.testing.assert_array_equal(restored["gain"], grown["gain"])
+    # ... and a reshaped one is an error.
+    reshaped = {"params": jnp.zeros(2), "env": None}
+    with pytest.raises(checkpoint.CheckpointError, match="cannot be restored"):
+        checkpoint.restore(tmp_path, jax.eval_shape(lambda: reshaped), fresh=lambda: reshaped, partial=True)

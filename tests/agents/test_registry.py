@@ -1,5 +1,7 @@
 """The learner registry: learners by name and by config, and warm starts only where a learner has one."""
 
+import jax
+import numpy as np
 import pytest
 
 from jaxarm.agents import registry
@@ -13,6 +15,21 @@ def test_a_learner_is_found_by_its_name_and_by_its_config(name):
     learner = registry.get(name)
     config = learner.config_class()
     assert registry.name_of(config) == name and registry.learner_for(config) is learner
+
+
+@pytest.mark.parametrize("name", sorted(registry.LEARNERS))
+def test_a_state_for_acting_is_the_fresh_state_without_its_envs_and_replay(name):
+    config = registry.get(name).config_class(num_envs=2)
+    trainer = registry.make_trainer(config)
+    key, hparams = jax.random.PRNGKey(3), config.hparams()
+    full, acting = trainer.init(key, hparams), trainer.init_for_acting(key, hparams)
+    left_out = [field for field in ("env_state", "replay") if hasattr(full, field)]
+    assert all(getattr(acting, field) is None for field in left_out)
+    kept = acting.replace(**{field: getattr(full, field) for field in left_out})
+    for got, want in zip(jax.tree.leaves(kept), jax.tree.leaves(full), strict=True):
+        np.testing.assert_array_equal(got, want)
+    obs = jax.tree.map(lambda leaf: leaf[:1], full.env_state.obs)
+    np.testing.assert_array_equal(trainer.act(acting, obs), trainer.act(full, obs))
 
 
 def test_an_unknown_learner_names_the_closest():

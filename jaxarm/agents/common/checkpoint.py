@@ -109,10 +109,18 @@ def _listed_latest_step(directory: pathlib.Path) -> int | None:
 
 
 def restore(
-    directory: pathlib.Path, like, step: int | None = None, shardings=None, fresh: Callable[[], Any] | None = None
+    directory: pathlib.Path,
+    like,
+    step: int | None = None,
+    shardings=None,
+    fresh: Callable[[], Any] | None = None,
+    partial: bool = False,
 ):
     """Restores the checkpoint `step` (default: latest) into the structure, shapes and dtypes of `like`, placed
     with `shardings` (a pytree of shardings like `like`; None: every leaf on this process's first device).
+
+    With `partial`, a part of the checkpoint that `like` leaves None is not read (a learner state for acting,
+    whose envs' state is None: a sorter's 8,192 envs are most of its checkpoint).
 
     A checkpoint saved before the learner gained leaves (an env param added since, in the envs' state) restores
     with those leaves taken from `fresh()` (a state like `like`, placed the same), with a warning naming them; no
@@ -130,11 +138,23 @@ def restore(
     abstract = jax.tree.map(
         lambda leaf, sharding: jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=sharding), like, shardings
     )
+    args = (
+        ocp.args.PyTreeRestore(abstract, ocp.checkpoint_utils.construct_restore_args(abstract), partial_restore=True)
+        if partial
+        else ocp.args.StandardRestore(abstract)
+    )
     try:
         with _quiet_orbax(), _manager(directory) as manager:
-            restored = manager.restore(step, args=ocp.args.StandardRestore(abstract))
+            restored = manager.restore(step, args=args)
+        unread = [
+            _leaf_name(path)
+            for path, leaf in jax.tree_util.tree_flatten_with_path(restored)[0]
+            if isinstance(leaf, jax.ShapeDtypeStruct)
+        ]
+        if unread:  # orbax's partial restore hands back, as it was given, a leaf the checkpoint lacks
+            raise KeyError(f"the checkpoint lacks {', '.join(unread[:4])}{', ...' if len(unread) > 4 else ''}")
     except Exception as error:  # orbax raises many types for corrupt and mismatched trees
-        restored = None if fresh is None else _restore_with_additions(directory, step, abstract, fresh)
+        restored = None if fresh is None else _restore_with_additions(directory, step, abstract, fresh, partial)
         if restored is None:
             raise CheckpointError(
                 f"checkpoint {step} in {directory} cannot be restored into this learner "
@@ -149,9 +169,12 @@ def _leaf_name(path) -> str:
     return jax.tree_util.keystr(path, simple=True, separator=".")
 
 
-def _restore_with_additions(directory: pathlib.Path, step: int, abstract, fresh: Callable[[], Any]):
-    """`abstract`'s tree from checkpoint `step`, where the checkpoint lacks some of its leaves and has no other:
-    the saved leaves restored, the others from `fresh()`; None where the trees differ otherwise."""
+def _restore_with_additions(
+    directory: pathlib.Path, step: int, abstract, fresh: Callable[[], Any], partial: bool = False
+):
+    """`abstract`'s tree from checkpoint `step`, where the checkpoint lacks some of its leaves and has no other
+    (with `partial`: none other outside the parts `abstract` leaves None): the saved leaves restored, the others
+    from `fresh()`; None where the trees differ otherwise."""
     try:
         with _quiet_orbax():
             saved = ocp.StandardCheckpointer().metadata(directory.absolute() / str(step) / "default").item_metadata
@@ -159,13 +182,20 @@ def _restore_with_additions(directory: pathlib.Path, step: int, abstract, fresh:
     except Exception:  # unreadable metadata: the caller's error says the checkpoint is corrupt
         return None
     wanted = {_leaf_name(path): leaf for path, leaf in jax.tree_util.tree_flatten_with_path(abstract)[0]}
+    left_out = _left_out(abstract) if partial else []
     added = sorted(set(wanted) - set(saved_shapes))
     kept_as_saved = all(
-        name in wanted and (wanted[name].shape, wanted[name].dtype) == shape for name, shape in saved_shapes.items()
+        name in wanted and (wanted[name].shape, wanted[name].dtype) == shape
+        for name, shape in saved_shapes.items()
+        if not any(name.startswith(prefix) for prefix in left_out)
     )
     if not saved_shapes or not added or not kept_as_saved:
         return None
-    target = jax.tree.map(lambda leaf: wanted[leaf.name], saved)
+    # The left-out part is read too (as saved, onto the first device): a fallback for old checkpoints only.
+    here = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
+    target = jax.tree.map(
+        lambda leaf: wanted.get(leaf.name, jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=here)), saved
+    )
     try:
         with _quiet_orbax(), _manager(directory) as manager:
             restored = manager.restore(step, args=ocp.args.StandardRestore(target))
@@ -178,6 +208,12 @@ def _restore_with_additions(directory: pathlib.Path, step: int, abstract, fresh:
         stacklevel=3,
     )
     return jax.tree_util.tree_map_with_path(lambda path, leaf: by_name.get(_leaf_name(path), leaf), fresh())
+
+
+def _left_out(abstract) -> list[str]:
+    """The name prefixes (`env_state.`) of the parts that `abstract` leaves None."""
+    parts = jax.tree_util.tree_flatten_with_path(abstract, is_leaf=lambda node: node is None)[0]
+    return [_leaf_name(path) + "." for path, node in parts if node is None]
 
 
 def _check_matches(restored, like, directory, step) -> None:

@@ -24,6 +24,9 @@ class Trainer:
 
     Attributes:
       init: (key, hparams) -> learner state.
+      init_for_acting: (key, hparams) -> `init`'s learner state without the envs' state or any replay (None):
+        what acting, exporting and warm starts read, made without tracing an env reset; a checkpoint is restored
+        into it to evaluate or export its policy.
       update: (learner state, hparams) -> (learner state, per-update metrics pytree of scalars).
       act: (learner state, obs [B, O]) -> deterministic actions [B, A] (for evaluation).
       numpy_policy: learner state -> the same deterministic policy as numpy arrays (`NumpyPolicy`, which runs
@@ -35,6 +38,7 @@ class Trainer:
     """
 
     init: Callable[[jax.Array, Any], Any]
+    init_for_acting: Callable[[jax.Array, Any], Any]
     update: Callable[[Any, Any], tuple[Any, Any]]
     act: Callable[[Any, jax.Array], jax.Array]
     num_updates: int

@@ -49,7 +49,7 @@ class PPOState(struct.PyTreeNode):
       params: network parameters.
       opt_state: Adam state over `params`.
       normalizer: brax running mean/std of observations (of a camera observation, its proprio part).
-      env_state: [num_envs] batched env state.
+      env_state: [num_envs] batched env state; None in a state for acting (`Trainer.init_for_acting`).
       key: PRNG key (raw uint32[2]).
       updates: [] int32, updates done so far (env steps: `updates × env_steps_per_update`, counted on the host,
         where they may pass int32).
@@ -207,14 +207,20 @@ def sgd_epochs(
 
 def init_state(networks: PPONetworks, batch_env: VmapEnv, env_params, key: jax.Array, hparams: HParams) -> PPOState:
     """A fresh learner: initialised networks and Adam state, empty normalisers, [num_envs] reset envs."""
-    spec = batch_env.spec
-    policy_key, value_key, env_key, run_key = jax.random.split(key, 4)
+    env_key = jax.random.split(key, 4)[2]
+    acting = init_acting_state(networks, batch_env.spec, key, hparams)
+    return acting.replace(env_state=batch_env.reset(env_key, env_params))
+
+
+def init_acting_state(networks: PPONetworks, spec: EnvSpec, key: jax.Array, hparams: HParams) -> PPOState:
+    """`init_state` without its envs (env_state None), from the same `key`."""
+    policy_key, value_key, _, run_key = jax.random.split(key, 4)
     params = networks.init(policy_key, value_key, spec)
     return PPOState(
         params=params,
         opt_state=make_optimizer(hparams, hparams.learning_rate).init(params),
         normalizer=observation_normalizer.init(spec),
-        env_state=batch_env.reset(env_key, env_params),
+        env_state=None,  # type: ignore[arg-type]  # None only in a state for acting, which never trains
         key=run_key,
         updates=jnp.zeros((), jnp.int32),
         critic_normalizer=networks.init_critic_normalizer(spec),
@@ -376,6 +382,7 @@ def make_trainer(config: PPOConfig, env=None, env_params=None, teacher: Teacher 
 
     return Trainer(
         init=functools.partial(init_state, networks, batch_env, env_params),
+        init_for_acting=functools.partial(init_acting_state, networks, env.spec),
         update=functools.partial(update, config, networks, batch_env, env_params, teacher),
         act=act,
         num_updates=config.num_updates,

@@ -96,8 +96,8 @@ class TD3State(struct.PyTreeNode):
       critic_opt_state: Adam state of the critics.
       normalizer: running mean and std of the collected observations (updated only with
         `normalize_observations`).
-      replay: the replay buffer of `Experience`.
-      env_state: the [num_envs] auto-resetting envs.
+      replay: the replay buffer of `Experience`; None in a state for acting (`Trainer.init_for_acting`).
+      env_state: the [num_envs] auto-resetting envs; None in a state for acting.
       key: PRNG key (raw uint32).
       updates: [] int32, updates done so far (env steps: `updates × env_steps_per_update`, counted on the host,
         where they may pass int32).
@@ -164,14 +164,28 @@ def warm_up_steps(config: TD3Config, updates: jax.Array) -> jax.Array:
 def init_state(config: TD3Config, networks: TD3Networks, batch_env: VmapEnv, env_params, key: jax.Array) -> TD3State:
     """A fresh learner: networks and their targets initialised alike, an empty replay, [num_envs] reset envs."""
     spec = batch_env.spec
-    actor_key, critic_key, env_key, state_key = jax.random.split(key, 4)
+    env_key = jax.random.split(key, 4)[2]
+    obs = spec.zero_observation()
+    zero = jnp.zeros((), jnp.float32)
+    example = Experience(
+        obs=obs,
+        action=jnp.zeros((spec.action_size,), jnp.float32),
+        reward=zero,
+        next_obs=obs,
+        terminated=jnp.zeros((), jnp.bool_),
+        discount=zero,
+    )
+    return init_acting_state(config, networks, spec, key).replace(
+        replay=replay.init(example, config.buffer_size), env_state=batch_env.reset(env_key, env_params)
+    )
+
+
+def init_acting_state(config: TD3Config, networks: TD3Networks, spec: EnvSpec, key: jax.Array) -> TD3State:
+    """`init_state` without its replay and envs (both None), from the same `key`."""
+    actor_key, critic_key, _, state_key = jax.random.split(key, 4)
     obs = spec.zero_observation()
     action = jnp.zeros((spec.action_size,), jnp.float32)
     actor_params, critic_params = networks.init(actor_key, critic_key, config.num_critics, obs, action)
-    zero = jnp.zeros((), jnp.float32)
-    example = Experience(
-        obs=obs, action=action, reward=zero, next_obs=obs, terminated=jnp.zeros((), jnp.bool_), discount=zero
-    )
     # optax.adam(lr) holds no state that depends on lr, so the update rebuilds it per step from the traced
     # hyper-parameter; the step size stays data and vmaps.
     optimizer_state_init = optax.adam(0.0).init
@@ -183,8 +197,9 @@ def init_state(config: TD3Config, networks: TD3Networks, batch_env: VmapEnv, env
         actor_opt_state=optimizer_state_init(actor_params),
         critic_opt_state=optimizer_state_init(critic_params),
         normalizer=observation_normalizer.init(spec),
-        replay=replay.init(example, config.buffer_size),
-        env_state=batch_env.reset(env_key, env_params),
+        # None only in a state for acting, which never trains: the fields keep the training state's types.
+        replay=None,  # type: ignore[arg-type]
+        env_state=None,  # type: ignore[arg-type]
         key=state_key,
         updates=jnp.zeros((), jnp.int32),
     )
@@ -420,6 +435,7 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
 
     return Trainer(
         init=lambda key, hparams: init_state(config, networks, batch_env, env_params, key),
+        init_for_acting=lambda key, hparams: init_acting_state(config, networks, spec, key),
         update=functools.partial(update, config, networks, batch_env, env_params, shift_pad),
         act=act,
         num_updates=config.num_updates,
