@@ -85,7 +85,6 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
     """Evaluates (or draws, or perturbs) the run as `args` ask, prints and writes the results; the exit status."""
     import jax
 
-    from experiments.run import quiet_libraries
     from jaxarm.agents.common import checkpoint
     from jaxarm.runner import learners, rundir, video
     from jaxarm.runner.cache import enable_compilation_cache
@@ -132,6 +131,9 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
                 print(f"wrote {video_path} ({len(frames)} frames, {time.perf_counter() - start:.1f} s)")
     except (ValueError, OSError, checkpoint.CheckpointError, video.RenderError) as error:
         print(f"error: {rundir.os_error_message(error) if isinstance(error, OSError) else error}", file=sys.stderr)
+        # Imported here: experiments.run brings every preset and the training loop, 0.5-1 s an evaluation needs not.
+        from experiments.run import quiet_libraries
+
         quiet_libraries()
         return 2
     return 0

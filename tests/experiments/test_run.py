@@ -189,6 +189,25 @@ def test_corrupt_or_mismatched_checkpoint_gives_a_clear_error(finished_run, tmp_
     assert not (corrupt / "eval.json").exists() and not list(corrupt.glob("eval-*.json"))
 
 
+def test_evaluation_reads_the_policy_alone_and_still_refuses_another_one(finished_run, tmp_path, capsys):
+    """The eval CLI restores the state for acting: a config with other envs (num_envs) evaluates the same policy,
+    one with other networks is refused as a resume is."""
+
+    def with_config(name: str, **changes) -> pathlib.Path:
+        run_dir = tmp_path / name
+        (run_dir / "checkpoints").mkdir(parents=True)
+        config = json.loads((finished_run / "config.json").read_text())
+        (run_dir / "config.json").write_text(json.dumps({**config, **changes}))
+        for step in (finished_run / "checkpoints").iterdir():
+            if step.name.isdigit():
+                os.symlink(step, run_dir / "checkpoints" / step.name)
+        return run_dir
+
+    assert eval_cli.main([str(with_config("more_envs", num_envs=64)), "--episodes", "3"]) == 0
+    assert eval_cli.main([str(with_config("other_networks", policy_hidden_sizes=[8])), "--episodes", "3"]) == 2
+    assert "cannot be restored" in capsys.readouterr().err
+
+
 @pytest.mark.slow
 def test_a_warm_start_begins_from_the_trained_networks_and_statistics(finished_run, tmp_path, capsys):
     config, _ = rundir.read_config(finished_run)
