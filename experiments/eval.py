@@ -1,9 +1,10 @@
 """Evaluate a saved run: `python -m experiments.eval RUN_DIR [--episodes N] [--seed S] [--video gif|mp4]
 [--perturb NAME=V1,V2 ...]`.
 
-Loads the run's config and latest checkpoint (or the best one from evaluation during training, `--best`), runs the
-deterministic policy on N fresh episodes, prints the result and writes it to its own file,
-eval-<episodes>-<seed>-<update>.json (eval-<episodes>-<seed>-best.json with --best; training's eval.json is kept).
+Loads the run's config and the policy of its latest checkpoint (or of the best one from evaluation during training,
+`--best`; the envs' state and any replay are not read), runs the deterministic policy on N fresh episodes, prints the
+result and writes it to its own file, eval-<episodes>-<seed>-<update>.json (eval-<episodes>-<seed>-best.json with
+--best; training's eval.json is kept).
 With --video it writes video.gif or video.mp4 of a few episodes drawn without a window. With --perturb it evaluates
 the policy under changes of the eval env's params instead: NAME=V1,V2 changes one param to each value in turn (all
 values in one compiled program), NAME=V+NAME=V changes several together; --randomized-ends adds each param the run
