@@ -96,26 +96,38 @@ def solve_arm_posture(
     """Outside jit: [7] arm joints, from HOME_QPOS, putting the tool centre at `tcp_position` with `rotation`.
 
     Raises ValueError if the IK does not reach the pose within 0.1 mm (out of reach or at a joint limit).
+    Its steps run on the CPU backend whatever the default device: on a GPU each of them would be a launch and
+    two copies, and its compile one more kernel build, in every process that builds the env.
     """
     data = mujoco.MjData(model)
     arm_q = HOME_QPOS.astype(np.float64)
     jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
-    for _ in range(iterations):
-        data.qpos[ids.arm_qpos] = arm_q
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
-        mujoco.mj_jacSite(model, data, jacp, jacr, ids.tcp_site)
-        step, error = _posture_step(
-            np.concatenate([jacp, jacr])[:, ids.arm_qpos],
-            tcp_position - data.site_xpos[ids.tcp_site],
-            data.site_xmat[ids.tcp_site].reshape(3, 3),
-            rotation,
-        )
-        arm_q = np.clip(arm_q + np.asarray(step), ids.arm_limits[:, 0], ids.arm_limits[:, 1])
+    with jax.default_device(host_device()):
+        for _ in range(iterations):
+            data.qpos[ids.arm_qpos] = arm_q
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)
+            mujoco.mj_jacSite(model, data, jacp, jacr, ids.tcp_site)
+            step, error = _posture_step(
+                np.concatenate([jacp, jacr])[:, ids.arm_qpos],
+                tcp_position - data.site_xpos[ids.tcp_site],
+                data.site_xmat[ids.tcp_site].reshape(3, 3),
+                rotation,
+            )
+            arm_q = np.clip(arm_q + np.asarray(step), ids.arm_limits[:, 0], ids.arm_limits[:, 1])
     error = np.asarray(error)
     if np.linalg.norm(error[:3]) > 1e-4:
         raise ValueError(f"no arm posture puts the tool centre at {tcp_position} (error {error[:3]})")
     return arm_q.astype(np.float32)
+
+
+def host_device() -> jax.Device | None:
+    """This process's CPU device (with jax.distributed, `jax.devices("cpu")[0]` is process 0's, which another process
+    cannot compute on), or None (the default device) where JAX_PLATFORMS left the CPU out."""
+    try:
+        return jax.local_devices(backend="cpu")[0]
+    except RuntimeError:
+        return None
 
 
 @jax.jit
