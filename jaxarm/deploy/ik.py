@@ -5,7 +5,7 @@ two to 1e-5). Imports numpy alone.
 
 import numpy as np
 
-from jaxarm.deploy.kinematics import ArmPose
+from jaxarm.deploy.kinematics import ArmKinematics, ArmPose
 
 
 def damped_least_squares(jacobian: np.ndarray, error: np.ndarray, damping: float) -> tuple[np.ndarray, np.ndarray]:
@@ -65,3 +65,19 @@ def ik_arm_targets(
     step, projector = damped_least_squares(pose.jacobian, error, damping)
     pull = projector @ (posture_gain * (posture - pose.arm_q))
     return np.clip(pose.arm_q + step + pull, arm_limits[:, 0], arm_limits[:, 1])
+
+
+def servo_ik_targets(
+    kinematics: ArmKinematics,
+    servo_pose: ArmPose,
+    tcp_target: np.ndarray,
+    tcp_rotation: np.ndarray,
+    damping: float,
+    posture_gain: float,
+    posture: np.ndarray,
+) -> np.ndarray:
+    """[7] arm joint targets from the arm posed at its servos' targets (`servo_pose`): `ik_arm_targets`, then a
+    second damped step from the first's joints without the posture pull, as `PandaBase.servo_ik_targets`."""
+    limits = kinematics.arm_limits
+    joints = ik_arm_targets(servo_pose, tcp_target, tcp_rotation, damping, posture_gain, posture, limits)
+    return ik_arm_targets(kinematics.pose(joints), tcp_target, tcp_rotation, damping, 0.0, posture, limits)

@@ -132,15 +132,10 @@ def arm_targets(
         target_yaw = yaw + action[3] * task.ee_yaw_step
     target[2] = max(target[2], task.tcp_min_z)
     rotation = ik.rotation_about_z(target_yaw) @ task.home_tcp_rotation
-    joints = ik.ik_arm_targets(
-        pose_from, target, rotation, task.ik_damping, task.ik_posture_gain, task.start_qpos, limits
-    )
+    gains = (task.ik_damping, task.ik_posture_gain, task.start_qpos)
     if task.running_target:
-        # The env's second damped step, without the posture pull.
-        joints = ik.ik_arm_targets(
-            kinematics.pose(joints), target, rotation, task.ik_damping, 0.0, task.start_qpos, limits
-        )
-    return joints
+        return ik.servo_ik_targets(kinematics, pose_from, target, rotation, *gains)
+    return ik.ik_arm_targets(pose_from, target, rotation, *gains, limits)
 
 
 def finger_targets(task: SortTask, action: np.ndarray) -> np.ndarray:

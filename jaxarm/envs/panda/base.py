@@ -348,6 +348,31 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
             self.start_qpos,
         )
 
+    def at_servo_targets(self, model: mjx.Model, data: mjx.Data) -> mjx.Data:
+        """`data` with the arm posed at its servo targets `data.ctrl[:7]` (kinematics and com-frame quantities,
+        for Jacobians): where the servos are taking the tool."""
+        arm = self.ids.robot.arm_qpos
+        return mjx.com_pos(model, mjx.kinematics(model, data.replace(qpos=data.qpos.at[arm].set(data.ctrl[:7]))))
+
+    def servo_ik_targets(
+        self,
+        model: mjx.Model,
+        servo_data: mjx.Data,
+        tcp_target: jax.Array,
+        tcp_rotation: jax.Array | np.ndarray,
+        params: ParamsT,
+    ) -> jax.Array:
+        """[7] arm joint targets putting the tool centre at `tcp_target` [3] in `tcp_rotation` [3, 3], from where the
+        servos are taking the tool (`servo_data`, from `at_servo_targets`): a running target's differential IK, so
+        what the servos chase moves by the target's change alone, where IK from the measured pose would start each
+        step the servos' lag behind. `ik_targets`, then a second damped step without the posture pull: the first
+        leaves 2-7% of a 1 cm move undone (its damping, and the pull's leak into the tool's motion), which would
+        slow the tool as much."""
+        joints = self.ik_targets(model, servo_data, tcp_target, tcp_rotation, params)
+        servo_data = self.at_servo_targets(model, servo_data.replace(ctrl=servo_data.ctrl.at[:7].set(joints)))
+        ids, damping = self.ids.robot, params.ik_damping
+        return ik_arm_targets(model, servo_data, ids, tcp_target, tcp_rotation, damping, 0.0, self.start_qpos)
+
     def render(
         self, state: EnvState[SimT], params: ParamsT, height: int = 240, width: int = 320, camera: str = "front"
     ) -> np.ndarray:

@@ -221,9 +221,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         tcp = data.site_xpos[robot.tcp_site]
         yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
         if self.running_target:
-            # Differential IK from the servos' targets: what they chase moves by the action alone, where a target
-            # rebuilt at the measured pose would start each step the servos' lag behind.
-            data = self._at_servo_targets(model, data)
+            data = self.at_servo_targets(model, data)
             chased_tcp = data.site_xpos[robot.tcp_site]
             chased_yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
             target = advanced_target(chased_tcp, action[:3] * params.ee_step, tcp, params.max_lead)
@@ -235,19 +233,9 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         target = target.at[2].set(jnp.maximum(target[2], TCP_MIN_Z))
         # The home tool frame has yaw 0, so turning it about z by the target yaw gives a pointing-down target.
         rotation = rotation_about_z(target_yaw) @ self.home_tcp_rotation
-        joints = self.ik_targets(model, data, target, rotation, params)
         if self.running_target:
-            # A second damped step without the posture pull: the first leaves 2-7% of a 1 cm move undone (its
-            # damping, and the pull's leak into the tool's motion), which would slow the tool as much.
-            data = self._at_servo_targets(model, data.replace(ctrl=data.ctrl.at[:7].set(joints)))
-            joints = self.ik_targets(model, data, target, rotation, params.replace(ik_posture_gain=0.0))
-        return joints
-
-    def _at_servo_targets(self, model: mjx.Model, data: mjx.Data) -> mjx.Data:
-        """`data` with the arm posed at its servo targets `data.ctrl[:7]` (kinematics and com-frame quantities,
-        for Jacobians): where the servos are taking the tool."""
-        arm = self.ids.robot.arm_qpos
-        return mjx.com_pos(model, mjx.kinematics(model, data.replace(qpos=data.qpos.at[arm].set(data.ctrl[:7]))))
+            return self.servo_ik_targets(model, data, target, rotation, params)
+        return self.ik_targets(model, data, target, rotation, params)
 
     def _ctrl(self, model, data, action, params) -> jax.Array:
         finger = (action[-1] + 1.0) * (FINGER_OPEN / 2)
