@@ -2,8 +2,9 @@
 
 One env step is `CONTROL_DT` = 0.04 s. The action [3] moves a tool-centre target by at most `ee_step` per
 axis; the target is held within `max_lead` of the measured tool centre (so a blocked peg presses with
-bounded force) and followed through damped least-squares IK with the tool pointing down, the joints' targets
-moved within Franka's speed and acceleration limits (`PandaBase.limited_ctrl`). Reward:
+bounded force) and followed through damped least-squares IK with the tool pointing down (from the measured pose, or
+with `running_target` from the servos' targets, as the sorter's), the joints' targets moved within Franka's speed and
+acceleration limits (`PandaBase.limited_ctrl`). Reward:
 `progress_weight` · (previous − current tip-to-hole-bottom distance) / initial distance, plus
 `success_bonus` every step the tip is within `insert_distance` of the hole bottom (inserted, a success).
 Terminated when the peg touches the table (its explicit contact pair reports penetration in any substep)
@@ -102,11 +103,17 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     Args:
       dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
         published values, `jaxarm.envs.panda.franka_dynamics`).
+      running_target: the IK starts from the servos' targets instead of the measured pose, and the target the
+        servos chase is the tool centre at those targets, moved by the action (`_arm_targets`), as the sorter's
+        `running_target`. Without it (the default) the IK starts from the measured pose.
       options: the physics, its buffers and the observation (`PandaOptions`; the module docstring says what each
         observation mode holds).
     """
 
-    def __init__(self, dynamics: str = NOMINAL, *, options: PandaOptions = PandaOptions()):
+    def __init__(
+        self, dynamics: str = NOMINAL, running_target: bool = False, *, options: PandaOptions = PandaOptions()
+    ):
+        self.running_target = running_target
         mj_model = build_model(dynamics=dynamics)
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
         super().__init__(mj_model, resolve_ids(mj_model), start_tcp, options)
@@ -220,14 +227,27 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         noise_key, obs_key = jax.random.split(sim.noise_key)
         return sim.replace(noise_key=noise_key), self._observe(model, data, sim, params, obs_key), info
 
+    def _arm_targets(
+        self, model: mjx.Model, data: mjx.Data, sim: PegInsertSim, action: jax.Array, params: PegInsertParams
+    ) -> tuple[jax.Array, jax.Array]:
+        """The applied `action` [3] -> (the next tool-centre target [3], the arm's joint targets [7]): the target
+        the servos chase (`sim.tcp_target`, or with `running_target` the tool centre at the servos' targets) moved
+        by the action, held within `max_lead` of the measured tool centre (`data`'s), and IK towards it from the
+        measured pose, or with `running_target` from the servos' targets (`PandaBase.servo_ik_targets`)."""
+        tcp = data.site_xpos[self.ids.robot.tcp_site]
+        step = action * params.ee_step
+        if self.running_target:
+            servo_data = self.at_servo_targets(model, data)
+            target = advanced_target(servo_data.site_xpos[self.ids.robot.tcp_site], step, tcp, params.max_lead)
+            return target, self.servo_ik_targets(model, servo_data, target, self.home_tcp_rotation, params)
+        target = advanced_target(sim.tcp_target, step, tcp, params.max_lead)
+        return target, self.ik_targets(model, data, target, self.home_tcp_rotation, params)
+
     def _transition(self, sim, action, params):
-        robot = self.ids.robot
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
-        tcp = data.site_xpos[robot.tcp_site]
         applied, queued = delayed_action(sim.queued_actions, action, params.action_latency)
-        target = advanced_target(sim.tcp_target, applied * params.ee_step, tcp, params.max_lead)
-        arm_ctrl = self.ik_targets(model, data, target, self.home_tcp_rotation, params)
+        target, arm_ctrl = self._arm_targets(model, data, sim, applied, params)
         ctrl, target_velocity = self.limited_ctrl(jnp.concatenate([arm_ctrl, sim.ctrl[7:]]), sim)
         data = data.replace(ctrl=ctrl)
 

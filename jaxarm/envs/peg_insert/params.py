@@ -13,6 +13,12 @@ from flax import struct
 from jaxarm.envs.panda.sim_to_real import RobotParams
 from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
 
+RUNNING_TARGET_MAX_LEAD = 0.03
+"""`max_lead` of a `running_target` peg (its presets set it; metres). The lead is what bounds the tool's speed: with
+joints damped x3 a held unit action moved the tool 1.2 mm per step at the default 1 cm (3.4 mm at x1, of a 5 mm
+`ee_step`), 2.5 mm at 2 cm, 3.8 mm at 3 cm and 4.6 mm, still rising, at 4 cm; at x1 it moves the whole step from
+2 cm on. 3 cm: three times the default's pressing force when the peg is blocked."""
+
 
 @struct.dataclass
 class PegInsertParams(RobotParams):
