@@ -58,6 +58,7 @@ def sort_reward(env: sort_env.PandaSort, params) -> scoring.SortReward:
 def peg_task(env: peg_env.PegInsert, params) -> peg.PegTask:
     """The peg's `PegTask` of `env` (state observations) with `params`."""
     return peg.PegTask(
+        running_target=env.running_target,
         ee_step=float(params.ee_step),
         max_lead=float(params.max_lead),
         ik_damping=float(params.ik_damping),

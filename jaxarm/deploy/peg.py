@@ -18,6 +18,7 @@ class PegTask:
     """What the peg's observation and control need to know, as plain numbers (`from_env.peg_task` reads them).
 
     Attributes:
+      running_target: the env's constructor argument.
       ee_step, max_lead, ik_damping, ik_posture_gain: the env params of those names.
       start_qpos: [7] the arm's start posture, towards which the IK's null space pulls.
       home_tcp_rotation: [3, 3] the tool's orientation, pointing down, held throughout.
@@ -26,6 +27,7 @@ class PegTask:
       position_scale: metres per observation unit.
     """
 
+    running_target: bool
     ee_step: float
     max_lead: float
     ik_damping: float
@@ -59,22 +61,25 @@ def observation(
     ).astype(np.float32)
 
 
-def tcp_target_after(task: PegTask, pose: ArmPose, tcp_target: np.ndarray, action: np.ndarray) -> np.ndarray:
-    """[3] the running tool-centre target moved by `action` [3], held within `max_lead` of the measured one."""
-    return ik.advanced_target(tcp_target, action * task.ee_step, pose.tcp, task.max_lead)
-
-
-def arm_targets(task: PegTask, kinematics: ArmKinematics, pose: ArmPose, tcp_target: np.ndarray) -> np.ndarray:
-    """[7] arm joint targets towards `tcp_target` [3], the tool pointing down: `PegInsert._transition`'s IK."""
-    return ik.ik_arm_targets(
-        pose,
-        tcp_target,
-        task.home_tcp_rotation,
-        task.ik_damping,
-        task.ik_posture_gain,
-        task.start_qpos,
-        kinematics.arm_limits,
-    )
+def arm_targets(
+    task: PegTask,
+    kinematics: ArmKinematics,
+    pose: ArmPose,
+    tcp_target: np.ndarray,
+    ctrl: np.ndarray,
+    action: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """`action` [3] -> (the next tool-centre target [3], the arm's joint targets [7]) from the arm measured at
+    `pose`, the running target `tcp_target` [3] and the servos' targets `ctrl` [9], the tool pointing down:
+    `PegInsert._arm_targets`."""
+    step = action * task.ee_step
+    gains = (task.ik_damping, task.ik_posture_gain, task.start_qpos)
+    if task.running_target:
+        servo_pose = kinematics.pose(ctrl[:7])
+        target = ik.advanced_target(servo_pose.tcp, step, pose.tcp, task.max_lead)
+        return target, ik.servo_ik_targets(kinematics, servo_pose, target, task.home_tcp_rotation, *gains)
+    target = ik.advanced_target(tcp_target, step, pose.tcp, task.max_lead)
+    return target, ik.ik_arm_targets(pose, target, task.home_tcp_rotation, *gains, kinematics.arm_limits)
 
 
 class PegController:
@@ -108,5 +113,5 @@ class PegController:
     def act(self, reading: ArmReading, ctrl: np.ndarray, action: np.ndarray) -> np.ndarray:
         """[9] servo targets: the arm's towards the moved target, the fingers' as they were."""
         assert self._pose is not None and self.tcp_target is not None, "observe before act"
-        self.tcp_target = tcp_target_after(self.task, self._pose, self.tcp_target, action)
-        return np.concatenate([arm_targets(self.task, self.kinematics, self._pose, self.tcp_target), ctrl[7:]])
+        self.tcp_target, arm = arm_targets(self.task, self.kinematics, self._pose, self.tcp_target, ctrl, action)
+        return np.concatenate([arm, ctrl[7:]])

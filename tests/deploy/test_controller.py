@@ -121,8 +121,9 @@ def test_the_sorter_observes_and_acts_as_the_env(control_mode):
     assert np.ptp(ctrl[:, :7], axis=0).max() > 0.01
 
 
-def test_the_peg_observes_and_acts_as_the_env():
-    env = PegInsert()
+@pytest.mark.parametrize("running_target", [False, True])
+def test_the_peg_observes_and_acts_as_the_env(running_target):
+    env = PegInsert(running_target=running_target)
     params = env.default_params()
     rng = np.random.default_rng(2)
     qpos = env.mj_model.qpos0.astype(np.float32).copy()
@@ -135,7 +136,8 @@ def test_the_peg_observes_and_acts_as_the_env():
         qpos=jnp.asarray(qpos),
         qvel=jnp.asarray(qvel),
         qacc_warmstart=jnp.zeros(env.mj_model.nv),
-        ctrl=jnp.asarray(np.r_[qpos[:7], 0.01, 0.01]),
+        # The servos' targets lead the arm, as when it moves: the running target's IK starts from them.
+        ctrl=jnp.asarray(np.r_[qpos[:7] + rng.uniform(-0.05, 0.05, 7), 0.01, 0.01], jnp.float32),
         target_velocity=jnp.asarray(velocity),
         tcp_target=jnp.asarray(tcp_target),
         hole=jnp.asarray(hole),
@@ -146,32 +148,34 @@ def test_the_peg_observes_and_acts_as_the_env():
         hole_error=jnp.zeros(3),
     )
     actions = rng.uniform(-1.0, 1.0, (ACTIONS, 3)).astype(np.float32)
+    actions[0] = 0.0
+    actions[1] = [1.0, -1.0, 1.0]  # beyond the lead in every direction
 
     @jax.jit
     def reference(sim, actions):
         model = env.episode_model(sim, params)
         data = env.kinematics(model, sim)
         obs = env._observe(model, data, sim, params, jax.random.key(1))
-        tcp = data.site_xpos[env.ids.robot.tcp_site]
 
         def ctrl(action):
-            target = jnp.clip(sim.tcp_target + action * params.ee_step, tcp - params.max_lead, tcp + params.max_lead)
-            arm = env.ik_targets(model, data, target, env.home_tcp_rotation, params)
-            return env.limited_ctrl(jnp.concatenate([arm, sim.ctrl[7:]]), sim)[0][:7]
+            target, arm = env._arm_targets(model, data, sim, action, params)
+            return target, env.limited_ctrl(jnp.concatenate([arm, sim.ctrl[7:]]), sim)[0][:7]
 
-        return obs, jax.vmap(ctrl)(actions)
+        return obs, *jax.vmap(ctrl)(actions)
 
-    obs, arm = (np.asarray(value) for value in reference(sim, jnp.asarray(actions)))
+    obs, targets, arm = (np.asarray(value) for value in reference(sim, jnp.asarray(actions)))
     controller = from_env.controller(env, params)
     assert isinstance(controller, peg.PegController)
     reading = ArmReading(arm_q=qpos[:7].astype(np.float64), arm_qvel=qvel[:7].astype(np.float64), finger_q=qpos[7:9])
     pose = controller.kinematics.pose(reading.arm_q)
     ours = peg.observation(controller.task, controller.kinematics, pose, reading, HoleEstimate(hole), tcp_target)
     np.testing.assert_allclose(ours, obs, atol=TOLERANCE)
-    for action, expected in zip(actions, arm, strict=True):
-        target = peg.tcp_target_after(controller.task, pose, tcp_target.astype(np.float64), action)
-        arm = peg.arm_targets(controller.task, controller.kinematics, pose, target)
-        previous = np.asarray(sim.ctrl[:7], np.float64)
-        sent = limits.limit_targets(arm, previous, velocity.astype(np.float64), CONTROL_DT).targets
+    sim_ctrl = np.asarray(sim.ctrl, np.float64)
+    for action, expected_target, expected in zip(actions, targets, arm, strict=True):
+        target, ours_arm = peg.arm_targets(
+            controller.task, controller.kinematics, pose, tcp_target.astype(np.float64), sim_ctrl, action
+        )
+        np.testing.assert_allclose(target, expected_target, atol=TOLERANCE)
+        sent = limits.limit_targets(ours_arm, sim_ctrl[:7], velocity.astype(np.float64), CONTROL_DT).targets
         np.testing.assert_allclose(sent, expected, atol=TOLERANCE)
     assert np.ptp(arm, axis=0).max() > 1e-3
