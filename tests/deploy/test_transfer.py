@@ -17,6 +17,7 @@ from experiments.benchmarks.deploy import random_policy
 from jaxarm.envs.panda.robot import MENAGERIE_TIMESTEP, resolve_panda_ids, tcp_pose_at
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.peg_insert.env import PegInsert
+from jaxarm.envs.peg_insert.params import RUNNING_TARGET_MAX_LEAD
 from jaxarm.runner import rundir
 
 
@@ -93,9 +94,12 @@ def scripted_insertion(obs: np.ndarray) -> np.ndarray:
 
 @pytest.mark.mjx
 @pytest.mark.slow
-def test_a_scripted_peg_inserts_in_stock_mujoco_with_both_pandas():
-    env = PegInsert()
+@pytest.mark.parametrize("running_target", [False, True])
+def test_a_scripted_peg_inserts_in_stock_mujoco_with_both_pandas(running_target):
+    env = PegInsert(running_target=running_target)
     params = env.default_params()
+    if running_target:
+        params = params.replace(max_lead=RUNNING_TARGET_MAX_LEAD)
     for name in transfer.MODELS:
         result = transfer.run_episodes(env, params, scripted_insertion, name, 2, 0, clip=True, record=False)
         assert result["success_rate"] == 1.0, (name, result)
