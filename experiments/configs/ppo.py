@@ -215,6 +215,15 @@ def ppo_sorter_toss() -> PPOConfig:
     )
 
 
+ROBOT_RANDOMIZE = (
+    ("action_latency", "0..2"),
+    ("joint_damping_scale", "log:0.5..4.0"),
+    ("servo_gain_scale", "0.7..1.3"),
+    ("joint_friction_scale", "0.0..2.0"),
+    ("force_limit_scale", "0.7..1.3"),
+    ("control_period_scale", "0.9..1.1"),
+)
+"""The robot's own ranges (`RobotParams`), shared by every randomised Panda preset; SORTER_RANDOMIZE says why."""
 SORTER_RANDOMIZE = (
     # Each range spans the sim-to-real grid the policy must survive (finger friction 0.8 and 1.5, object
     # friction 0.3 and 1.2, mass x0.5 and x3, home-posture noise 0.2 rad, 5 mm observation noise, up to two steps
@@ -228,12 +237,7 @@ SORTER_RANDOMIZE = (
     ("mass_scale", "log:0.5..3.0"),
     ("home_noise", "0.0..0.2"),
     ("obs_noise", "0.0..0.005"),
-    ("action_latency", "0..2"),
-    ("joint_damping_scale", "log:0.5..4.0"),
-    ("servo_gain_scale", "0.7..1.3"),
-    ("joint_friction_scale", "0.0..2.0"),
-    ("force_limit_scale", "0.7..1.3"),
-    ("control_period_scale", "0.9..1.1"),
+    *ROBOT_RANDOMIZE,
     ("object_pose_noise", "0.0..0.01"),
     ("object_pose_bias", "0.0..0.01"),
 )
