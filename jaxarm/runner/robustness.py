@@ -152,7 +152,8 @@ def plot(rows: Sequence[dict], path: pathlib.Path, title: str) -> None:
         ax.set_xlabel(name)
         ax.set_ylim(-0.02, 1.02)
     np.atleast_1d(axes)[0].set_ylabel("success rate")
-    np.atleast_1d(axes)[0].legend(fontsize=7)
+    if names:  # combined changes alone leave the one panel empty, and a legend without lines warns
+        np.atleast_1d(axes)[0].legend(fontsize=7)
     fig.suptitle(f"{title} ({jax.devices()[0].device_kind})")
     fig.tight_layout()
     fig.savefig(path, dpi=100)

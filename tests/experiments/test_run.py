@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 
 import jax
 import jax.numpy as jnp
@@ -284,6 +285,13 @@ def test_robustness_rows_of_params_changed_together(finished_run):
     assert same["return_mean"] == nominal["return_mean"] and same["success_rate"] == nominal["success_rate"]
     assert max(frozen["success_rate"], frozen_smaller["success_rate"]) < 0.5 * nominal["success_rate"]
     assert "| action_scale=0.002+goal_size=30 |  |" in (finished_run / "robustness-12-12345.md").read_text()
+
+
+def test_combined_changes_alone_draw_their_plot_without_a_warning(finished_run):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert eval_cli.main([str(finished_run), "--episodes", "4", "--perturb", "action_scale=0.1+goal_size=40"]) == 0
+    assert (finished_run / "robustness-4-12345.png").stat().st_size > 0
 
 
 def test_a_runs_randomised_ranges_give_their_ends():
