@@ -111,12 +111,9 @@ def td3_peg() -> TD3Config:
 
 @preset("TD3 inserting the peg with the running target and its wider lead, Franka's arm (CPU or one GPU)")
 def td3_peg_running() -> TD3Config:
-    # td3_peg with the sorter's running target and a 3 cm lead (RUNNING_TARGET_MAX_LEAD says why): with the joints'
-    # damping x3 td3_peg's tool crawls at a third of its speed and it inserted 40.5%. Seed 0, trained without
-    # randomisation (2-core CPU, 224k env steps), inserted 100% of 200 episodes nominally, with damping x3 and x4,
-    # and in stock MuJoCo with either Panda (BENCHMARKS.md#peg). The lead is what matters: td3_peg with
-    # env_params.max_lead=0.03 alone inserted 100% at x3 and x4 too; the running target is the sorter's control, the
-    # one the deployment loop shares, and moves the tool 5-9% faster at a full lead. td3_peg keeps its control.
+    # td3_peg with the sorter's running target and a 3 cm lead (RUNNING_TARGET_MAX_LEAD says why): td3_peg's 1 cm lead
+    # slows its tool to a third when the joints are damped x3. The lead is what carries the damping; the running
+    # target is the control the deployment loop shares. td3_peg keeps its control. Results: BENCHMARKS.md#peg.
     peg = td3_peg()
     return dataclasses.replace(
         peg,
@@ -139,10 +136,8 @@ PEG_RANDOMIZE = (
 
 @preset("TD3 inserting the peg under randomised robot and sensing, with the running target (CPU or one GPU)")
 def td3_peg_dr() -> TD3Config:
-    # td3_peg_running drawing PEG_RANDOMIZE per env at every reset, over twice its budget (td3_peg's control under
-    # these draws inserted 8.5% with damping x3). Seed 0 (CPU, 416k env steps): 100% nominal, 97.5% with damping
-    # x3, 78.0% at x4, 96.0% in stock MuJoCo with menagerie's Panda: at this budget no better than td3_peg_running
-    # on any check, and worse at x4 and with seven changes at once (BENCHMARKS.md#peg).
+    # td3_peg_running drawing PEG_RANDOMIZE per env at every reset, over twice its budget: at this budget no better
+    # than td3_peg_running on any held-out check (BENCHMARKS.md#peg).
     return dataclasses.replace(td3_peg_running(), randomize=PEG_RANDOMIZE, total_env_steps=400_000)
 
 
