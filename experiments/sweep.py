@@ -33,7 +33,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from experiments import configs, distributed
 from experiments.run import minutes
 from jaxarm.agents.common import checkpoint
-from jaxarm.agents.common.config import RunConfig, apply_overrides
+from jaxarm.agents.common.config import PAIR_FIELDS, RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.sharding import ENV_AXIS, gathered, members_mesh, over_members
 from jaxarm.agents.common.trainer import Trainer, run_updates
@@ -243,17 +243,13 @@ def collect(
     return rows, curves
 
 
-PAIRED_FIELDS = ("env_kwargs", "env_params", "eval_env_params", "randomize")
-"""Config fields of (name, value) pairs: a setting names each changed pair as on the CLI, `field.name=value`."""
-
-
 def changes(config: RunConfig, base: RunConfig, combo: dict) -> list[str]:
     """What sets this (group config, dynamic combination) apart from the preset `base`, as CLI-like
     `key=value` items without spaces."""
     items = []
     for field in dataclasses.fields(config):
         value, preset = getattr(config, field.name), getattr(base, field.name)
-        if field.name in PAIRED_FIELDS:
+        if field.name in PAIR_FIELDS:  # each changed pair named as on the CLI
             items += [f"{field.name}.{k}={v}" for k, v in value if (k, v) not in preset]
         elif value != preset:
             items.append(f"{field.name}={value}".replace(" ", ""))

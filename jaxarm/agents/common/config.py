@@ -25,6 +25,8 @@ from jaxarm.envs.registry import closest_match_hint
 from jaxarm.ranges import COUNT, Range
 
 Pairs = tuple[tuple[str, Any], ...]
+PAIR_FIELDS = ("env_kwargs", "env_params", "eval_env_params", "randomize")
+"""The config fields of (name, value) pairs, each pair set on the CLI as `field.name=value`."""
 
 DYNAMIC = "dynamic"
 """The metadata key `dynamic` sets on a config field."""
@@ -255,7 +257,7 @@ def apply_overrides(config: AnyConfig, overrides: Iterable[str], validate: bool 
             raise ValueError(f"override {item!r} is not of the form key=value")
         key, text = item.split("=", 1)
         group, _, name = key.partition(".")
-        if name and group in ("env_kwargs", "env_params", "eval_env_params", "randomize"):
+        if name and group in PAIR_FIELDS:
             value = text if group == "randomize" else parse_literal(text)  # ranges stay text: "0.8..3.0"
             pairs: dict[str, Any] = {group: with_pair(getattr(config, group), name, value)}
             config = dataclasses.replace(config, **pairs)
