@@ -120,6 +120,15 @@ class Recorder:
         pass
 
 
+def test_an_evaluation_takes_gpu_memory_on_demand_unless_told():
+    untold: dict[str, str] = {}
+    eval_cli.reserve_gpu_memory_on_demand(untold)
+    assert untold == {"XLA_PYTHON_CLIENT_PREALLOCATE": "false"}
+    told = {"XLA_PYTHON_CLIENT_PREALLOCATE": "true"}
+    eval_cli.reserve_gpu_memory_on_demand(told)
+    assert told == {"XLA_PYTHON_CLIENT_PREALLOCATE": "true"}
+
+
 def test_tensorboard_draws_against_env_steps(tmp_path):
     sink = sinks.TensorBoardSink(tmp_path)
     sink.writer.close()
