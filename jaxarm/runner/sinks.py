@@ -8,6 +8,7 @@ imported only when a run asks for it; offline mode is wandb's own (`WANDB_MODE=o
 import dataclasses
 import importlib
 import pathlib
+import sys
 from typing import Any, Protocol
 
 
@@ -17,14 +18,28 @@ class Sink(Protocol):
     def close(self) -> None: ...
 
 
+def summary_writer_class() -> type:
+    """tensorboardX's SummaryWriter. tensorboardX imports torch wherever it is installed, only to accept torch
+    tensors (the rows hold floats): its import took 2.7-3.8 s of a run's start on an H200 host with torch (sampled,
+    2026-11-27; without torch, 0.03-0.1 s on the 2-core CPU), while the run's other processes waited. Where torch is
+    not imported yet, it is hidden while tensorboardX imports, and importable again after."""
+    if "torch" in sys.modules:
+        from tensorboardX import SummaryWriter
+    else:
+        sys.modules["torch"] = None  # type: ignore[assignment]  # `import torch` raises ImportError meanwhile
+        try:
+            from tensorboardX import SummaryWriter
+        finally:
+            del sys.modules["torch"]
+    return SummaryWriter
+
+
 class TensorBoardSink:
     """Event files under `directory`, each metric against env steps; with `purge_step`, TensorBoard hides the
     events of earlier writers at that env step and beyond (those a killed run logged past its last checkpoint)."""
 
     def __init__(self, directory: pathlib.Path, purge_step: int | None = None):
-        from tensorboardX import SummaryWriter
-
-        self.writer = SummaryWriter(str(directory), purge_step=purge_step)
+        self.writer = summary_writer_class()(str(directory), purge_step=purge_step)
 
     def write(self, row: dict[str, float]) -> None:
         for name, value in row.items():

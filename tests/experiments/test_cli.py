@@ -137,6 +137,24 @@ def test_tensorboard_draws_against_env_steps(tmp_path):
     assert ("loss", 0.5, 3072) in sink.writer.calls and {step for _, _, step in sink.writer.calls} == {3072}
 
 
+def test_tensorboard_starts_without_importing_torch(tmp_path):
+    # A torch that says when it is imported, and lacks the `Tensor` tensorboardX would read from it at its import.
+    (tmp_path / "torch").mkdir()
+    (tmp_path / "torch" / "__init__.py").write_text("print('torch imported')\n")
+    script = (
+        "import pathlib, sys\n"
+        "from jaxarm.runner.sinks import TensorBoardSink\n"
+        f"TensorBoardSink(pathlib.Path({str(tmp_path / 'tb')!r})).close()\n"
+        "print('torch after the sink:', 'torch' in sys.modules)\n"
+        "import torch\n"
+    )
+    paths = [str(tmp_path), *filter(None, [os.environ.get("PYTHONPATH")])]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(paths)}
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, env=env)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.splitlines() == ["torch after the sink: False", "torch imported"]
+
+
 @pytest.fixture
 def fake_wandb(monkeypatch):
     """A stand-in `wandb` module recording what the runner asks of it."""
