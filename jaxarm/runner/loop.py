@@ -241,12 +241,14 @@ def _train_locked(
             f"updates in whole chunks of {config.chunk_updates:,}",
             file=sys.stderr,
         )
+    # One program for the evaluations during training and the final one: a second would be traced and lowered again.
+    evaluator = learners.make_evaluator(trainer, config, config.eval_episodes)
     mesh = data_mesh(options.devices)
     # Under the mesh, VmapEnv steps each device's envs on that device (jaxarm.envs.wrappers.over_env_batch).
     with envs_split_over(mesh):
         start = _start(trainer, config, preset, run_dir, resume, overrides, mesh)
-        state, done_updates, train_time = _train_chunks(trainer, config, run_dir, options, start, mesh)
-        return _final_evaluation(trainer, config, preset, run_dir, state, done_updates, train_time)
+        state, done_updates, train_time = _train_chunks(trainer, config, run_dir, options, start, mesh, evaluator)
+        return _final_evaluation(trainer, config, preset, run_dir, state, done_updates, train_time, evaluator)
 
 
 def _train_teacher(
@@ -383,14 +385,19 @@ def _start(
 
 
 def _train_chunks(
-    trainer: Trainer, config: RunConfig, run_dir: pathlib.Path, options: Options, start: _Start, mesh: Mesh
+    trainer: Trainer,
+    config: RunConfig,
+    run_dir: pathlib.Path,
+    options: Options,
+    start: _Start,
+    mesh: Mesh,
+    evaluator: Callable[[Any, jax.Array], dict],
 ) -> tuple[Any, int, float]:
     """Runs chunks of updates from `start` until the budget, the time limit or a stop request, logging,
-    evaluating and checkpointing between them; returns (learner state, updates done, wall seconds of training
-    in all, earlier segments included)."""
+    evaluating (`evaluator`, `learners.make_evaluator`'s) and checkpointing between them; returns (learner state,
+    updates done, wall seconds of training in all, earlier segments included)."""
     hparams = config.hparams()
     primary = processes.is_primary()
-    evaluator = learners.make_evaluator(trainer, config, config.eval_episodes)
     eval_key = jax.random.PRNGKey(config.seed + FINAL_EVAL_SEED_OFFSET)
     checkpoints = run_dir / "checkpoints"
     shardings = state_shardings(start.state, mesh)
@@ -497,11 +504,12 @@ def _final_evaluation(
     state,
     done_updates: int,
     train_time: float,
+    evaluator: Callable[[Any, jax.Array], dict],
 ) -> dict:
-    """Evaluates the final state (also under the randomised params, if any), writes eval.json and curve.png
-    (the primary process) and returns the results."""
+    """Evaluates the final state with `evaluator` (also under the randomised params, if any), writes eval.json and
+    curve.png (the primary process) and returns the results."""
     eval_key = jax.random.PRNGKey(config.seed + FINAL_EVAL_SEED_OFFSET)
-    result = learners.make_evaluator(trainer, config, config.eval_episodes)(state, eval_key)
+    result = evaluator(state, eval_key)
     if config.randomize:
         randomized = learners.make_evaluator(trainer, config, config.eval_episodes, randomized=True)(state, eval_key)
         result.update({f"randomized/{name}": value for name, value in randomized.items() if name != "device"})

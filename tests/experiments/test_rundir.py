@@ -231,9 +231,18 @@ def test_a_resume_that_cannot_restore_records_nothing(reference, tmp_path, capsy
     assert snapshot(damaged) == before and not (damaged / "resumes.jsonl").exists()
 
 
-def test_evaluation_during_training_logs_rows_keeps_the_best_and_draws_them(tmp_path):
+def test_evaluation_during_training_logs_rows_keeps_the_best_and_draws_them(tmp_path, monkeypatch):
+    made = []
+    make_evaluator = learners.make_evaluator
+
+    def counted(*args, **kwargs):
+        made.append(args)
+        return make_evaluator(*args, **kwargs)
+
+    monkeypatch.setattr(learners, "make_evaluator", counted)
     run_dir = tmp_path / "evaluated"
     assert run_cli("eval_every_updates=8", "--out", str(run_dir)) == 0
+    assert len(made) == 1, "one evaluation program for the evaluations during training and the final one"
     rows = rundir.read_metrics(run_dir)
     assert [row["updates"] for row in rows if "eval/success_rate" in row] == [8, 16, 24]
     best = json.loads((run_dir / "best.json").read_text())
