@@ -5,6 +5,8 @@ The run directory's files (its config, metrics, lock, records) are rundir.py's; 
 writes nothing into it.
 """
 
+import concurrent.futures
+import contextvars
 import functools
 import pathlib
 from collections.abc import Callable
@@ -75,15 +77,44 @@ def warm_starter(config: RunConfig) -> Callable[[Any], Any]:
     return lambda state: warm_start(state, trained, index)
 
 
-def make_evaluator(
-    trainer, config: RunConfig, episodes: int, randomized: bool = False
-) -> Callable[[Any, jax.Array], dict]:
-    """(learner state, key) -> deterministic-policy results on `episodes` fresh episodes of the eval env (with
-    the config's `randomize` params drawn per episode if `randomized`), as a JSON-ready dict; compiled once, on
-    the first call."""
+class Evaluator:
+    """(learner state, key) -> deterministic-policy results on fresh episodes of an eval env, as a JSON-ready dict.
+
+    Its program is compiled once: ahead, on a thread (`compile_ahead`), or else at the first call."""
+
+    def __init__(self, program: Any):
+        self._program = program  # jitted: (learner state, key) -> evaluate's results
+        self._compiled: concurrent.futures.Future | None = None
+
+    def compile_ahead(self, pool: concurrent.futures.Executor, state, key: jax.Array) -> None:
+        """Starts compiling the program on `pool` for states like `state` (same shapes and shardings) and keys
+        like `key`, unless started before. A training loop calls this as its first chunk ends, so that its
+        evaluations need not wait for tracing and lowering (a 4-GPU sorter run's final evaluation took 7 s, now
+        2.3 s; the chunk it overlaps 2-3 s longer on MJX Warp, H200s). The program is traced in this thread's
+        context (`jaxarm.agents.common.sharding.envs_split_over` among it)."""
+        if self._compiled is not None:
+            return
+        # Shapes alone: the training loop may donate `state` to its next chunk before the thread reads it. The
+        # key as a fresh one is (on no device yet), so that it can join a program spread over several processes.
+        like_state = jax.tree.map(
+            lambda leaf: jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=leaf.sharding), state
+        )
+        like_key = jax.ShapeDtypeStruct(key.shape, key.dtype)
+        lower = functools.partial(self._program.lower, like_state, like_key)
+        self._compiled = pool.submit(contextvars.copy_context().run, lambda: lower().compile())
+
+    def __call__(self, state, key: jax.Array) -> dict:
+        program = self._program if self._compiled is None else self._compiled.result()
+        return {**program(state, key).summary(), "device": jax.devices()[0].device_kind}
+
+
+def make_evaluator(trainer, config: RunConfig, episodes: int, randomized: bool = False) -> Evaluator:
+    """The evaluator of `trainer`'s deterministic policy on `episodes` fresh episodes of `config`'s eval env, with
+    the config's `randomize` params drawn per episode if `randomized`."""
     env, env_params = config.make_eval_env(randomized)
-    run = jax.jit(lambda learner, key: evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, episodes))
-    return lambda state, key: {**run(state, key).summary(), "device": jax.devices()[0].device_kind}
+    return Evaluator(
+        jax.jit(lambda learner, key: evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, episodes))
+    )
 
 
 def evaluate_state(trainer, config: RunConfig, state, episodes: int, seed: int) -> dict:

@@ -22,6 +22,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Executor, ThreadPoolExecutor
 from typing import Any
 
 import jax
@@ -241,14 +242,39 @@ def _train_locked(
             f"updates in whole chunks of {config.chunk_updates:,}",
             file=sys.stderr,
         )
-    # One program for the evaluations during training and the final one: a second would be traced and lowered again.
-    evaluator = learners.make_evaluator(trainer, config, config.eval_episodes)
+    evaluators = _Evaluators.of(trainer, config)
     mesh = data_mesh(options.devices)
-    # Under the mesh, VmapEnv steps each device's envs on that device (jaxarm.envs.wrappers.over_env_batch).
-    with envs_split_over(mesh):
+    # Under the mesh, VmapEnv steps each device's envs on that device (jaxarm.envs.wrappers.over_env_batch). The
+    # pool compiles the evaluations while training runs; leaving it waits for that.
+    with envs_split_over(mesh), ThreadPoolExecutor(1, thread_name_prefix="compile-evaluation") as compiling:
         start = _start(trainer, config, preset, run_dir, resume, overrides, mesh)
-        state, done_updates, train_time = _train_chunks(trainer, config, run_dir, options, start, mesh, evaluator)
-        return _final_evaluation(trainer, config, preset, run_dir, state, done_updates, train_time, evaluator)
+        state, done_updates, train_time = _train_chunks(
+            trainer, config, run_dir, options, start, mesh, evaluators, compiling
+        )
+        return _final_evaluation(trainer, config, preset, run_dir, state, done_updates, train_time, evaluators)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Evaluators:
+    """A run's evaluations, each one program: on the eval env (during training and at the end), and at the end
+    under the config's randomised params where it has them."""
+
+    nominal: learners.Evaluator
+    randomized: learners.Evaluator | None
+
+    @classmethod
+    def of(cls, trainer: Trainer, config: RunConfig) -> "_Evaluators":
+        randomized = (
+            learners.make_evaluator(trainer, config, config.eval_episodes, randomized=True)
+            if config.randomize
+            else None
+        )
+        return cls(learners.make_evaluator(trainer, config, config.eval_episodes), randomized)
+
+    def compile_ahead(self, pool: Executor, state, key: jax.Array) -> None:
+        for evaluator in (self.nominal, self.randomized):
+            if evaluator is not None:
+                evaluator.compile_ahead(pool, state, key)
 
 
 def _train_teacher(
@@ -391,11 +417,12 @@ def _train_chunks(
     options: Options,
     start: _Start,
     mesh: Mesh,
-    evaluator: Callable[[Any, jax.Array], dict],
+    evaluators: _Evaluators,
+    compiling: Executor,
 ) -> tuple[Any, int, float]:
     """Runs chunks of updates from `start` until the budget, the time limit or a stop request, logging,
-    evaluating (`evaluator`, `learners.make_evaluator`'s) and checkpointing between them; returns (learner state,
-    updates done, wall seconds of training in all, earlier segments included)."""
+    evaluating (`evaluators.nominal`, compiled on `compiling` from the first chunk's end) and checkpointing between
+    them; returns (learner state, updates done, wall seconds of training in all, earlier segments included)."""
     hparams = config.hparams()
     primary = processes.is_primary()
     eval_key = jax.random.PRNGKey(config.seed + FINAL_EVAL_SEED_OFFSET)
@@ -419,6 +446,7 @@ def _train_chunks(
             state, metrics = runner(state, hparams)
             flat = rundir.flatten_metrics(jax.device_get(metrics))
             chunk_time = time.perf_counter() - chunk_start
+            evaluators.compile_ahead(compiling, state, eval_key)
             bad = first_non_finite(flat)
             if bad is not None or not state_is_finite(state):
                 raise TrainingDiverged(diverged_message(bad, done_updates, count, checkpoints))
@@ -432,7 +460,7 @@ def _train_chunks(
                 )
             )
             if crossed(config.eval_every_updates, done_updates, done_updates + count):
-                result = evaluator(state, eval_key)
+                result = evaluators.nominal(state, eval_key)
                 rows[-1].update({f"eval/{name}": value for name, value in result.items() if isinstance(value, float)})
                 if better(result, best):
                     best = {"updates": done_updates + count, **result}
@@ -504,14 +532,14 @@ def _final_evaluation(
     state,
     done_updates: int,
     train_time: float,
-    evaluator: Callable[[Any, jax.Array], dict],
+    evaluators: _Evaluators,
 ) -> dict:
-    """Evaluates the final state with `evaluator` (also under the randomised params, if any), writes eval.json and
-    curve.png (the primary process) and returns the results."""
+    """Evaluates the final state (also under the randomised params, if any), writes eval.json and curve.png (the
+    primary process) and returns the results."""
     eval_key = jax.random.PRNGKey(config.seed + FINAL_EVAL_SEED_OFFSET)
-    result = evaluator(state, eval_key)
-    if config.randomize:
-        randomized = learners.make_evaluator(trainer, config, config.eval_episodes, randomized=True)(state, eval_key)
+    result = evaluators.nominal(state, eval_key)
+    if evaluators.randomized is not None:
+        randomized = evaluators.randomized(state, eval_key)
         result.update({f"randomized/{name}": value for name, value in randomized.items() if name != "device"})
     result["train_wall_time"] = train_time
     result["env_steps"] = done_updates * trainer.env_steps_per_update

@@ -7,6 +7,7 @@ import os
 import pathlib
 import shutil
 import signal
+from concurrent.futures import ThreadPoolExecutor
 
 import jax
 import numpy as np
@@ -252,6 +253,23 @@ def test_evaluation_during_training_logs_rows_keeps_the_best_and_draws_them(tmp_
     assert checkpoint.latest_step(run_dir / "best") == best["updates"]
     final = json.loads((run_dir / "eval.json").read_text())
     assert final["success_rate"] == evaluated[-1]["eval/success_rate"], "same episodes as the final evaluation"
+
+
+def test_an_evaluation_compiled_ahead_on_a_thread_gives_what_one_compiled_at_its_call(reference):
+    config, state = loop.load_run(reference)
+    trainer, key = learners.make_trainer(config), jax.random.PRNGKey(7)
+    ahead, submitted = learners.make_evaluator(trainer, config, 8), []
+
+    class Pool(ThreadPoolExecutor):
+        def submit(self, *args, **kwargs):
+            submitted.append(args)
+            return super().submit(*args, **kwargs)
+
+    with Pool(1) as pool:
+        ahead.compile_ahead(pool, state, key)
+        ahead.compile_ahead(pool, state, key)
+    assert len(submitted) == 1, "compiled once"
+    assert ahead(state, key) == learners.make_evaluator(trainer, config, 8)(state, key)
 
 
 def test_lists_parse_with_brackets_too():
