@@ -1,6 +1,6 @@
 """The command-line options that make a command one of several processes (`jax.distributed`), shared by run
 and sweep: on SLURM the processes find each other alone; elsewhere `--coordinator`, `--num-processes` and
-`--process-id` say how; `--local-processes N` starts N of them on this host, one GPU each (1: the command
+`--process-id` say how; `--local-processes N` forks N of them on this host, one GPU each (1: the command
 runs alone, on every GPU).
 
 One process per GPU is how Warp's own multi-GPU examples run; BENCHMARKS.md#devices compares it with one process
@@ -17,9 +17,12 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Mapping, Sequence
+import traceback
+from collections.abc import Callable, Mapping, Sequence
+from typing import NoReturn
 
 import jax
+from jax._src import xla_bridge
 
 from jaxarm.envs.panda.mjx_impl import Impl
 
@@ -160,41 +163,99 @@ def local_gpus(count: int) -> list[str]:
     return gpus[:count]
 
 
-def spawn(module: str, argv: Sequence[str], count: int) -> int:
-    """Runs `python -m MODULE ARGV` as `count` processes of one job on this host (process i sees the i-th GPU)
-    and waits for them. SIGINT and SIGTERM are passed on once to every process (each checkpoints and stops);
-    where one fails, the others get SIGTERM, and SIGKILL after STOP_GRACE_S (a process waiting in a collective
-    for a dead peer never reaches its checkpoint). Returns the first non-zero exit code, else 0."""
+def spawn(main: Callable[[list[str]], int], argv: Sequence[str], count: int) -> int:
+    """Runs `main(ARGV)` as `count` processes of one job on this host (process i sees the i-th GPU) and waits for
+    them. SIGINT and SIGTERM are passed on once to every process (each checkpoints and stops); where one fails, the
+    others get SIGTERM, and SIGKILL after STOP_GRACE_S (a process waiting in a collective for a dead peer never
+    reaches its checkpoint). Returns the first non-zero exit code, else 0.
+
+    The processes are forked from this one, so they start with its imports done (jax, MuJoCo, Warp: 6 s of each
+    process's start on a GPU host). JAX must not have started its backend here (RuntimeError): a forked process
+    cannot use the devices its parent opened."""
+    # JAX has no public word for it; its own fork hook asks the same.
+    if xla_bridge.backends_are_initialized():
+        raise RuntimeError("distributed.spawn forks its processes: call it before JAX starts its backend")
     gpus = local_gpus(count)
     coordinator = f"127.0.0.1:{free_port()}"
-    base = [sys.executable, "-m", module, *without_local_processes(argv), "--distributed"]
-    base += ["--coordinator", coordinator, "--num-processes", str(count)]
-    # Their own process group: a Ctrl-C at the terminal reaches this process alone, which passes it on once (a
-    # second SIGINT would make each child exit without its checkpoint).
-    children = [
-        subprocess.Popen(
-            [*base, "--process-id", str(index)], env=dict(os.environ, CUDA_VISIBLE_DEVICES=gpu), process_group=0
-        )
-        for index, gpu in enumerate(gpus)
+    base = [
+        *without_local_processes(argv),
+        "--distributed",
+        "--coordinator",
+        coordinator,
+        "--num-processes",
+        str(count),
     ]
+    sys.stdout.flush()
+    sys.stderr.flush()  # else each process would write again what this one had buffered
+    children = []
+    for index, gpu in enumerate(gpus):
+        pid = os.fork()
+        if pid == 0:
+            _run_forked(main, [*base, "--process-id", str(index)], gpu)
+        children.append(pid)
+    codes: dict[int, int] = {}
 
     def forward(signum, frame):
-        for child in children:
-            if child.poll() is None:
-                child.send_signal(signum)
+        for pid in children:
+            if pid not in codes:
+                os.kill(pid, signum)
 
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, forward)
     failed_at = None
-    # Every child polled each turn (not `any` over polls, which stops at the first still running and never sees a
-    # later one fail).
-    while not all([child.poll() is not None for child in children]):
-        if failed_at is None and any(child.returncode not in (None, 0) for child in children):
+    while len(codes) < len(children):
+        for pid in children:
+            if pid not in codes:
+                done, status = os.waitpid(pid, os.WNOHANG)
+                if done:
+                    codes[pid] = os.waitstatus_to_exitcode(status)
+        if failed_at is None and any(code != 0 for code in codes.values()):
             failed_at = time.monotonic()
             forward(signal.SIGTERM, None)
         if failed_at is not None and time.monotonic() - failed_at > STOP_GRACE_S:
-            for child in children:
-                if child.poll() is None:
-                    child.kill()
+            for pid in children:
+                if pid not in codes:
+                    os.kill(pid, signal.SIGKILL)
         time.sleep(POLL_S)
-    return next((child.returncode for child in children if child.returncode != 0), 0)
+    return next((codes[pid] for pid in children if codes[pid] != 0), 0)
+
+
+def _run_forked(main: Callable[[list[str]], int], argv: list[str], gpu: str) -> NoReturn:
+    """The body of one forked process: `main(argv)` on GPU `gpu`, then out at once with its exit code."""
+    code = 1
+    try:
+        # Its own process group: a Ctrl-C at the terminal reaches the launcher alone, which passes it on once (a
+        # second SIGINT would make each process exit without its checkpoint).
+        os.setpgid(0, 0)
+        os.environ["CUDA_VISIBLE_DEVICES"] = gpu
+        code = main(argv)
+    except SystemExit as exit_:
+        code = exit_code(exit_.code)
+    except BaseException:
+        traceback.print_exc()
+    finally:
+        _leave(code)
+
+
+def exit_code(code: object) -> int:
+    """The exit status `sys.exit(code)` gives a process: 0 for None, the int, else 1 (after printing `code`)."""
+    if code is None:
+        return 0
+    if isinstance(code, int):
+        return code
+    print(code, file=sys.stderr)
+    return 1
+
+
+def _leave(code: int) -> NoReturn:
+    """Ends a forked process once the others have reached their end too (`jax.distributed.shutdown`'s barrier),
+    without the interpreter's teardown: JAX's own exit hook collects garbage four times and closes every device
+    before that barrier, and nothing of this process is left to write (a 4-GPU sorter run's processes took ~5 s
+    from their last output to their exit, ~1 s this way; H200s, 2026-11-27)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    try:
+        jax.distributed.shutdown()
+    except Exception as error:  # a peer that died first: leave anyway
+        print(f"jax.distributed could not shut down cleanly ({error})", file=sys.stderr, flush=True)
+    os._exit(code)

@@ -150,7 +150,7 @@ def start_local_processes(args: argparse.Namespace, argv: list[str], count: int)
             "--local-processes 1 for that)",
             flush=True,
         )
-    return distributed.spawn("experiments.run", argv, count)
+    return distributed.spawn(main, argv, count)
 
 
 def main(argv=None) -> int:

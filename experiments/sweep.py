@@ -312,7 +312,7 @@ def main(argv=None) -> int:
     if args.local_processes is not None and args.local_processes > 1:
         if not (args.out or args.resume):  # one directory for all of them, named here as a sweep of one names it
             argv = ["--out", str(rundir.new_run_dir(f"sweep-{args.config}")), *argv]
-        return distributed.spawn("experiments.sweep", argv, args.local_processes)
+        return distributed.spawn(main, argv, args.local_processes)
     try:
         if args.distributed:
             distributed.join(args)

@@ -210,13 +210,13 @@ def test_a_run_that_spreads_starts_one_process_per_gpu_unless_told(given, joined
 
 @pytest.fixture
 def started(monkeypatch, tmp_path):
-    """The processes `run` would start on a host of 4 GPUs with warp-lang, as (module, argv, count), none started;
+    """The processes `run` would start on a host of 4 GPUs with warp-lang, as (main, argv, count), none started;
     building an env (which would start JAX's backend on every GPU) fails the test."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(distributed, "gpus_here", lambda: 4)
     monkeypatch.setattr(run, "warp_available", lambda: True)
     calls = []
-    monkeypatch.setattr(distributed, "spawn", lambda module, argv, count: calls.append((module, argv, count)) or 0)
+    monkeypatch.setattr(distributed, "spawn", lambda main, argv, count: calls.append((main, argv, count)) or 0)
 
     def no_backend(*args, **kwargs):
         raise AssertionError("the launching process asked JAX for its devices")
@@ -230,18 +230,18 @@ def test_a_warp_run_hands_its_processes_one_run_directory(started, tmp_path, cap
     (run_dir,) = (tmp_path / "runs").iterdir()  # named as a run of one process names it
     assert run_dir.name.startswith("ppo_sorter-")
     out = str(pathlib.Path("runs") / run_dir.name)
-    assert started.pop() == ("experiments.run", ["--out", out, "--config", "ppo_sorter", "num_envs=64"], 4)
+    assert started.pop() == (run.main, ["--out", out, "--config", "ppo_sorter", "num_envs=64"], 4)
     told = "one process each (faster than one process driving them all; --local-processes 1 for that)"
     assert capsys.readouterr().out == f"{out}: MJX Warp on 4 GPUs, {told}\n"
 
     given = ["--config", "ppo_sorter", "--out", "mine", "--local-processes", "2"]
     assert run._main(given) == 0
-    assert started.pop() == ("experiments.run", given, 2) and capsys.readouterr().out == ""
+    assert started.pop() == (run.main, given, 2) and capsys.readouterr().out == ""
 
     saved = tmp_path / "saved"
     rundir.write_config(saved, configs.get("ppo_sorter", validate=False), "ppo_sorter")
     assert run._main(["--resume", str(saved), "total_env_steps=1000000"]) == 0
-    assert started.pop() == ("experiments.run", ["--resume", str(saved), "total_env_steps=1000000"], 4)
+    assert started.pop() == (run.main, ["--resume", str(saved), "total_env_steps=1000000"], 4)
 
 
 def test_overrides_and_saved_configs_decide_the_engine_without_building_it(started, tmp_path):
@@ -262,14 +262,14 @@ def test_overrides_and_saved_configs_decide_the_engine_without_building_it(start
 def test_a_sweep_over_local_processes_starts_them_on_one_directory(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     started = []
-    monkeypatch.setattr(distributed, "spawn", lambda module, argv, count: started.append((module, argv, count)) or 0)
+    monkeypatch.setattr(distributed, "spawn", lambda main, argv, count: started.append((main, argv, count)) or 0)
     asked = ["--config", "ppo_arm2d", "--seeds", "2", "--local-processes", "2", "learning_rate=3e-4,1e-3"]
     assert sweep.main(asked) == 0
     (out,) = (tmp_path / "runs").iterdir()
     assert out.name.startswith("sweep-ppo_arm2d-")
-    assert started == [("experiments.sweep", ["--out", str(pathlib.Path("runs") / out.name), *asked], 2)]
+    assert started == [(sweep.main, ["--out", str(pathlib.Path("runs") / out.name), *asked], 2)]
     assert sweep.main(["--resume", "stopped", "--local-processes", "2"]) == 0
-    assert started[-1] == ("experiments.sweep", ["--resume", "stopped", "--local-processes", "2"], 2)
+    assert started[-1] == (sweep.main, ["--resume", "stopped", "--local-processes", "2"], 2)
 
 
 def sweep_results(out, device_count: int, stopped: bool = False, processes: int = 1) -> list[dict]:
@@ -340,23 +340,41 @@ def test_every_process_of_a_sorter_run_holds_its_own_mjx_model(tmp_path):
 
 ONE_FAILS = textwrap.dedent("""
     import pathlib, signal, sys, time
-    process = sys.argv[sys.argv.index("--process-id") + 1]
-    if process == "1":
-        sys.exit(3)  # as a process that died
-    def stopped(signum, frame):
-        pathlib.Path(sys.argv[1]).write_text("stopped")
-        sys.exit(0)
-    signal.signal(signal.SIGTERM, stopped)
-    time.sleep(120)
+    from experiments import distributed
+
+    def main(argv):
+        if argv[argv.index("--process-id") + 1] == "1":
+            sys.exit(3)  # as a process that died
+        def stopped(signum, frame):
+            pathlib.Path(argv[0]).write_text("stopped")
+            sys.exit(0)
+        signal.signal(signal.SIGTERM, stopped)
+        time.sleep(120)
+
+    code = distributed.spawn(main, [sys.argv[1]], 2)
+    print("the launcher goes on")  # a Python session that started them is not ended with them
+    sys.exit(code)
 """)
 
 
-def test_where_one_local_process_fails_the_launcher_stops_the_others(tmp_path, monkeypatch):
-    (tmp_path / "one_fails.py").write_text(ONE_FAILS)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setenv("PYTHONPATH", f"{tmp_path}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+def test_where_one_local_process_fails_the_launcher_stops_the_others(tmp_path):
     marker = tmp_path / "process0"
     start = time.monotonic()
-    assert distributed.spawn("one_fails", [str(marker)], 2) == 3  # the failed process's code
+    launcher = subprocess.run(
+        [sys.executable, "-c", ONE_FAILS, str(marker)], capture_output=True, text=True, timeout=120
+    )
+    assert launcher.returncode == 3, launcher.stderr  # the failed process's code
+    assert launcher.stdout.count("the launcher goes on") == 1  # not in the forked processes, which leave at once
     assert marker.read_text() == "stopped"  # process 0 was told to stop (SIGTERM), not left waiting for its peer
     assert time.monotonic() - start < distributed.STOP_GRACE_S
+
+
+def test_local_processes_are_forked_only_before_jax_starts_its_backend():
+    jax.devices()
+    with pytest.raises(RuntimeError, match="before JAX starts its backend"):
+        distributed.spawn(run.main, ["--config", "ppo_arm2d"], 2)
+
+
+@pytest.mark.parametrize(("code", "status"), [(None, 0), (0, 0), (3, 3), ("a message", 1)])
+def test_a_forked_process_exits_as_sys_exit_would(code, status):
+    assert distributed.exit_code(code) == status
