@@ -4,8 +4,11 @@ Compiles `--updates` updates of a preset's learner into one program (as the runn
 `Trainer.compiler_options`), runs it once to warm up, once timed, and once under `jax.profiler.trace`. Every op
 the device ran (GPU kernels and copies; on a CPU, XLA's thunks) is booked to the first of `--phases` that its
 HLO instruction's name stack holds: PPO runs its phases under the named scopes `collect`, `advantages` and
-`sgd`. Ops whose instruction carries no name stack (copies XLA inserted, and instructions such as those of
-MJX's constraint solver whose metadata XLA dropped) are `unattributed`.
+`sgd`; inside collect, `AutoReset` draws its starts under `auto_reset` and the Panda envs step their physics under
+`physics` and pose their bodies under `kinematics` (e.g. `--phases auto_reset,physics,kinematics,collect,sgd`;
+XLA fuses many of a reset's ops into the selects that follow it, which keep their own scope). Ops whose
+instruction carries no name stack (copies XLA inserted, and instructions such as those of MJX's constraint solver
+whose metadata XLA dropped) are `unattributed`.
 
 On a GPU, XLA records runs of kernels as CUDA graphs ("command buffers"); the profile shows each graph as one op
 with no name stack. Run with `XLA_FLAGS=--xla_gpu_enable_command_buffer=` to book every kernel to its phase: the
@@ -45,9 +48,14 @@ def op_names(hlo_text: str) -> dict[str, str]:
     return {match.group(1): match.group(2) for match in INSTRUCTION.finditer(hlo_text)}
 
 
+TRANSFORMED_SCOPE = re.compile(r"^(?:\w+\()+([^()]*)\)+$")
+"""A scope a transformation renamed: `vmap(auto_reset)` is `auto_reset` vmapped."""
+
+
 def phase_of(name_stack: str, phases: tuple[str, ...]) -> str:
-    """The first of `phases` that `name_stack` holds as a whole scope, else `UNATTRIBUTED`."""
-    scopes = name_stack.split("/")
+    """The first of `phases` that `name_stack` holds as a whole scope (also under a transformation, such as
+    `vmap(name)`), else `UNATTRIBUTED`."""
+    scopes = [TRANSFORMED_SCOPE.sub(r"\1", scope) for scope in name_stack.split("/")]
     return next((phase for phase in phases if phase in scopes), UNATTRIBUTED)
 
 

@@ -113,8 +113,10 @@ class AutoReset(Wrapper):
         stepped = self.env.step(state, action, params)
         # The reset is computed for every env (vmap turns a branch into a select), so it must be cheap: it
         # draws from the carried key, which only advances when an episode ends. Random numbers dominated
-        # the cost of a step (threefry hashes), so no extra split happens here.
-        fresh = self.env.reset_without_images(stepped.key, params)
+        # the cost of a step (threefry hashes), so no extra split happens here. Its scope names it in profiles
+        # (`bench profile --phases`).
+        with jax.named_scope("auto_reset"):
+            fresh = self.env.reset_without_images(stepped.key, params)
         done = stepped.done
 
         def pick(new, old):

@@ -16,6 +16,9 @@ def test_name_stacks_map_to_whole_scopes_only():
     assert profile.phase_of("jit(run_updates)/while/body/closed_call/sgd/while/body/add", PHASES) == "sgd"
     assert profile.phase_of("jit(run_updates)/while/body/collect/vmap()/step", PHASES) == "collect"
     assert profile.phase_of("jit(run_updates)/while/body/sgd_like/add", PHASES) == profile.UNATTRIBUTED
+    # A scope opened inside a vmap is named `vmap(scope)` in the stack.
+    assert profile.phase_of("jit(run_updates)/while/body/collect/vmap(sgd)/add", ("sgd", "collect")) == "sgd"
+    assert profile.phase_of("jit(run_updates)/jvp(vmap(sgd_like))/add", PHASES) == profile.UNATTRIBUTED
     assert profile.phase_of("", PHASES) == profile.UNATTRIBUTED
 
 

@@ -246,10 +246,11 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
     def poses(self, model: mjx.Model, sim: PandaSimState) -> mjx.Data:
         """mjx.Data at the sim's state with the bodies' and geoms' positions and orientations only."""
         data = self._data0.replace(qpos=sim.qpos, qvel=sim.qvel, ctrl=sim.ctrl, qacc_warmstart=sim.qacc_warmstart)
-        data = mjx.kinematics(model, data)
-        if self.impl == Impl.WARP:
-            data = pose_fixed_geoms(self.mj_model, model, data)
-        return data
+        with jax.named_scope("kinematics"):  # a phase of `bench profile`
+            data = mjx.kinematics(model, data)
+            if self.impl == Impl.WARP:
+                data = pose_fixed_geoms(self.mj_model, model, data)
+            return data
 
     def initial_action_queue(self) -> jax.Array:
         """float32 [max_action_latency, *action_shape]: an episode's queue of earlier actions, all zero."""
@@ -317,8 +318,9 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
 
     def simulate(self, model: mjx.Model, data: mjx.Data) -> mjx.Data:
         """`data` after `substeps` physics steps (one env step); raises if Warp dropped contacts on the way."""
-        data = jax.lax.fori_loop(0, self.substeps, lambda _, d: mjx.step(model, d), data)
-        return check_no_overflow(data)
+        with jax.named_scope("physics"):  # a phase of `bench profile`
+            data = jax.lax.fori_loop(0, self.substeps, lambda _, d: mjx.step(model, d), data)
+            return check_no_overflow(data)
 
     def limited_ctrl(self, ctrl: jax.Array, sim: SimT) -> tuple[jax.Array, jax.Array]:
         """Asked servo targets `ctrl` [9] -> (the targets sent [9], the arm's [7] rate of change, rad/s): the arm's
