@@ -2,9 +2,9 @@
 
 Dynamic hyper-parameters (the config's fields declared `dynamic`) of every seed and value are vmapped into one
 compiled call; static choices (num_envs, sizes, ...) form separate groups, each compiled once. Writes
-results.csv and results.md (mean, std and 95% CI over seeds of final return and success, wall time) and
-curves.png (mean success rate and return over env steps with 95% CI bands) into the sweep directory, a new or
-empty one, locked while the sweep runs: a sweep never replaces another's results. With several devices the
+results.csv and results.md (mean, std and 95% CI over seeds of final return and success, the worst seed's success,
+wall time) and curves.png (mean success rate and return over env steps with 95% CI bands) into the sweep directory,
+a new or empty one, locked while the sweep runs: a sweep never replaces another's results. With several devices the
 seeds and values are shared out over them, each run whole on one device (as many devices as divide their count);
 `--local-processes N` runs the sweep as N processes of this host, one GPU each, and `--distributed` as one of
 several processes on several hosts.
@@ -199,6 +199,7 @@ def summarise(label: str, success: np.ndarray, returns: np.ndarray, wall: float)
         "success_mean": float(success.mean()),
         "success_std": float(success.std()),
         "success_ci95": float(confidence_halfwidth(success)),
+        "success_min": float(success.min()),
         "return_mean": float(returns.mean()),
         "return_std": float(returns.std()),
         "return_ci95": float(confidence_halfwidth(returns)),
@@ -274,11 +275,12 @@ def write_tables(rows: list[dict], out: pathlib.Path, shared: list[str]) -> None
         writer.writerows(rows)
     lines = [f"Every setting: {' '.join(shared)}", ""] if shared else []
     lines += [
-        "| setting | seeds | success (mean ± 95% CI) | return (mean ± 95% CI) | group wall s |",
-        "|---|---:|---:|---:|---:|",
+        "| setting | seeds | success (mean ± 95% CI) | worst seed's success | return (mean ± 95% CI) | group wall s |",
+        "|---|---:|---:|---:|---:|---:|",
     ]
     lines += [
         f"| {row['setting']} | {row['seeds']} | {row['success_mean']:.3f} ± {row['success_ci95']:.3f} | "
+        f"{row['success_min']:.3f} | "
         f"{row['return_mean']:.2f} ± {row['return_ci95']:.2f} | {row['group_wall_s']} |"
         for row in rows
     ]

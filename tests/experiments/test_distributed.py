@@ -296,7 +296,7 @@ def test_a_sweep_shared_over_devices_computes_what_one_device_does(tmp_path):
     for shared_out in (four, two_processes):
         assert [row["setting"] for row in one] == [row["setting"] for row in shared_out]
         for single, shared in zip(one, shared_out, strict=True):
-            for column in ("success_mean", "return_mean", "return_std"):
+            for column in ("success_mean", "success_min", "return_mean", "return_std"):
                 assert float(shared[column]) == pytest.approx(float(single[column]), abs=1e-4)
 
 
