@@ -1,7 +1,16 @@
 """Pure-functional JAX environments: `make(name)`, `names()`, and the contract in `base`."""
 
 from jaxarm._runtime import compiler_options
-from jaxarm.envs.base import Env, EnvSpec, EnvState, EpisodeStats, Observation, Transition, check_action
+from jaxarm.envs.base import (
+    Env,
+    EnvSpec,
+    EnvState,
+    EpisodeStats,
+    Observation,
+    Transition,
+    check_action,
+    deferred_step_checks,
+)
 from jaxarm.envs.registry import (
     describe,
     families,
@@ -26,6 +35,7 @@ __all__ = [
     "Wrapper",
     "check_action",
     "compiler_options",
+    "deferred_step_checks",
     "describe",
     "families",
     "make",

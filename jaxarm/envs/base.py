@@ -26,14 +26,22 @@ images only for the envs of a batch that start one, instead of drawing a start f
 Stepping a plain (not auto-reset) env past the end of its episode changes nothing the episode reported:
 `last_episode` keeps the statistics of the step that ended it.
 
+Checks that need the host: a fault the env can only report from outside the compiled program (MJX Warp's
+dropped contacts) raises there, at every step by default. Learners trace their rollouts inside
+`deferred_step_checks()`, where a step only records such faults in its sim, `AutoReset` carries them into the
+next episode (`carried_over`), and one call of `checked` after the rollout raises on any of them: one trip to
+the host per rollout instead of one per step.
+
 Params out of their declared ranges (made with `params.replace(...)`, which checks nothing) are refused with a
 ValueError by a `reset` called outside jit, and by the adapters that step an env from outside (jaxarm.interop);
 inside a compiled program there is no way to raise.
 """
 
 import abc
+import contextlib
+import contextvars
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any, Generic, Protocol, TypeVar
 
 import jax
@@ -46,6 +54,24 @@ from jaxarm.envs.observation import IMAGE, with_image
 
 DIVERGENCE_LIMIT = 1e6
 """Observations beyond this magnitude count as a diverged simulation (see the module docstring)."""
+_STEP_CHECKS_DEFERRED: contextvars.ContextVar[bool] = contextvars.ContextVar("deferred_step_checks", default=False)
+
+
+@contextlib.contextmanager
+def deferred_step_checks() -> Iterator[None]:
+    """While active, env steps traced in this thread record the faults that need the host to raise on (see the
+    module docstring) instead of checking them; whoever traces them calls `Env.checked` on the states they lead
+    to. Only tracing reads it: trace (first call) a jitted function inside it."""
+    token = _STEP_CHECKS_DEFERRED.set(True)
+    try:
+        yield
+    finally:
+        _STEP_CHECKS_DEFERRED.reset(token)
+
+
+def step_checks_deferred() -> bool:
+    """Steps traced now leave their host checks to `Env.checked` (`deferred_step_checks`)."""
+    return _STEP_CHECKS_DEFERRED.get()
 
 
 class HasEpisodeLimit(Protocol):
@@ -281,6 +307,17 @@ class Env(abc.ABC, Generic[Params, Sim]):
     def blank_image(self) -> jax.Array:
         """uint8 zeros shaped as obs[IMAGE]: the image `_reset` and `_transition` leave for `images` to draw."""
         return jnp.zeros(self.spec.observation[IMAGE].shape, jnp.uint8)
+
+    def carried_over(self, ended: Sim, fresh: Sim) -> Sim:
+        """The sim `AutoReset` starts a new episode with: `fresh` (from `reset`) with what must outlive the
+        `ended` episode's sim, such as faults not yet checked (`checked`). Here: `fresh`."""
+        return fresh
+
+    def checked(self, state: EnvState[Sim]) -> EnvState[Sim]:
+        """`state` (any leading batch axes) as it is, behind a check that raises a RuntimeError when the compiled
+        program runs if a step that led to it since the first reset recorded a fault under
+        `deferred_step_checks`. Here: no check, as this env records none."""
+        return state
 
     def reset(self, key: jax.Array, params: Params) -> EnvState[Sim]:
         """Starts an episode. `key` is a PRNG key; the returned state holds a descendant for auto-resets.

@@ -156,6 +156,13 @@ class Randomized(Env):
     def observation_source_index(self, source: Env) -> np.ndarray:
         return self.env.observation_source_index(getattr(source, "unwrapped", source))
 
+    def carried_over(self, ended: RandomizedSim, fresh: RandomizedSim) -> RandomizedSim:
+        return fresh.replace(inner=self.env.carried_over(ended.inner, fresh.inner))
+
+    def checked(self, state: EnvState[RandomizedSim]) -> EnvState[RandomizedSim]:
+        inner = self.env.checked(state.replace(sim=state.sim.inner))
+        return inner.replace(sim=state.sim.replace(inner=inner.sim))
+
     @property
     def draws_images(self) -> bool:
         return self.env.draws_images

@@ -67,13 +67,19 @@ class Wrapper:
     def reset_without_images(self, key: jax.Array, params) -> EnvState:
         return self.env.reset_without_images(key, params)
 
+    def carried_over(self, ended, fresh):
+        return self.env.carried_over(ended, fresh)
+
+    def checked(self, state: EnvState) -> EnvState:
+        return self.env.checked(state)
+
 
 class AutoReset(Wrapper):
     """Starts a new episode inside `step` whenever the last one ended.
 
-    After a done step, `obs`, `sim`, `step_count` and `episode` belong to the new episode, while `reward`,
-    `terminated`, `truncated`, `final_obs` (the observation the episode ended on), `last_episode` and `info`
-    describe the step that ended it.
+    After a done step, `obs`, `sim` (with what `Env.carried_over` keeps of the last one's), `step_count` and
+    `episode` belong to the new episode, while `reward`, `terminated`, `truncated`, `final_obs` (the observation
+    the episode ended on), `last_episode` and `info` describe the step that ended it.
     """
 
     def step(self, state: EnvState, action: jax.Array, params) -> EnvState:
@@ -123,7 +129,7 @@ class AutoReset(Wrapper):
             return jnp.where(done, new, old)
 
         return stepped.replace(
-            sim=jax.tree.map(pick, fresh.sim, stepped.sim),
+            sim=jax.tree.map(pick, self.env.carried_over(stepped.sim, fresh.sim), stepped.sim),
             obs=jax.tree.map(pick, fresh.obs, stepped.obs),
             step_count=pick(fresh.step_count, stepped.step_count),
             episode=jax.tree.map(pick, fresh.episode, stepped.episode),
@@ -207,6 +213,10 @@ class VmapEnv(Wrapper):
     def images(self, sim, params) -> jax.Array:
         """uint8 [B, H, W, C]: each env's camera images (`Env.images`) of a batch of sims [B]."""
         return self._each_env(self.env.images)(sim, params)
+
+    def checked(self, state: EnvState) -> EnvState:
+        """`Env.checked` of a batch [B]: each device checks its share, as it steps it."""
+        return over_env_batch(self.env.checked, self.num_envs, (True,))(state)
 
     def _each_env(self, fn: Callable) -> Callable:
         """`fn(per-env argument, params)` over the batch: the first argument with a leading [B] axis."""

@@ -13,13 +13,20 @@ Each isolates one thing a learner can get wrong:
   V = Q = reward / (1 − γ), while one that treats truncation as termination learns less.
 - `CountdownEnv`: episodes of a random length (1 to `longest` steps) whatever the action: tests what depends on
   when episodes end, as an evaluation that stops once every episode has.
+- `HostCheckedEnv`: `CountdownEnv`'s fixed-length twin whose step `fault_at` of every episode records a fault
+  that only the host raises on, as MJX Warp's dropped contacts: at that step, or once in `checked` after steps
+  traced under `deferred_step_checks`. Tests who checks faults, and how often.
 """
+
+import collections
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
+from jax.experimental import io_callback
 
-from jaxarm.envs.base import Env, EnvSpec, Transition
+from jaxarm.envs.base import Env, EnvSpec, EnvState, Transition, step_checks_deferred
 from jaxarm.envs.observation import IMAGE
 
 
@@ -173,3 +180,74 @@ class CountdownEnv(Env[CountdownParams, ProbeSim]):
             success=left[0] <= 0.0,
             info=(),
         )
+
+
+HOST_CHECKS: collections.Counter[str] = collections.Counter()
+"""How often `HostCheckedEnv`'s host checks ran: "step" (a step's own check) and "checked" (`checked`'s)."""
+
+
+def _raise_on_faults(faults: np.ndarray, kind: str) -> None:
+    """Host side of `HostCheckedEnv`'s checks: a RuntimeError if any of the [...] faults is set; counted."""
+    HOST_CHECKS[kind] += 1
+    if np.any(faults):
+        raise RuntimeError(f"probe fault in {int(np.count_nonzero(faults))} envs")
+
+
+def _no_fault_in_step(faults: np.ndarray) -> np.ndarray:
+    """Host side of a step's own check: [...] faults -> all True, or a RuntimeError."""
+    _raise_on_faults(faults, "step")
+    return np.ones(faults.shape, np.bool_)
+
+
+@struct.dataclass
+class HostCheckedSim:
+    """step: [] int32 steps taken in the episode; faults: [] int32 faults recorded since the first reset."""
+
+    step: jax.Array
+    faults: jax.Array
+
+
+@struct.dataclass
+class HostCheckedParams:
+    """fault_at: the episode step (from 0) that records a fault, −1 for none; max_episode_steps: time limit."""
+
+    fault_at: jax.Array
+    max_episode_steps: jax.Array
+
+
+class HostCheckedEnv(Env[HostCheckedParams, HostCheckedSim]):
+    """Observation [1] the episode's step, reward 1 a step, episodes truncated at `max_episode_steps`; the step
+    numbered `fault_at` records a fault, raised on by the host (see the module docstring)."""
+
+    spec = EnvSpec(observation_shape=(1,), action_shape=(1,))
+
+    def default_params(self) -> HostCheckedParams:
+        return HostCheckedParams(fault_at=jnp.array(-1, jnp.int32), max_episode_steps=jnp.array(4, jnp.int32))
+
+    def _reset(self, key, params):
+        sim = HostCheckedSim(step=jnp.zeros((), jnp.int32), faults=jnp.zeros((), jnp.int32))
+        return sim, jnp.zeros((1,), jnp.float32), ()
+
+    def _transition(self, sim, action, params):
+        fault = (sim.step == params.fault_at).astype(jnp.int32)
+        step = sim.step + 1
+        if not step_checks_deferred():
+            fine = jax.pure_callback(
+                _no_fault_in_step, jax.ShapeDtypeStruct((), jnp.bool_), fault, vmap_method="expand_dims"
+            )
+            step = jnp.where(fine, step, -1)
+        return Transition(
+            sim=HostCheckedSim(step=step, faults=sim.faults + fault),
+            obs=step.astype(jnp.float32)[None],
+            reward=jnp.ones((), jnp.float32),
+            terminated=jnp.zeros((), jnp.bool_),
+            success=jnp.zeros((), jnp.bool_),
+            info=(),
+        )
+
+    def carried_over(self, ended: HostCheckedSim, fresh: HostCheckedSim) -> HostCheckedSim:
+        return fresh.replace(faults=ended.faults + fresh.faults)
+
+    def checked(self, state: EnvState[HostCheckedSim]) -> EnvState[HostCheckedSim]:
+        io_callback(lambda faults: _raise_on_faults(faults, "checked"), None, state.sim.faults)
+        return state

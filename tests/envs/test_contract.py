@@ -21,6 +21,7 @@ from jaxarm.envs.panda.base import PandaOptions
 from jaxarm.envs.peg_insert import PegInsert
 from jaxarm.envs.randomize import ParamRange, Randomized
 from jaxarm.envs.registry import constructor_kwargs
+from tests.agents.probe_envs import HOST_CHECKS, HostCheckedEnv
 from tests.envs.compiled import compiled, same_worker
 
 ROLLOUT_STEPS = 8
@@ -247,6 +248,40 @@ def test_a_plain_env_stepped_past_its_end_keeps_the_episode_it_reported():
         state = jax.jit(auto.step)(state, jnp.ones(2), one_step)
         assert bool(state.truncated) and int(state.last_episode.length) == 1
         assert float(state.last_episode.return_) == float(state.reward)
+
+
+def steps_of(batch, params, steps: int):
+    """jitted: `steps` steps of `batch` from a state, with zero actions."""
+    actions = jnp.zeros((batch.num_envs, *batch.spec.action_shape))
+
+    def run(state):
+        return jax.lax.fori_loop(0, steps, lambda _, s: batch.step(s, actions, params), state)
+
+    return jax.jit(run)
+
+
+@pytest.mark.parametrize("randomized", [False, True])
+def test_a_fault_the_host_raises_on_is_checked_at_its_step_or_once_after_deferred_steps(randomized):
+    env = HostCheckedEnv()
+    batch = envs.VmapEnv(envs.AutoReset(Randomized(env, {}) if randomized else env), 8)
+    # The fault is in the last step of every 4-step episode: after 6 steps the envs are 2 steps into the next.
+    params = env.default_params().replace(fault_at=jnp.array(3, jnp.int32))
+    state = jax.jit(batch.reset)(jax.random.key(0), params)
+    with pytest.raises(Exception, match="probe fault in 8 envs"):
+        jax.block_until_ready(steps_of(batch, params, 6)(state))
+    HOST_CHECKS.clear()
+    with envs.deferred_step_checks():
+        stepped = jax.block_until_ready(steps_of(batch, params, 6)(state))
+    assert HOST_CHECKS == {}
+    np.testing.assert_array_equal(stepped.step_count, 2)
+    with pytest.raises(Exception, match="probe fault in 8 envs"):
+        jax.block_until_ready(jax.jit(batch.checked)(stepped))
+    assert HOST_CHECKS == {"checked": 1}  # one host call for the whole batch
+    clean = env.default_params()
+    with envs.deferred_step_checks():
+        stepped = steps_of(batch, clean, 6)(jax.jit(batch.reset)(jax.random.key(0), clean))
+    checked = jax.block_until_ready(jax.jit(batch.checked)(stepped))
+    assert_trees_equal((checked.sim, checked.obs, checked.episode), (stepped.sim, stepped.obs, stepped.episode))
 
 
 def test_vmap_warns_above_an_envs_cpu_limit():
