@@ -54,6 +54,7 @@ def hand_placed_sorter(env: PandaSort, rng: np.random.Generator) -> PandaSortSim
         queued_actions=env.initial_action_queue(),
         noise_key=jax.random.key(0),
         pose_error=jnp.zeros((2, 3)),
+        overflow=jnp.zeros((), jnp.int32),
     )
 
 
@@ -146,6 +147,7 @@ def test_the_peg_observes_and_acts_as_the_env(running_target):
         queued_actions=env.initial_action_queue(),
         noise_key=jax.random.key(0),
         hole_error=jnp.zeros(3),
+        overflow=jnp.zeros((), jnp.int32),
     )
     actions = rng.uniform(-1.0, 1.0, (ACTIONS, 3)).astype(np.float32)
     actions[0] = 0.0

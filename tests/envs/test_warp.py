@@ -245,6 +245,21 @@ def test_a_contact_buffer_too_small_for_the_batch_raises():
         jax.block_until_ready(jax.jit(batch.step)(state, jnp.zeros((64, *env.spec.action_shape)), params))
 
 
+def test_a_contact_buffer_too_small_raises_once_after_steps_that_defer_their_checks():
+    pytest.importorskip("warp")
+    env = PandaSort(objects_count=1, options=PandaOptions(impl="warp", max_envs=1))
+    # Episodes of one step: the bits of the step that overflowed must outlive its episode.
+    params = envs.override_params(env.default_params(), {"max_episode_steps": 1})
+    batch = envs.VmapEnv(envs.AutoReset(env), 64)
+    state = jax.jit(batch.reset)(jax.random.key(0), params)
+    with envs.deferred_step_checks():
+        stepped = jax.block_until_ready(jax.jit(batch.step)(state, jnp.zeros((64, *env.spec.action_shape)), params))
+    np.testing.assert_array_equal(stepped.step_count, 0)
+    assert np.all(stepped.sim.overflow != 0)
+    with pytest.raises(Exception, match="MJX Warp overflow"):
+        jax.block_until_ready(jax.jit(batch.checked)(stepped))
+
+
 @pytest.mark.xfail(
     strict=True,
     reason="mujoco-mjx 3.17 (H100): kinematics, IK targets and a step at the resting controls agree to 1e-6, but "

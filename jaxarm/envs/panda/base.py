@@ -9,7 +9,7 @@ drawn (`_pose_for_drawing`). Nothing here knows about a task, and no task module
 import abc
 import copy
 import dataclasses
-from typing import Generic, NamedTuple, Protocol, TypeVar
+from typing import Generic, NamedTuple, Protocol, Self, TypeVar
 
 import jax
 import jax.numpy as jnp
@@ -21,7 +21,14 @@ from jaxarm.deploy.limits import limit_targets
 from jaxarm.envs.base import Env, EnvSpec, EnvState, HasEpisodeLimit, Observation
 from jaxarm.envs.observation import check_obs_mode, observation_parts, pixel_observation
 from jaxarm.envs.panda import camera
-from jaxarm.envs.panda.mjx_impl import Impl, check_no_overflow, pose_fixed_geoms, put_scene, resolve_impl
+from jaxarm.envs.panda.mjx_impl import (
+    Impl,
+    check_no_overflow,
+    pose_fixed_geoms,
+    put_scene,
+    raise_on_overflow,
+    resolve_impl,
+)
 from jaxarm.envs.panda.render import Drawing
 from jaxarm.envs.panda.robot import HOME_QPOS, PandaIds, ik_arm_targets, solve_arm_posture, tcp_pose_at
 from jaxarm.envs.panda.sim_to_real import with_noise
@@ -65,6 +72,14 @@ class PandaSimState(Protocol):
     def noise_key(self) -> jax.Array:
         """PRNG key of the observation noise, split by the task at each step; the cameras' noise derives from it."""
         ...
+
+    @property
+    def overflow(self) -> jax.Array:
+        """[] int32: the Warp overflow bits (`mjx_impl.overflow_bits`) of every step since the first reset, which
+        auto-resets keep (`PandaBase.carried_over`) until `PandaBase.checked` raises on them."""
+        ...
+
+    def replace(self, **changes) -> Self: ...
 
 
 class CameraParams(Protocol):
@@ -321,6 +336,15 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         with jax.named_scope("physics"):  # a phase of `bench profile`
             data = jax.lax.fori_loop(0, self.substeps, lambda _, d: mjx.step(model, d), data)
             return check_no_overflow(data)
+
+    def carried_over(self, ended: SimT, fresh: SimT) -> SimT:
+        return fresh.replace(overflow=ended.overflow | fresh.overflow)
+
+    def checked(self, state: EnvState[SimT]) -> EnvState[SimT]:
+        """`state`, its sims' recorded overflow bits raised on if set (`mjx_impl.raise_on_overflow`)."""
+        if self.impl == Impl.WARP:
+            raise_on_overflow(state.sim.overflow)
+        return state
 
     def limited_ctrl(self, ctrl: jax.Array, sim: SimT) -> tuple[jax.Array, jax.Array]:
         """Asked servo targets `ctrl` [9] -> (the targets sent [9], the arm's [7] rate of change, rad/s): the arm's

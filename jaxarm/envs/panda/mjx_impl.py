@@ -6,9 +6,10 @@ contact arrays hold every contact each explicit pair could make, so nothing can 
 buffer of `naconmax` rows and each env's constraint rows in `njmax`; both are fixed when the data is made,
 and a step that needs more drops what does not fit and sets a bit of the env's overflow word. Here both are
 sized for the scene's worst case (`contact_capacity`, `constraint_capacity`), and `check_no_overflow` turns
-a set bit into an error instead of a silently different simulation. Warp also poses the geoms of bodies
-fixed to the world once, when the data is made, so a task that moves them per env (the peg's block) has them
-posed again from the episode's model by `pose_fixed_geoms`.
+a set bit into an error instead of a silently different simulation (or, while steps are traced under
+`deferred_step_checks`, leaves the task to record `overflow_bits` for `raise_on_overflow` after a rollout).
+Warp also poses the geoms of bodies fixed to the world once, when the data is made, so a task that moves them
+per env (the peg's block) has them posed again from the episode's model by `pose_fixed_geoms`.
 
 Nothing here knows about a task: it reads only the MjModel and the mjx.Model / mjx.Data it is given.
 """
@@ -19,9 +20,12 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
+from jax.experimental import io_callback
 from mujoco import mjx
 from mujoco.mjx import warp as mjx_warp
 from mujoco.mjx._src import math as mjx_math
+
+from jaxarm.envs.base import step_checks_deferred
 
 
 class Impl(enum.StrEnum):
@@ -232,28 +236,50 @@ def pose_fixed_geoms(mj_model: mujoco.MjModel, model: mjx.Model, data: mjx.Data)
     )
 
 
-def _raise_on_overflow(overflow: np.ndarray) -> np.ndarray:
-    """Host side of `check_no_overflow`: [...] overflow words -> all True, or raises."""
+def _raise_on_overflow(overflow: np.ndarray) -> None:
+    """Host side of the overflow checks: raises if any of the [...] overflow words is set."""
     bits = sorted({int(word) for word in np.ravel(overflow) if word})
     if bits:
         raise RuntimeError(
             f"MJX Warp overflow (OverflowType bits {bits}): contacts or constraint rows were dropped; the "
             "buffers are too small for this batch: build the env with a larger max_envs"
         )
+
+
+def _no_overflow(overflow: np.ndarray) -> np.ndarray:
+    """Host side of `check_no_overflow`: [...] overflow words -> all True, or raises."""
+    _raise_on_overflow(overflow)
     return np.ones(overflow.shape, np.bool_)
+
+
+def overflow_bits(data: mjx.Data) -> jax.Array:
+    """[] int32: the bits of `data`'s overflow word that mean dropped contacts or constraint rows, set by any
+    Warp step since the data was made; 0 for JAX's data, which cannot overflow."""
+    if data.impl != mjx.Impl.WARP:
+        return jnp.zeros((), jnp.int32)
+    return (data._impl.overflow & _BUFFER_OVERFLOWS).astype(jnp.int32)  # type: ignore[union-attr]  # Warp's own
+
+
+def raise_on_overflow(overflow: jax.Array) -> None:
+    """A RuntimeError when the jitted program runs if any of the overflow words `overflow` [...]
+    (`overflow_bits`) is set: one host call for the whole batch, an effect that runs though nothing reads it."""
+    io_callback(_raise_on_overflow, None, overflow)
 
 
 def check_no_overflow(data: mjx.Data) -> mjx.Data:
     """`data`, once a Warp step since it was made is known to have dropped no contacts or constraint rows
-    (a RuntimeError when the jitted program runs otherwise); JAX's data, which cannot overflow, as it is.
+    (a RuntimeError when the jitted program runs otherwise); JAX's data, which cannot overflow, as it is; and
+    `data` unchecked while steps are traced under `deferred_step_checks`, whose caller raises on the bits the
+    task recorded instead (`raise_on_overflow`).
 
     Warp ORs its overflow bits into the data in every step, so one check after a run of substeps covers them
-    all. The check is one host call per batch (not per env), and qpos depends on its answer so that it runs.
+    all. The check is one host call per batch (not per env), and qpos depends on its answer so that the step
+    waits for it.
     """
-    if data.impl != mjx.Impl.WARP:
+    if data.impl != mjx.Impl.WARP or step_checks_deferred():
         return data
-    overflow = data._impl.overflow & _BUFFER_OVERFLOWS  # type: ignore[union-attr]  # Warp's own Data fields
+    overflow = overflow_bits(data)
     fine = jax.pure_callback(
-        _raise_on_overflow, jax.ShapeDtypeStruct(overflow.shape, jnp.bool_), overflow, vmap_method="expand_dims"
+        _no_overflow, jax.ShapeDtypeStruct(overflow.shape, jnp.bool_), overflow, vmap_method="expand_dims"
     )
     return data.replace(qpos=jnp.where(fine, data.qpos, jnp.nan))

@@ -32,7 +32,7 @@ from mujoco import mjx
 from jaxarm.envs.base import Env, Observation, Transition
 from jaxarm.envs.panda.base import PandaBase, PandaOptions
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
-from jaxarm.envs.panda.mjx_impl import with_geom_sizes
+from jaxarm.envs.panda.mjx_impl import overflow_bits, with_geom_sizes
 from jaxarm.envs.panda.robot import (
     FINGER_OPEN,
     advanced_target,
@@ -348,6 +348,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             noise_key=jax.random.fold_in(key, 2),
             # A stream of its own, so every other draw of the episode stays as it was.
             pose_error=jax.random.normal(jax.random.fold_in(key, 3), (n, 3)),
+            overflow=jnp.zeros((), jnp.int32),
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
@@ -380,6 +381,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             exit_xy=jnp.where(leaving[:, None], position[:, :2], sim.exit_xy),
             queued_actions=queued,
             noise_key=noise_key,
+            overflow=sim.overflow | overflow_bits(data),
         )
         data = self.kinematics(model, next_sim)
         next_sim = next_sim.replace(target=next_target(self.ids, data, next_sim))

@@ -28,6 +28,7 @@ class PandaSortSim(struct.PyTreeNode):
       noise_key: PRNG key of the observation noise.
       pose_error: [N, 3] each object's position-estimate error per metre of `object_pose_bias` (standard normal),
         drawn at reset and kept for the episode.
+      overflow: [] int32 Warp's overflow bits of every step since the first reset (`PandaSimState.overflow`).
     """
 
     qpos: jax.Array
@@ -45,3 +46,4 @@ class PandaSortSim(struct.PyTreeNode):
     queued_actions: jax.Array
     noise_key: jax.Array
     pose_error: jax.Array
+    overflow: jax.Array

@@ -30,7 +30,7 @@ from mujoco import mjx
 from jaxarm.envs.base import Observation, Transition
 from jaxarm.envs.panda.base import PandaBase, PandaOptions
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
-from jaxarm.envs.panda.mjx_impl import check_no_overflow, with_geom_sizes
+from jaxarm.envs.panda.mjx_impl import check_no_overflow, overflow_bits, with_geom_sizes
 from jaxarm.envs.panda.robot import advanced_target
 from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_robot_params
 from jaxarm.envs.peg_insert.model import (
@@ -71,6 +71,7 @@ class PegInsertSim(struct.PyTreeNode):
       noise_key: PRNG key of the observation noise.
       hole_error: [3] the hole's position-estimate error per metre of `hole_pose_bias` (standard normal), drawn at
         reset and kept for the episode.
+      overflow: [] int32 Warp's overflow bits of every step since the first reset (`PandaSimState.overflow`).
     """
 
     qpos: jax.Array
@@ -85,6 +86,7 @@ class PegInsertSim(struct.PyTreeNode):
     queued_actions: jax.Array
     noise_key: jax.Array
     hole_error: jax.Array
+    overflow: jax.Array
 
 
 class PegInsertInfo(struct.PyTreeNode):
@@ -212,6 +214,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             noise_key=jax.random.fold_in(key, 2),
             # A stream of its own, so every other draw of the episode stays as it was.
             hole_error=jax.random.normal(jax.random.fold_in(key, 3), (3,)),
+            overflow=jnp.zeros((), jnp.int32),
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
@@ -268,6 +271,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             tcp_target=target,
             queued_actions=queued,
             noise_key=noise_key,
+            overflow=sim.overflow | overflow_bits(data),
         )
         data = self.kinematics(model, next_sim)
         distance = jnp.linalg.norm(self.peg_tip(data) - self.hole_bottom(next_sim))
