@@ -14,7 +14,7 @@ from jaxarm.agents.ppo import PPOConfig, make_networks, make_trainer
 from jaxarm.agents.ppo.distill import teacher_input
 from jaxarm.agents.ppo.train import Samples, shuffled_minibatches
 from jaxarm.envs.observation import PRIVILEGED, actor_observation
-from tests.agents.probe_envs import ConstantRewardEnv, ImageTargetEnv, TargetActionEnv
+from tests.agents.probe_envs import HOST_CHECKS, ConstantRewardEnv, HostCheckedEnv, ImageTargetEnv, TargetActionEnv
 
 TINY = PPOConfig(
     num_envs=8,
@@ -39,6 +39,17 @@ def test_whole_run_equals_the_chunked_run():
     assert int(whole_state.updates) == trainer.num_updates == 4
     for whole, chunked in zip(jax.tree.leaves(whole_state.params), jax.tree.leaves(state.params), strict=True):
         np.testing.assert_allclose(whole, chunked, rtol=1e-5, atol=1e-6)
+
+
+def test_a_rollout_checks_the_envs_host_faults_once_per_update_and_raises_on_one():
+    env = HostCheckedEnv()
+    clean = make_trainer(TINY, env, env.default_params())
+    HOST_CHECKS.clear()
+    jax.block_until_ready(jax.jit(make_train(clean))(jax.random.PRNGKey(0), TINY.hparams()))
+    assert {"checked": clean.num_updates} == HOST_CHECKS  # and none by the steps themselves
+    faulty = make_trainer(TINY, env, env.default_params().replace(fault_at=jnp.array(2, jnp.int32)))
+    with pytest.raises(Exception, match="probe fault in 8 envs"):
+        jax.block_until_ready(jax.jit(make_train(faulty))(jax.random.PRNGKey(0), TINY.hparams()))
 
 
 @pytest.mark.slow

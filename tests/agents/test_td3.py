@@ -28,7 +28,7 @@ from jaxarm.agents.td3.losses import (
 )
 from jaxarm.agents.td3.networks import make_networks
 from jaxarm.agents.td3.train import Experience, n_step_experience
-from tests.agents.probe_envs import ConstantRewardEnv, ImageTargetEnv, TargetActionEnv
+from tests.agents.probe_envs import HOST_CHECKS, ConstantRewardEnv, HostCheckedEnv, ImageTargetEnv, TargetActionEnv
 
 SMALL = dict(
     hidden_sizes=(32, 32),
@@ -193,6 +193,16 @@ def test_replay_stores_pre_reset_next_obs_and_truncation_is_not_termination():
     assert not np.allclose(stored.next_obs[2], state.env_state.obs)
     assert np.all(state.env_state.truncated)
     assert float(metrics.episodes.episodes) == 2
+
+
+def test_a_rollout_checks_the_envs_host_faults_once_per_update_and_raises_on_one():
+    config = TD3Config(num_envs=2, rollout_length=3, learning_starts=6, total_env_steps=18, **SMALL)
+    env = HostCheckedEnv()
+    HOST_CHECKS.clear()
+    trainer, _, _ = train(config, env, env.default_params())
+    assert {"checked": trainer.num_updates} == HOST_CHECKS  # and none by the steps themselves
+    with pytest.raises(Exception, match="probe fault in 2 envs"):
+        jax.block_until_ready(train(config, env, env.default_params().replace(fault_at=jnp.array(2, jnp.int32)))[1])
 
 
 def test_the_warm_up_reads_updates_past_int32_env_steps():

@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxarm.envs import EnvState, VmapEnv
+from jaxarm.envs import EnvState, VmapEnv, deferred_step_checks
 
 
 @struct.dataclass
@@ -39,7 +39,7 @@ class EvalResult:
 
 def episode_step(env, env_params, policy: Callable[[Any], jax.Array], episodes: int):
     """One step of `episodes` envs without auto-reset, `policy: obs [B, ...] -> action [B, A]`: an env that
-    has finished stays frozen at its last state (its `done` stays true). Returns (reset, step) functions."""
+    has finished stays frozen at its last state (its `done` stays true). Returns (the batch env, step)."""
     batch = VmapEnv(env, episodes)
 
     def step(state: EnvState) -> EnvState:
@@ -51,7 +51,7 @@ def episode_step(env, env_params, policy: Callable[[Any], jax.Array], episodes: 
 
         return jax.tree.map(keep_finished, state, stepped)
 
-    return batch.reset, step
+    return batch, step
 
 
 def rollout_episodes(
@@ -62,13 +62,13 @@ def rollout_episodes(
     Returns the env states after every step, [max_steps, episodes, ...]; an env that has finished stays
     frozen at its last state (its `done` stays true).
     """
-    reset, step = episode_step(env, env_params, policy, episodes)
+    batch, step = episode_step(env, env_params, policy, episodes)
 
     def body(state, _):
         state = step(state)
         return state, state
 
-    _, states = jax.lax.scan(body, reset(key, env_params), None, length=max_steps)
+    _, states = jax.lax.scan(body, batch.reset(key, env_params), None, length=max_steps)
     return states
 
 
@@ -82,15 +82,17 @@ def evaluate(env, env_params, policy, key, episodes: int) -> EvalResult:
     early is evaluated in a fraction of it.
     """
     max_steps = int(env_params.max_episode_steps)
-    reset, step = episode_step(env, env_params, policy, episodes)
+    batch, step = episode_step(env, env_params, policy, episodes)
 
     def running(carry: tuple[jax.Array, EnvState]) -> jax.Array:
         steps, state = carry
         return (steps < max_steps) & ~jnp.all(state.done)
 
-    _, final = jax.lax.while_loop(
-        running, lambda carry: (carry[0] + 1, step(carry[1])), (jnp.int32(0), reset(key, env_params))
-    )
+    with deferred_step_checks():  # checked once, at the end
+        _, final = jax.lax.while_loop(
+            running, lambda carry: (carry[0] + 1, step(carry[1])), (jnp.int32(0), batch.reset(key, env_params))
+        )
+    final = batch.checked(final)
     return EvalResult(
         returns=final.episode.return_,
         lengths=final.episode.length,

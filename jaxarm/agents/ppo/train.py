@@ -30,7 +30,7 @@ from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.agents.ppo.distill import Teacher
 from jaxarm.agents.ppo.networks import NetworkParams, PPONetworks, make_networks
-from jaxarm.envs import AutoReset, EnvSpec, EnvState, Observation, VmapEnv, compiler_options
+from jaxarm.envs import AutoReset, EnvSpec, EnvState, Observation, VmapEnv, compiler_options, deferred_step_checks
 from jaxarm.envs.observation import PRIVILEGED
 from jaxarm.export.numpy_policy import NumpyPolicy
 
@@ -252,8 +252,11 @@ def collect(
         )
         return next_state, (step, next_state)
 
-    env_state, (rollout, states) = jax.lax.scan(env_step, state.env_state, jax.random.split(key, config.rollout_length))
-    return env_state, rollout, summarise_episodes(states)
+    with deferred_step_checks():  # one check of the whole rollout, below, instead of one per step
+        env_state, (rollout, states) = jax.lax.scan(
+            env_step, state.env_state, jax.random.split(key, config.rollout_length)
+        )
+    return batch_env.checked(env_state), rollout, summarise_episodes(states)
 
 
 def advantage_samples(

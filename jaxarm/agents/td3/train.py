@@ -42,7 +42,7 @@ from jaxarm.agents.td3.losses import (
     smoothed_target_action,
 )
 from jaxarm.agents.td3.networks import Params, TD3Networks, make_networks
-from jaxarm.envs import AutoReset, EnvSpec, EnvState, Observation, VmapEnv, compiler_options
+from jaxarm.envs import AutoReset, EnvSpec, EnvState, Observation, VmapEnv, compiler_options, deferred_step_checks
 from jaxarm.export.numpy_policy import NumpyPolicy
 
 
@@ -238,9 +238,11 @@ def collect(
         return (next_state, env_steps + config.num_envs), (experience, next_state)
 
     step_keys = jax.random.split(key, config.rollout_length)
-    (env_state, env_steps), (experience, states) = jax.lax.scan(
-        env_step, (state.env_state, warm_up_steps(config, state.updates)), step_keys
-    )
+    with deferred_step_checks():  # one check of the whole rollout, below, instead of one per step
+        (env_state, env_steps), (experience, states) = jax.lax.scan(
+            env_step, (state.env_state, warm_up_steps(config, state.updates)), step_keys
+        )
+    env_state = batch_env.checked(env_state)
     if config.n_step > 1:
         experience = n_step_experience(experience, states.done, hparams.gamma, config.n_step)
     flat = jax.tree.map(lambda leaf: leaf.reshape(-1, *leaf.shape[2:]), experience)
