@@ -222,9 +222,12 @@ def scripted_placements(env: PandaSort, num_envs: int, steps: int = 250) -> floa
 
 def test_scripted_pick_and_place_places_most_objects_on_warp():
     pytest.importorskip("warp")
-    # At MJX-JAX's 0.01 s step Warp placed 32% (1,024 envs, H100; see WARP_TIMESTEP); at 0.005 s 82% (1,024
-    # envs, H100), 80% (64) and 72% (these 32) on the CPU, against 91-95% on MJX-JAX.
-    assert scripted_placements(PandaSort(objects_count=1, options=PandaOptions(impl="warp", max_envs=32)), 32) >= 0.6
+    # At MJX-JAX's 0.01 s step Warp placed 32% (1,024 envs, H100; see WARP_TIMESTEP); at 0.005 s 82% (1,024 envs,
+    # H100), 80% (64) and 72% (32) on the CPU, against 91-95% on MJX-JAX. Within Franka's speed and acceleration
+    # limits, on an H200: 67.9% of 1,024 envs, 65.2% of 256, and 59.4% of 32, too few to tell 68% from 60%.
+    num_envs = 1024 if jax.default_backend() == "gpu" else 32
+    env = PandaSort(objects_count=1, options=PandaOptions(impl="warp", max_envs=num_envs))
+    assert scripted_placements(env, num_envs) >= 0.6
 
 
 def test_warp_kernels_print_no_overflow_warnings():
