@@ -61,7 +61,8 @@ _STEP_CHECKS_DEFERRED: contextvars.ContextVar[bool] = contextvars.ContextVar("de
 def deferred_step_checks() -> Iterator[None]:
     """While active, env steps traced in this thread record the faults that need the host to raise on (see the
     module docstring) instead of checking them; whoever traces them calls `Env.checked` on the states they lead
-    to. Only tracing reads it: trace (first call) a jitted function inside it."""
+    to, in the same traced function. Only tracing reads it: a jitted function first called inside it keeps its
+    deferred steps when called again outside."""
     token = _STEP_CHECKS_DEFERRED.set(True)
     try:
         yield
