@@ -7,6 +7,7 @@ import os
 import pathlib
 import shutil
 import signal
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import jax
@@ -144,11 +145,11 @@ def test_damaged_files_are_named_with_what_to_do(reference, tmp_path, capsys):
 
 def test_ctrl_c_checkpoints_at_the_chunk_end_and_resume_is_bit_identical(reference, tmp_path, capsys, monkeypatch):
     run_dir = tmp_path / "interrupted"
-    make_runner = loop.make_chunk_runner
+    runner_of = loop._ChunkRunners.__call__
+    calls = []
 
-    def interrupting_runner(trainer, count, *placement):
-        chunk = make_runner(trainer, count, *placement)
-        calls = []
+    def interrupting_runner(runners, count):
+        chunk = runner_of(runners, count)
 
         def run_chunk(state, hparams):
             calls.append(1)
@@ -158,7 +159,7 @@ def test_ctrl_c_checkpoints_at_the_chunk_end_and_resume_is_bit_identical(referen
 
         return run_chunk
 
-    monkeypatch.setattr(loop, "make_chunk_runner", interrupting_runner)
+    monkeypatch.setattr(loop._ChunkRunners, "__call__", interrupting_runner)
     assert run_cli("checkpoint_every_updates=12", "--out", str(run_dir)) == 130
     error = capsys.readouterr().err
     assert "SIGINT: stopping at the next chunk end" in error
@@ -169,6 +170,32 @@ def test_ctrl_c_checkpoints_at_the_chunk_end_and_resume_is_bit_identical(referen
     assert run.main(["--resume", str(run_dir)]) == 0
     assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 25))
     assert_same_learner(run_dir, reference)
+
+
+def test_the_first_chunk_compiles_on_the_pool_while_the_start_state_is_made(tmp_path, monkeypatch):
+    events, compiled_on = [], []
+    make_runner, start, compile_lowered = loop.make_chunk_runner, loop._start, jax.stages.Lowered.compile
+
+    def counted(trainer, count, *placement):
+        events.append(count)
+        return make_runner(trainer, count, *placement)
+
+    def started(*args, **kwargs):
+        events.append("start")
+        return start(*args, **kwargs)
+
+    def recorded(lowered, *args, **kwargs):
+        compiled_on.append(threading.current_thread().name)
+        return compile_lowered(lowered, *args, **kwargs)
+
+    monkeypatch.setattr(loop, "make_chunk_runner", counted)
+    monkeypatch.setattr(loop, "_start", started)
+    monkeypatch.setattr(jax.stages.Lowered, "compile", recorded)
+    # 2 updates, one chunk of 2; resumed, 22 more: chunks of 4 with one program made ahead, the last 2 at its call.
+    assert run_cli("anneal_learning_rate=false", "total_env_steps=2048", "--out", str(tmp_path / "run")) == 0
+    assert run.main(["--resume", str(tmp_path / "run"), "total_env_steps=24576"]) == 0
+    assert events == [2, "start", 4, "start", 2], "the first chunk's program made before the start state"
+    assert compiled_on == ["compile_0"] * 4, "each run's first chunk and its evaluation, on the pool"
 
 
 def test_resume_extends_the_budget_as_if_it_had_been_set_at_the_start(tmp_path, capsys):
