@@ -13,6 +13,8 @@ flat vectors ([O] or [B, O]).
 
 import dataclasses
 import pathlib
+import zipfile
+import zlib
 from collections.abc import Callable
 from typing import Any
 
@@ -53,7 +55,8 @@ ACTIVATIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
 
 @dataclasses.dataclass(frozen=True)
 class NumpyPolicy:
-    """A deterministic policy: float32 arrays and the activation's name (see the module docstring).
+    """A deterministic policy: float32 arrays and the activation's name (see the module docstring). Made only of
+    arrays that form one: ValueError in one line naming the first field that does not (`_problem`).
 
     Attributes:
       kernels: per dense layer, its [in, out] weight matrix (the first in is O, the last out ≥ action_size).
@@ -72,6 +75,12 @@ class NumpyPolicy:
     obs_std: np.ndarray
     action_offset: np.ndarray
     action_scale: np.ndarray
+
+    def __post_init__(self):
+        # Here, not in `load` alone: an export of a diverged run's NaN weights is refused before it is written.
+        problem = _problem(self)
+        if problem:
+            raise ValueError(problem)
 
     @property
     def observation_size(self) -> int:
@@ -111,16 +120,93 @@ class NumpyPolicy:
         np.savez(path, **arrays)
 
 
+class PolicyFileError(ValueError):
+    """A file that `load` cannot read as a policy; the message names the file and what is wrong, in one line."""
+
+
+NAMED_FIELDS = ("activation", "obs_mean", "obs_std", "action_offset", "action_scale")
+"""The arrays of a policy file besides its layers (`kernel_<i>`, `bias_<i>`), as `NumpyPolicy.save` names them."""
+
+
+def _named_arrays(policy: NumpyPolicy) -> dict[str, np.ndarray]:
+    """The policy's number arrays by the names `save` gives them."""
+    arrays = {name: np.asarray(getattr(policy, name)) for name in NAMED_FIELDS[1:]}
+    arrays.update({f"kernel_{i}": np.asarray(kernel) for i, kernel in enumerate(policy.kernels)})
+    arrays.update({f"bias_{i}": np.asarray(bias) for i, bias in enumerate(policy.biases)})
+    return arrays
+
+
+def _expected_shapes(policy: NumpyPolicy) -> dict[str, tuple[int, ...]]:
+    """Each array's shape as the others make it: obs_std as obs_mean, action_scale as action_offset, each layer's
+    inputs the previous layer's outputs (the first's the observation's), each bias its layer's outputs."""
+    shapes = {"obs_std": np.shape(policy.obs_mean), "action_scale": np.shape(policy.action_offset)}
+    inputs = np.shape(policy.obs_mean)[:1]
+    for index, kernel in enumerate(policy.kernels):
+        outputs = np.shape(kernel)[1:2]
+        shapes[f"kernel_{index}"] = (*inputs, *outputs)
+        shapes[f"bias_{index}"] = outputs
+        inputs = outputs
+    return shapes
+
+
+def _problem(policy: NumpyPolicy) -> str | None:
+    """What keeps `policy`'s arrays from being a policy (naming the array as its file does), or None: an unknown
+    activation, no layers or a bias per layer missing, arrays not of floating-point numbers, shapes that do not
+    chain from the observation to at least the action's outputs, or numbers that are NaN or infinite (a diverged
+    training's weights would drive a robot with NaN)."""
+    if policy.activation not in ACTIVATIONS:
+        return f"activation {policy.activation!r} is none of {', '.join(ACTIVATIONS)}"
+    if not policy.kernels or len(policy.kernels) != len(policy.biases):
+        return f"{len(policy.kernels)} kernels and {len(policy.biases)} biases; a policy has one of each per layer"
+    arrays = _named_arrays(policy)
+    for name, array in arrays.items():
+        if array.dtype.kind != "f":
+            return f"{name} holds {array.dtype}, not floating-point numbers"
+    for name, array in arrays.items():
+        if array.ndim != (2 if name.startswith("kernel_") else 1):
+            return f"{name} has shape {list(array.shape)}, not {'[in, out]' if name.startswith('kernel_') else '[n]'}"
+    for name, shape in _expected_shapes(policy).items():
+        if arrays[name].shape != shape:
+            return f"{name} has shape {list(arrays[name].shape)}; the arrays before it make it {list(shape)}"
+    if arrays[f"kernel_{len(policy.kernels) - 1}"].shape[1] < policy.action_size:
+        return f"the last layer has fewer outputs than action_offset's {policy.action_size} actions"
+    for name, array in arrays.items():
+        if not np.all(np.isfinite(array)):
+            return f"{name} holds NaN or infinite numbers (a diverged training?)"
+    return None
+
+
 def load(path: str | pathlib.Path) -> NumpyPolicy:
-    """The policy a `NumpyPolicy.save` (or `python -m experiments.export`) wrote to `path`."""
-    with np.load(path, allow_pickle=False) as data:
-        count = sum(1 for name in data.files if name.startswith("kernel_"))
+    """The policy a `NumpyPolicy.save` (or `python -m experiments.export`) wrote to `path`; PolicyFileError naming
+    `path` and what is wrong for any other file: not an .npz archive (empty, cut short, another format), a damaged
+    one, one without a policy's fields, or arrays that are not a policy (`_problem`). OSError where it cannot be
+    read."""
+    path = pathlib.Path(path)
+    advice = "export the run again (python -m experiments.export RUN)"
+    with path.open("rb") as handle:
+        if not zipfile.is_zipfile(handle):
+            raise PolicyFileError(f"{path} is not an .npz archive (empty, cut short or another format); {advice}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {name: data[name] for name in data.files}
+    except (zipfile.BadZipFile, zlib.error, EOFError, ValueError, MemoryError) as error:
+        # ValueError: an array header numpy cannot read, or pickled objects; MemoryError: a header claiming a size
+        # beyond this machine's memory.
+        raise PolicyFileError(f"{path} is a damaged .npz archive ({type(error).__name__}: {error}); {advice}") from None
+    count = sum(1 for name in arrays if name.startswith("kernel_"))
+    layers = [f"{kind}_{i}" for i in range(max(count, 1)) for kind in ("kernel", "bias")]
+    missing = [name for name in (*NAMED_FIELDS, *layers) if name not in arrays]
+    if missing:
+        raise PolicyFileError(f"{path} is not a jaxarm policy: it lacks {', '.join(missing)}; {advice}")
+    try:
         return NumpyPolicy(
-            kernels=tuple(data[f"kernel_{i}"] for i in range(count)),
-            biases=tuple(data[f"bias_{i}"] for i in range(count)),
-            activation=str(data["activation"]),
-            obs_mean=data["obs_mean"],
-            obs_std=data["obs_std"],
-            action_offset=data["action_offset"],
-            action_scale=data["action_scale"],
+            kernels=tuple(arrays[f"kernel_{i}"] for i in range(count)),
+            biases=tuple(arrays[f"bias_{i}"] for i in range(count)),
+            activation=str(arrays["activation"]),
+            obs_mean=arrays["obs_mean"],
+            obs_std=arrays["obs_std"],
+            action_offset=arrays["action_offset"],
+            action_scale=arrays["action_scale"],
         )
+    except ValueError as error:
+        raise PolicyFileError(f"{path} is not a usable policy: {error}; {advice}") from None

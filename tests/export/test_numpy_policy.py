@@ -1,5 +1,6 @@
 """The numpy policy on its own: it imports no JAX, its activations are flax's, it refuses what it cannot run."""
 
+import re
 import subprocess
 import sys
 
@@ -66,3 +67,60 @@ def test_export_refuses_observations_that_are_not_flat():
     assert check_flat_observations(EnvSpec(observation_shape=(9,), action_shape=(2,))) == 9
     with pytest.raises(ValueError, match=r"flat observations of shape \[O\]; this env's observations are \(2, 3\)"):
         check_flat_observations(EnvSpec(observation_shape=(2, 3), action_shape=(2,)))
+
+
+def small_policy(**changes) -> numpy_policy.NumpyPolicy:
+    """A two-layer policy of 4 observations and 3 actions, with `changes` to its fields (arrays as numpy takes them)."""
+    fields = {
+        "kernels": (np.ones((4, 8), np.float32), np.ones((8, 6), np.float32)),
+        "biases": (np.zeros(8, np.float32), np.zeros(6, np.float32)),
+        "activation": "relu",
+        "obs_mean": np.zeros(4, np.float32),
+        "obs_std": np.ones(4, np.float32),
+        "action_offset": np.zeros(3, np.float32),
+        "action_scale": np.ones(3, np.float32),
+    }
+    return numpy_policy.NumpyPolicy(**(fields | changes))
+
+
+def test_a_policy_file_that_is_no_policy_is_refused_in_one_line_naming_it(tmp_path):
+    path = tmp_path / "policy.npz"
+    small_policy().save(path)
+    with np.load(path) as data:
+        arrays = {name: data[name] for name in data.files}
+    whole = path.read_bytes()
+    damaged = bytearray(whole)
+    # A byte of kernel_0's numbers (past its 128-byte array header): the archive's CRC no longer holds.
+    damaged[whole.find(b"\x93NUMPY", whole.find(b"kernel_0.npy")) + 128 + 40] ^= 0xFF
+    cases = {
+        b"": "is not an .npz archive",
+        whole[: len(whole) // 2]: "is not an .npz archive",
+        b"\x93NUMPY" + bytes(200): "is not an .npz archive",
+        bytes(damaged): "is a damaged .npz archive (BadZipFile: Bad CRC-32",
+    }
+    for content, message in cases.items():
+        path.write_bytes(content)
+        with pytest.raises(numpy_policy.PolicyFileError) as raised:
+            numpy_policy.load(path)
+        assert str(raised.value).startswith(f"{path} {message}") and "\n" not in str(raised.value)
+    edits = {
+        "it lacks activation, bias_1": {"activation": None, "bias_1": None},
+        "it lacks kernel_0;": {"kernel_0": None, "kernel_1": None},
+        "activation 'relux' is none of relu": {"activation": np.array("relux")},
+        "kernel_1 holds <U1, not floating-point numbers": {"kernel_1": np.full((8, 6), "a")},
+        "obs_std has shape [5]; the arrays before it make it [4]": {"obs_std": np.ones(5, np.float32)},
+        "kernel_1 has shape [7, 6]; the arrays before it make it [8, 6]": {"kernel_1": np.ones((7, 6), np.float32)},
+        "bias_0 has shape [8, 1], not [n]": {"bias_0": np.zeros((8, 1), np.float32)},
+        "the last layer has fewer outputs than action_offset's 3 actions": {
+            "kernel_1": np.ones((8, 2), np.float32),
+            "bias_1": np.zeros(2, np.float32),
+        },
+        "bias_1 holds NaN or infinite numbers": {"bias_1": np.full(6, np.nan, np.float32)},
+        "obs_mean holds NaN or infinite numbers": {"obs_mean": np.array([0, np.inf, 0, 0], np.float32)},
+    }
+    for message, edit in edits.items():
+        np.savez(path, **{name: array for name, array in (arrays | edit).items() if array is not None})
+        with pytest.raises(numpy_policy.PolicyFileError, match=re.escape(message)) as raised:
+            numpy_policy.load(path)
+        assert str(raised.value).startswith(str(path)) and "\n" not in str(raised.value)
+        assert str(raised.value).endswith("export the run again (python -m experiments.export RUN)")
