@@ -43,8 +43,13 @@ def _record(kind: type, data: dict):
 
 
 def save(directory: str | pathlib.Path, controller: Controller) -> list[pathlib.Path]:
-    """Writes `controller`'s task and kinematic model into `directory`; returns the files written."""
-    name = next(name for name, (kind, _) in CONTROLLERS.items() if isinstance(controller, kind))
+    """Writes `controller`'s task and kinematic model into `directory`; returns the files written. ValueError for a
+    controller of none of `CONTROLLERS`' classes."""
+    names = [name for name, (kind, _) in CONTROLLERS.items() if isinstance(controller, kind)]
+    if not names:
+        kinds = ", ".join(kind.__name__ for kind, _ in CONTROLLERS.values())
+        raise ValueError(f"no deploy files for a {type(controller).__name__}; they are written for {kinds}")
+    (name,) = names
     directory = pathlib.Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     task_path, model_path = directory / TASK_FILE, directory / MODEL_FILE
@@ -55,9 +60,24 @@ def save(directory: str | pathlib.Path, controller: Controller) -> list[pathlib.
 
 
 def load(directory: str | pathlib.Path) -> Controller:
-    """The controller `save` wrote into `directory`."""
+    """The controller `save` wrote into `directory`; ValueError naming the file and what is wrong where deploy.json
+    or robot.mjb is damaged, edited or from another version; OSError where one cannot be read."""
     directory = pathlib.Path(directory)
-    data = json.loads((directory / TASK_FILE).read_text())
-    controller_class, task_class = CONTROLLERS[data["task"]]
-    model = mujoco.MjModel.from_binary_path(str(directory / MODEL_FILE))
-    return controller_class(_record(task_class, data["numbers"]), ArmKinematics(model))
+    task_path, model_path = directory / TASK_FILE, directory / MODEL_FILE
+    advice = "export the run again (python -m experiments.export RUN)"
+    try:
+        data = json.loads(task_path.read_text())
+        controller_class, task_class = CONTROLLERS[data["task"]]
+        task = _record(task_class, data["numbers"])
+    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, ValueError, AttributeError) as error:
+        # KeyError: a task or field it lacks; TypeError, AttributeError: parts of the wrong JSON type.
+        raise ValueError(
+            f"{task_path} is damaged or from another version ({type(error).__name__}: {error}); {advice}"
+        ) from None
+    if not model_path.is_file():
+        raise ValueError(f"no {model_path}; {advice}")
+    try:
+        kinematics = ArmKinematics(mujoco.MjModel.from_binary_path(str(model_path)))
+    except (ValueError, KeyError) as error:  # KeyError: a model without a Panda's joint, body or site names
+        raise ValueError(f"{model_path} is not a Panda's scene ({type(error).__name__}: {error}); {advice}") from None
+    return controller_class(task, kinematics)
