@@ -2,7 +2,9 @@
 the env's controller -> servo targets within Franka's limits, timed. Imports numpy and mujoco alone.
 
 The limits are the envs' own (`PandaBase.limited_ctrl` applies `limits.limit_targets` to the same targets), so with
-`clip` the robot gets the targets the env's servos got, and the counts tell how often the policy asked for more."""
+`clip` the robot gets the targets the env's servos got, and the counts tell how often the policy asked for more.
+A policy's action that is not finite is refused (`UnsafeAction`): nothing is sent, and the robot stops at the last
+targets it was sent."""
 
 import dataclasses
 import time
@@ -13,6 +15,12 @@ import numpy as np
 
 from jaxarm.deploy.limits import limit_targets
 from jaxarm.deploy.reading import ArmReading
+
+
+class UnsafeAction(RuntimeError):
+    """The policy gave an action that is not finite (NaN or infinite), which no servo target may be made of: the
+    loop sent nothing, so the robot holds the last targets it was sent (finite, within Franka's limits) and stops
+    there. The message says at which tick and what the action was, in one line."""
 
 
 class Controller(Protocol):
@@ -75,10 +83,19 @@ class DeploymentLoop:
         self.controller.begin()
 
     def tick(self, reading: ArmReading, estimate: Any) -> np.ndarray:
-        """[9] the servo targets to send for this tick's `reading` and the task's `estimate`."""
+        """[9] the servo targets to send for this tick's `reading` and the task's `estimate`; `UnsafeAction`, with
+        nothing to send (the robot stops at its last targets, `ctrl`), where the policy's action is not finite."""
         start = time.perf_counter()
         obs = self.controller.observe(reading, estimate, self.ctrl)
         action = np.asarray(self.policy(obs), np.float64)
+        if not np.all(np.isfinite(action)):
+            # Checked before the controller: its clips and gripper thresholds could turn NaN into a finite target.
+            # The robot comes to rest at its last targets: a later tick's limits start from rest.
+            self._velocity = np.zeros(7)
+            raise UnsafeAction(
+                f"the policy's action at tick {len(self.tick_seconds) + 1} is not finite "
+                f"({np.array2string(action, precision=3, separator=', ')}); the robot was stopped at its last targets"
+            )
         ctrl = self.controller.act(reading, self.ctrl, action)
         limited = limit_targets(ctrl[:7], self.ctrl[:7], self._velocity, self.period)
         self.counts.acceleration += limited.acceleration_clipped

@@ -6,9 +6,10 @@ import sys
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from jaxarm.deploy import limits
-from jaxarm.deploy.loop import DeploymentLoop
+from jaxarm.deploy.loop import DeploymentLoop, UnsafeAction
 from jaxarm.deploy.reading import ArmReading
 from jaxarm.envs.panda import robot
 
@@ -89,3 +90,17 @@ def test_the_loop_clips_and_counts():
             np.testing.assert_allclose(speed, 5.0)
         # 5 rad/s is beyond every joint's speed limit, reached from rest beyond every acceleration limit.
         assert loop.counts.speed.min() >= 10 and loop.counts.acceleration.min() >= 1
+
+
+def test_the_loop_refuses_an_action_that_is_not_finite_and_sends_nothing():
+    reading = ArmReading(np.zeros(7), np.zeros(7), np.zeros(2))
+    actions = iter([np.zeros(1), np.array([np.nan]), np.array([np.inf])])
+    loop = DeploymentLoop(lambda obs: next(actions), StepController(0.01), period=0.04)
+    loop.begin(np.zeros(9))
+    sent = loop.tick(reading, None).copy()
+    for bad in ("nan", "inf"):
+        with pytest.raises(UnsafeAction) as raised:
+            loop.tick(reading, None)
+        assert f"is not finite ([{bad}]); the robot was stopped at its last targets" in str(raised.value)
+        # The robot keeps the last targets it was sent: finite, within the limits.
+        np.testing.assert_array_equal(loop.ctrl, sent)
