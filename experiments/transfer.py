@@ -26,7 +26,7 @@ from scipy import stats
 
 from jaxarm import headless
 from jaxarm.deploy import from_env, scoring
-from jaxarm.deploy.loop import DeploymentLoop
+from jaxarm.deploy.loop import DeploymentLoop, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
 from jaxarm.deploy.reading import HoleEstimate, ObjectEstimate
 from jaxarm.envs.panda.base import CONTROL_DT
@@ -291,6 +291,11 @@ def main(argv=None) -> int:
     parser.add_argument("--no-clip", action="store_true", help="count commands beyond Franka's limits, send them")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     run_dir = pathlib.Path(args.run_dir)
+    # Probed first, as eval does: a renderer failing after the episodes ran gives GLFW's warnings and no hint.
+    problem = headless.gl_problem() if args.video else None
+    if problem is not None:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
     try:
         if args.episodes <= 0:
             raise ValueError(f"--episodes must be positive, got {args.episodes}")
@@ -311,8 +316,11 @@ def main(argv=None) -> int:
             video_path = run_dir / f"transfer-{args.model}.{args.video}"
             video.write_video(video_path, frames)
             print(f"wrote {video_path} ({len(frames)} frames)")
-    except (ValueError, OSError, video.RenderError, mujoco.FatalError) as error:
+    except (ValueError, UnsafeAction, video.RenderError, mujoco.FatalError) as error:
         print(f"error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:
+        print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
         return 2
     return 0
 

@@ -14,6 +14,9 @@ import pytest
 
 from experiments import configs, transfer
 from experiments.benchmarks.deploy import random_policy
+from experiments.configs.td3 import td3_peg
+from jaxarm import headless
+from jaxarm.agents.common.config import apply_overrides
 from jaxarm.envs.panda.robot import MENAGERIE_TIMESTEP, resolve_panda_ids, tcp_pose_at
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.peg_insert.env import PegInsert
@@ -125,3 +128,25 @@ def test_the_transfer_cli_runs_an_exported_sorter_policy_on_both_pandas(tmp_path
         assert 0.0 <= result["success_rate"] <= result["success_ci95"][1] <= 1.0
         assert len(result["acceleration_clips"]) == len(result["speed_clips"]) == 7
         assert f"({name}'s Panda)" in capsys.readouterr().out
+
+
+def test_transfer_refuses_a_damaged_policy_and_a_video_without_gl_in_one_line(tmp_path, capsys, monkeypatch):
+    rundir.write_config(tmp_path, apply_overrides(td3_peg(), ["num_envs=2"]), "td3_peg")
+    (tmp_path / "export").mkdir()
+    policy_path = tmp_path / "export" / "policy.npz"
+    policy_path.write_bytes(b"PK\x03\x04 cut short")
+    assert transfer.main([str(tmp_path), "--episodes", "2"]) == 2
+    error = capsys.readouterr().err
+    assert error == f"error: {policy_path} is not an .npz archive (empty, cut short or another format); " + (
+        "export the run again (python -m experiments.export RUN)\n"
+    )
+
+    def no_gl():
+        raise mujoco.FatalError("an OpenGL platform library has not been loaded into this process")
+
+    monkeypatch.setattr(headless, "probe_gl", no_gl)
+    monkeypatch.setattr(rundir, "read_config", lambda *args: pytest.fail("read the run before probing GL"))
+    assert transfer.main([str(tmp_path), "--video"]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and error.startswith("error: cannot draw here (FatalError: an OpenGL platform")
+    assert error.strip().endswith(headless.GL_HINT)
