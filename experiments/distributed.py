@@ -30,6 +30,7 @@ LOCAL_PROCESSES = "--local-processes"
 STOP_GRACE_S = 60.0
 """How long the others get to checkpoint and stop once one local process has failed (then they are killed)."""
 POLL_S = 0.2
+MAX_PORT = 65535
 
 
 def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
@@ -40,7 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
         help="one of several processes (several hosts, or one process per GPU): run the same command in each, "
         f"with the same {what}; on SLURM the processes find each other alone, elsewhere give the options below",
     )
-    parser.add_argument("--coordinator", metavar="HOST:PORT", help="with --distributed: process 0's address")
+    parser.add_argument(
+        "--coordinator", metavar="HOST:PORT", type=coordinator_address, help="with --distributed: process 0's address"
+    )
     parser.add_argument("--num-processes", type=int, help="with --distributed: how many processes in all")
     parser.add_argument("--process-id", type=int, help="with --distributed: this process's index, from 0")
     parser.add_argument(
@@ -53,11 +56,49 @@ def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
     )
 
 
+def coordinator_address(text: str) -> str:
+    """`--coordinator`'s HOST:PORT, as given; argparse's error where the host or the port is missing or the port is
+    no TCP port (JAX's own parsing fails on them with an IndexError traceback)."""
+    host, colon, port = text.rpartition(":")
+    if not colon or not host:
+        raise argparse.ArgumentTypeError(f"{text!r} is not HOST:PORT (e.g. 10.0.0.1:1234)")
+    if not (port.isdigit() and 1 <= int(port) <= MAX_PORT):
+        raise argparse.ArgumentTypeError(f"{text!r}: its port {port!r} is not a number from 1 to {MAX_PORT}")
+    return text
+
+
+def port_in_use(port: int) -> bool:
+    """Whether a process on this host listens on TCP `port` (on any address)."""
+    with socket.socket() as probe:
+        # Connections of an earlier run still closing (TIME_WAIT) do not keep JAX's coordinator off the port.
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind(("", port))
+        except OSError:
+            return True
+    return False
+
+
 def check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
-    """Exits with the usage where the joining options come without `--distributed`."""
+    """Exits with the usage where the joining options come without `--distributed`, where `--process-id` is not
+    below `--num-processes`, or where this process is the coordinator (process 0) and its port is taken here: JAX
+    would find out only at its deadline, or abort."""
     joining = (args.coordinator, args.num_processes, args.process_id)
     if any(option is not None for option in joining) and not args.distributed:
         parser.error("--coordinator, --num-processes and --process-id go with --distributed")
+    if args.num_processes is not None and args.num_processes < 1:
+        parser.error(f"--num-processes takes a count of 1 or more, got {args.num_processes}")
+    if args.process_id is not None and args.process_id < 0:
+        parser.error(f"--process-id takes 0 or more, got {args.process_id}")
+    if None not in (args.process_id, args.num_processes) and args.process_id >= args.num_processes:
+        parser.error(f"--process-id {args.process_id} is not below --num-processes {args.num_processes}")
+    if args.coordinator is not None and args.process_id == 0:
+        port = int(args.coordinator.rpartition(":")[2])
+        if port_in_use(port):
+            parser.error(
+                f"--coordinator {args.coordinator}: port {port} is in use on this host, where process 0 listens; "
+                "choose a free one"
+            )
     if args.local_processes is not None and (args.distributed or args.local_processes < 1):
         parser.error(f"{LOCAL_PROCESSES} takes a count of 1 or more, without --distributed (it adds it)")
 

@@ -2,6 +2,7 @@
 a run checkpointed by two processes resumes on one and the reverse; a sweep shared out over devices computes what
 one device does."""
 
+import argparse
 import csv
 import os
 import pathlib
@@ -378,3 +379,32 @@ def test_local_processes_are_forked_only_before_jax_starts_its_backend():
 @pytest.mark.parametrize(("code", "status"), [(None, 0), (0, 0), (3, 3), ("a message", 1)])
 def test_a_forked_process_exits_as_sys_exit_would(code, status):
     assert distributed.exit_code(code) == status
+
+
+def test_the_joining_options_are_checked_before_jax_reads_them(capsys):
+    parser = argparse.ArgumentParser(prog="run")
+    distributed.add_arguments(parser, "--out")
+    with socket.socket() as listening:
+        listening.bind(("127.0.0.1", 0))
+        listening.listen()
+        taken = listening.getsockname()[1]
+        for argv, message in [
+            (["--coordinator", "node7"], "argument --coordinator: 'node7' is not HOST:PORT"),
+            (["--coordinator", "node7:http"], "argument --coordinator: 'node7:http': its port 'http' is not a number"),
+            (["--coordinator", "node7:70000"], "its port '70000' is not a number from 1 to 65535"),
+            (["--coordinator", ":1234"], "':1234' is not HOST:PORT"),
+            (["--num-processes", "0"], "--num-processes takes a count of 1 or more, got 0"),
+            (["--num-processes", "2", "--process-id", "2"], "--process-id 2 is not below --num-processes 2"),
+            (["--process-id", "-1"], "--process-id takes 0 or more, got -1"),
+            (["--coordinator", f"localhost:{taken}", "--process-id", "0"], f"port {taken} is in use on this host"),
+        ]:
+            with pytest.raises(SystemExit) as exited:
+                distributed.check_arguments(parser, parser.parse_args(["--distributed", *argv]))
+            assert exited.value.code == 2
+            error = capsys.readouterr().err
+            assert error.startswith("usage: run") and error.splitlines()[-1].startswith("run: error: ")
+            assert message in error.splitlines()[-1]
+        # The other processes only connect to the coordinator's port.
+        distributed.check_arguments(
+            parser, parser.parse_args(["--distributed", "--coordinator", f"localhost:{taken}", "--process-id", "1"])
+        )
