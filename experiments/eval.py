@@ -96,14 +96,14 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
     reserve_gpu_memory_on_demand()
     import jax
 
+    from jaxarm import ranges
     from jaxarm.agents.common import checkpoint
     from jaxarm.runner import learners, rundir, video
     from jaxarm.runner.cache import enable_compilation_cache
 
     phases = {"imports": time.perf_counter() - began}
     try:
-        if args.episodes <= 0:
-            raise ValueError(f"--episodes must be positive, got {args.episodes}")
+        ranges.check_value("--episodes", args.episodes, int, ranges.AT_ONCE)
         enable_compilation_cache()
         clock = time.perf_counter()
         jax.devices()  # starts the backend: its time apart from the env's

@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 from scipy import stats
 
-from jaxarm import headless
+from jaxarm import headless, ranges
 from jaxarm.deploy import from_env, scoring
 from jaxarm.deploy.loop import DeploymentLoop, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
@@ -297,8 +297,7 @@ def main(argv=None) -> int:
         print(f"error: {problem}", file=sys.stderr)
         return 2
     try:
-        if args.episodes <= 0:
-            raise ValueError(f"--episodes must be positive, got {args.episodes}")
+        ranges.check_value("--episodes", args.episodes, int, ranges.AT_ONCE)
         result = transfer(run_dir, args.model, args.episodes, args.seed, not args.no_clip, args.video is not None)
         frames = result.pop("frames", [])
         path = run_dir / f"transfer-{args.model}-{args.episodes}-{args.seed}.json"

@@ -57,8 +57,8 @@ class Range:
         """The range in words: 'one of a, b', '> 0', '>= 1', 'in (0, 1]'."""
         if self.choices:
             return "one of " + ", ".join(str(choice) for choice in self.choices)
-        low = f"({self.gt:g}" if self.gt is not None else f"[{self.ge:g}" if self.ge is not None else None
-        high = f"{self.lt:g})" if self.lt is not None else f"{self.le:g}]" if self.le is not None else None
+        low = f"({_bound(self.gt)}" if self.gt is not None else f"[{_bound(self.ge)}" if self.ge is not None else None
+        high = f"{_bound(self.lt)})" if self.lt is not None else f"{_bound(self.le)}]" if self.le is not None else None
         if low and high:
             return f"in {low}, {high}"
         if low:
@@ -68,10 +68,19 @@ class Range:
         return "any value"
 
 
+def _bound(value: float) -> str:
+    """A bound in words: an integer in full (1048576, not 1.04858e+06), a float in `g` format."""
+    return str(value) if isinstance(value, int) else f"{value:g}"
+
+
 POSITIVE = Range(gt=0)
 NON_NEGATIVE = Range(ge=0)
 COUNT = Range(ge=1)
 """An integer count or size of at least one."""
+AT_ONCE = Range(ge=1, le=1 << 20)
+"""A count of envs or episodes stepped at once in one program (a run's `num_envs`, an evaluation's episodes): at
+most 128 times the largest preset's 8192 envs, checked before anything is allocated (`num_envs=1e7` and
+`--episodes 1e8` ran out of memory with a traceback)."""
 HOST_COUNT = Range(ge=1, host_count=True)
 """A count of at least one kept on the host alone (env steps of a budget), up to int64's maximum."""
 UNIT_INTERVAL = Range(ge=0, le=1)

@@ -80,6 +80,9 @@ ISSUE_VALUES = [
     (TD3Config, "gamma", 2.0),
     (TD3Config, "rollout_length", 0),
     (TD3Config, "activation", "foo"),
+    # Sizes that ran out of memory (or overflowed) with a traceback.
+    (PPOConfig, "num_envs", 10_000_000),
+    (TD3Config, "eval_episodes", 100_000_000),
 ]
 
 
@@ -104,7 +107,7 @@ def test_every_number_size_and_choice_declares_its_range(config_class):
 def test_a_default_declared_again_keeps_its_range():
     assert TD3Config().num_envs == 16 and RunConfig.__dataclass_fields__["num_envs"].default == 256
     assert TD3Config.__dataclass_fields__["num_envs"].metadata == RunConfig.__dataclass_fields__["num_envs"].metadata
-    with pytest.raises(ValueError, match="^num_envs must be >= 1, got 0"):
+    with pytest.raises(ValueError, match=r"^num_envs must be in \[1, 1048576\], got 0"):
         TD3Config(num_envs=0)
 
 

@@ -130,7 +130,9 @@ def test_the_transfer_cli_runs_an_exported_sorter_policy_on_both_pandas(tmp_path
         assert f"({name}'s Panda)" in capsys.readouterr().out
 
 
-def test_transfer_refuses_a_damaged_policy_and_a_video_without_gl_in_one_line(tmp_path, capsys, monkeypatch):
+def test_transfer_refuses_a_damaged_policy_too_many_episodes_and_a_video_without_gl_in_one_line(
+    tmp_path, capsys, monkeypatch
+):
     rundir.write_config(tmp_path, apply_overrides(td3_peg(), ["num_envs=2"]), "td3_peg")
     (tmp_path / "export").mkdir()
     policy_path = tmp_path / "export" / "policy.npz"
@@ -140,6 +142,8 @@ def test_transfer_refuses_a_damaged_policy_and_a_video_without_gl_in_one_line(tm
     assert error == f"error: {policy_path} is not an .npz archive (empty, cut short or another format); " + (
         "export the run again (python -m experiments.export RUN)\n"
     )
+    assert transfer.main([str(tmp_path), "--episodes", "100000000"]) == 2
+    assert capsys.readouterr().err == "error: --episodes must be in [1, 1048576], got 100000000\n"
 
     def no_gl():
         raise mujoco.FatalError("an OpenGL platform library has not been loaded into this process")

@@ -288,6 +288,12 @@ def test_eval_video_without_gl_fails_at_once_with_the_readmes_hint(tmp_path, mon
     assert time.perf_counter() - start < 10
 
 
+def test_eval_refuses_more_episodes_than_it_can_step_at_once(tmp_path, capsys):
+    rundir.write_config(tmp_path, apply_overrides(td3_peg(), ["num_envs=2"]), "td3_peg")
+    assert eval_cli.main([str(tmp_path), "--episodes", "100000000"]) == 2
+    assert capsys.readouterr().err == "error: --episodes must be in [1, 1048576], got 100000000\n"
+
+
 @pytest.mark.parametrize(
     "bad",
     [

@@ -254,7 +254,7 @@ def test_a_budget_below_the_work_done_is_refused(reference):
 
 def test_show_with_resume_shows_the_overrides(reference, capsys):
     assert run.main(["--resume", str(reference), "--show", "eval_episodes=7"]) == 0
-    assert "eval_episodes (int, >= 1) = 7" in capsys.readouterr().out
+    assert "eval_episodes (int, in [1, 1048576]) = 7" in capsys.readouterr().out
     assert run.main(["--resume", str(reference), "--show", "learning_rate=1"]) == 2
     assert "cannot change 'learning_rate'" in capsys.readouterr().err
 

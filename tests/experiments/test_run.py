@@ -130,7 +130,7 @@ def test_cli_errors_are_one_line_and_name_the_closest(capsys, tmp_path):
     assert run_cli("learnin_rate=1", "--out", str(tmp_path / "a")) == 2
     assert "did you mean 'learning_rate'" in capsys.readouterr().err
     assert run_cli("num_envs=-3", "--out", str(tmp_path / "b")) == 2
-    assert "num_envs must be >= 1, got -3" in capsys.readouterr().err
+    assert "num_envs must be in [1, 1048576], got -3" in capsys.readouterr().err
     assert run_cli("gamma=high", "--out", str(tmp_path / "c")) == 2
     assert "bad value for gamma" in capsys.readouterr().err
     assert not (tmp_path / "a").exists()

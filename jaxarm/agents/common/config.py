@@ -119,11 +119,11 @@ class RunConfig:
     env_params: Pairs = ()
     eval_env_params: Pairs = ()
     randomize: Pairs = ()
-    num_envs: int = static(256, COUNT)
+    num_envs: int = static(256, ranges.AT_ONCE)
     total_env_steps: int = static(1_000_000, ranges.HOST_COUNT)
     updates_per_chunk: int = static(10, COUNT)
     checkpoint_every_updates: int = static(50, COUNT)
-    eval_episodes: int = static(1000, COUNT)
+    eval_episodes: int = static(1000, ranges.AT_ONCE)
     seed: int = static(0, ranges.NON_NEGATIVE)
     init_from: str = ""
     eval_every_updates: int = static(0, ranges.NON_NEGATIVE)
