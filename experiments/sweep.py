@@ -32,6 +32,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from experiments import configs, distributed
 from experiments.run import minutes
+from jaxarm import ranges
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import PAIR_FIELDS, RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
@@ -75,6 +76,19 @@ def parse_grid(base: RunConfig, assignments: list[str]) -> Grid:
         else:
             static = [overrides + [f"{key}={value}"] for overrides in static for value in options]
     return Grid(groups=[apply_overrides(base, overrides) for overrides in static], dynamic=dynamic)
+
+
+def check_envs_at_once(grid: Grid, seeds: int) -> None:
+    """ValueError where a group would step more envs at once than `ranges.AT_ONCE` admits: each of its members
+    (dynamic settings × seeds) steps num_envs envs, all in one program. Checked before anything is allocated:
+    `--seeds 10000000` grew until the memory limit killed it."""
+    for config in grid.groups:
+        envs = len(grid.dynamic) * seeds * config.num_envs
+        if not ranges.AT_ONCE.admits(envs):
+            raise ValueError(
+                f"{len(grid.dynamic)} settings × {seeds} seeds × num_envs={config.num_envs} step {envs:,} envs at "
+                f"once, more than a sweep's group may ({ranges.AT_ONCE.describe()}); sweep fewer seeds or settings"
+            )
 
 
 def init_members(trainer: Trainer, keys: jax.Array, hparams, mesh: Mesh | None = None):
@@ -320,10 +334,10 @@ def main(argv=None) -> int:
             distributed.join(args)
         asked = read_sweep(pathlib.Path(args.resume)) if args.resume else vars(args)
         config_name, seeds, assignments = asked["config"], asked["seeds"], asked["assignments"]
-        if seeds <= 0:
-            raise ValueError(f"--seeds must be positive, got {seeds}")
+        ranges.check_value("--seeds", seeds, int, ranges.COUNT)
         base = configs.get(config_name)
         grid = parse_grid(base, assignments)
+        check_envs_at_once(grid, seeds)
         if args.out:
             rundir.check_output_dir(pathlib.Path(args.out), "--out")
         enable_compilation_cache()
@@ -364,9 +378,28 @@ def read_sweep(directory: pathlib.Path) -> dict:
     if (directory / "results.md").exists():
         raise ValueError(f"the sweep in {directory} has finished: its results are in {directory / 'results.md'}")
     try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError as error:
-        raise ValueError(f"{path} is corrupt ({error}); start the sweep again in a new directory") from None
+        asked = json.loads(path.read_text())
+        check_asked(asked)
+    except ValueError as error:  # JSONDecodeError and UnicodeDecodeError among them
+        raise ValueError(
+            f"{path} is corrupt or edited ({error}); restore it, or start the sweep again in a new directory"
+        ) from None
+    return asked
+
+
+def check_asked(asked) -> None:
+    """ValueError naming the field where `asked` (sweep.json's content) is not what `main` writes there: an object
+    with a preset's name, a count of seeds and a list of assignment strings."""
+    if not isinstance(asked, dict):
+        raise ValueError(f"not a JSON object but {type(asked).__name__}")
+    missing = [name for name in ("config", "seeds", "assignments") if name not in asked]
+    if missing:
+        raise ValueError(f"no {', '.join(missing)}")
+    ranges.check_value("config", asked["config"], str, None)
+    ranges.check_value("seeds", asked["seeds"], int, ranges.COUNT)
+    if not isinstance(asked["assignments"], list):
+        raise ValueError(f"assignments must be a list of 'key=v1,v2' strings, got {asked['assignments']!r}")
+    ranges.check_value("assignments", tuple(asked["assignments"]), tuple[str, ...], None)
 
 
 def check_stopped_sweep(directory: pathlib.Path) -> None:

@@ -346,3 +346,27 @@ def test_tensorboard_on_a_full_disk_raises_once_and_is_not_retried_at_exit(tmp_p
     with pytest.raises(OSError, match="No space left"):
         sink.close()
     assert events._closed and events._worker is not None and not events._worker.is_alive()
+
+
+def test_an_edited_sweep_json_and_too_many_seeds_are_one_line_before_anything_trains(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    out.mkdir()
+    asked = {"config": "ppo_arm2d_fixed", "seeds": 2, "assignments": ["learning_rate=0.001,0.003"]}
+    for edited, problem in [
+        ("{", "Expecting property name"),
+        ([], "not a JSON object but list"),
+        ({"config": "ppo_arm2d_fixed", "seeds": 2}, "no assignments"),
+        ({**asked, "assignments": "learning_rate=0.001"}, "assignments must be a list of 'key=v1,v2' strings"),
+        ({**asked, "assignments": ["learning_rate=0.001", 3]}, "assignments[1] must be a string, got 3"),
+        ({**asked, "seeds": "2"}, "seeds must be an integer, got '2'"),
+        ({**asked, "config": None}, "config must be a string, got None"),
+    ]:
+        (out / "sweep.json").write_text(edited if isinstance(edited, str) else json.dumps(edited))
+        assert sweep.main(["--resume", str(out)]) == 2
+        (line,) = error_lines(capsys)
+        assert line.startswith(f"error: {out / 'sweep.json'} is corrupt or edited (") and problem in line, line
+        assert line.endswith("restore it, or start the sweep again in a new directory")
+    assert sweep.main(["--config", "ppo_arm2d_fixed", "--seeds", "10000000", "--out", str(tmp_path / "big")]) == 2
+    (line,) = error_lines(capsys)
+    assert "1 settings × 10000000 seeds × num_envs=" in line and "more than a sweep's group may" in line, line
+    assert not (tmp_path / "big").exists()
