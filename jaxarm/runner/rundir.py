@@ -340,10 +340,25 @@ def finished_evaluation(run_dir: pathlib.Path, config: RunConfig) -> dict | None
     return result if result.get("finished") else None
 
 
+def read_provenance(path: pathlib.Path) -> list:
+    """The records of the provenance.json at `path`; RunDirError naming it where it is damaged or edited, which is
+    never written over (it holds the run's history)."""
+    try:
+        records = json.loads(path.read_text())["records"]
+        if not isinstance(records, list):
+            raise TypeError("records is not a list")
+    except (ValueError, KeyError, TypeError) as error:  # ValueError: JSONDecodeError, UnicodeDecodeError
+        raise RunDirError(
+            f"{path} is corrupt or from another version ({type(error).__name__}: {error}); fix or restore that file"
+        ) from None
+    return records
+
+
 def append_provenance(directory: pathlib.Path, event: str) -> dict:
-    """Adds `provenance.record(event)` to `directory`'s provenance.json and returns it."""
+    """Adds `provenance.record(event)` to `directory`'s provenance.json and returns it; RunDirError naming the file
+    where it is damaged."""
     path = directory / PROVENANCE_FILE
-    records = json.loads(path.read_text())["records"] if path.exists() else []
+    records = read_provenance(path) if path.exists() else []
     entry = provenance.record(event)
     write_json(path, {"records": [*records, entry]})
     return entry
@@ -371,18 +386,21 @@ def read_metrics(run_dir: pathlib.Path, drop_partial_last: bool = False) -> list
     path = run_dir / "metrics.jsonl"
     if not path.exists():
         return []
-    text = path.read_text()
-    lines = text.splitlines()
-    if drop_partial_last and lines and not text.endswith("\n"):
+    text = path.read_bytes()  # bytes: a line that is not UTF-8 is named like any other damaged line
+    lines = text.split(b"\n")
+    if drop_partial_last and lines and not text.endswith(b"\n"):
         lines = lines[:-1]
     rows = []
     for number, line in enumerate(lines, start=1):
         if not line.strip():
             continue
         try:
-            rows.append(json.loads(line))
-        except json.JSONDecodeError as error:
+            row = json.loads(line)
+            if not isinstance(row, dict):
+                raise TypeError(f"a JSON {type(row).__name__}, not an object")
+        except (ValueError, TypeError) as error:  # ValueError: JSONDecodeError, UnicodeDecodeError
             raise RunDirError(f"{path} line {number} is not a JSON row ({error}); delete that line and retry") from None
+        rows.append(row)
     return rows
 
 

@@ -321,3 +321,28 @@ def test_what_the_commands_write_beside_a_run_is_part_of_it(tmp_path):
     for name in [*written, "config.json", "notes.txt"]:
         (tmp_path / name).write_text("{}")
     assert rundir.foreign_files(tmp_path) == ["notes.txt"]
+
+
+def test_damaged_side_files_are_named_in_one_line_and_kept(tmp_path):
+    metrics = tmp_path / "metrics.jsonl"
+    for content, problem in [
+        (bytes(range(256)), "line 1 is not a JSON row ("),
+        (b'{"updates": 1}\n3\n', "line 2 is not a JSON row (a JSON int, not an object)"),
+        (b'{"updates": 1}\n\xff\xfe{"updates": 2}\n', "line 2 is not a JSON row ("),
+    ]:
+        metrics.write_bytes(content)
+        with pytest.raises(rundir.RunDirError) as raised:
+            rundir.read_metrics(tmp_path)
+        assert str(raised.value).startswith(f"{metrics} {problem}") and "\n" not in str(raised.value)
+    provenance_path = tmp_path / rundir.PROVENANCE_FILE
+    for content, problem in [
+        ("{", "JSONDecodeError"),
+        ("[]", "TypeError"),
+        ('{"runs": []}', "KeyError: 'records'"),
+        ('{"records": 5}', "TypeError: records is not a list"),
+    ]:
+        provenance_path.write_text(content)
+        with pytest.raises(rundir.RunDirError) as raised:
+            rundir.append_provenance(tmp_path, "resume")
+        assert str(raised.value).startswith(f"{provenance_path} is corrupt or from another version ({problem}")
+        assert provenance_path.read_text() == content, "a damaged history is never written over"
