@@ -13,6 +13,7 @@ import numpy as np
 from jaxarm.deploy import peg, sort
 from jaxarm.deploy.kinematics import ArmKinematics
 from jaxarm.deploy.loop import Controller
+from jaxarm.export.numpy_policy import EXPORT_AGAIN
 
 TASK_FILE = "deploy.json"
 MODEL_FILE = "robot.mjb"
@@ -64,7 +65,6 @@ def load(directory: str | pathlib.Path) -> Controller:
     or robot.mjb is damaged, edited or from another version; OSError where one cannot be read."""
     directory = pathlib.Path(directory)
     task_path, model_path = directory / TASK_FILE, directory / MODEL_FILE
-    advice = "export the run again (python -m experiments.export RUN)"
     try:
         data = json.loads(task_path.read_text())
         controller_class, task_class = CONTROLLERS[data["task"]]
@@ -72,12 +72,14 @@ def load(directory: str | pathlib.Path) -> Controller:
     except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, ValueError, AttributeError) as error:
         # KeyError: a task or field it lacks; TypeError, AttributeError: parts of the wrong JSON type.
         raise ValueError(
-            f"{task_path} is damaged or from another version ({type(error).__name__}: {error}); {advice}"
+            f"{task_path} is damaged or from another version ({type(error).__name__}: {error}); {EXPORT_AGAIN}"
         ) from None
     if not model_path.is_file():
-        raise ValueError(f"no {model_path}; {advice}")
+        raise ValueError(f"no {model_path}; {EXPORT_AGAIN}")
     try:
         kinematics = ArmKinematics(mujoco.MjModel.from_binary_path(str(model_path)))
     except (ValueError, KeyError) as error:  # KeyError: a model without a Panda's joint, body or site names
-        raise ValueError(f"{model_path} is not a Panda's scene ({type(error).__name__}: {error}); {advice}") from None
+        raise ValueError(
+            f"{model_path} is not a Panda's scene ({type(error).__name__}: {error}); {EXPORT_AGAIN}"
+        ) from None
     return controller_class(task, kinematics)

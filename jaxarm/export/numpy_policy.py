@@ -124,6 +124,8 @@ class PolicyFileError(ValueError):
     """A file that `load` cannot read as a policy; the message names the file and what is wrong, in one line."""
 
 
+EXPORT_AGAIN = "export the run again (python -m experiments.export RUN)"
+"""What to do about an exported file that cannot be read."""
 NAMED_FIELDS = ("activation", "obs_mean", "obs_std", "action_offset", "action_scale")
 """The arrays of a policy file besides its layers (`kernel_<i>`, `bias_<i>`), as `NumpyPolicy.save` names them."""
 
@@ -182,22 +184,23 @@ def load(path: str | pathlib.Path) -> NumpyPolicy:
     one, one without a policy's fields, or arrays that are not a policy (`_problem`). OSError where it cannot be
     read."""
     path = pathlib.Path(path)
-    advice = "export the run again (python -m experiments.export RUN)"
     with path.open("rb") as handle:
         if not zipfile.is_zipfile(handle):
-            raise PolicyFileError(f"{path} is not an .npz archive (empty, cut short or another format); {advice}")
+            raise PolicyFileError(f"{path} is not an .npz archive (empty, cut short or another format); {EXPORT_AGAIN}")
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
     except (zipfile.BadZipFile, zlib.error, EOFError, ValueError, MemoryError) as error:
         # ValueError: an array header numpy cannot read, or pickled objects; MemoryError: a header claiming a size
         # beyond this machine's memory.
-        raise PolicyFileError(f"{path} is a damaged .npz archive ({type(error).__name__}: {error}); {advice}") from None
+        raise PolicyFileError(
+            f"{path} is a damaged .npz archive ({type(error).__name__}: {error}); {EXPORT_AGAIN}"
+        ) from None
     count = sum(1 for name in arrays if name.startswith("kernel_"))
     layers = [f"{kind}_{i}" for i in range(max(count, 1)) for kind in ("kernel", "bias")]
     missing = [name for name in (*NAMED_FIELDS, *layers) if name not in arrays]
     if missing:
-        raise PolicyFileError(f"{path} is not a jaxarm policy: it lacks {', '.join(missing)}; {advice}")
+        raise PolicyFileError(f"{path} is not a jaxarm policy: it lacks {', '.join(missing)}; {EXPORT_AGAIN}")
     try:
         return NumpyPolicy(
             kernels=tuple(arrays[f"kernel_{i}"] for i in range(count)),
@@ -209,4 +212,4 @@ def load(path: str | pathlib.Path) -> NumpyPolicy:
             action_scale=arrays["action_scale"],
         )
     except ValueError as error:
-        raise PolicyFileError(f"{path} is not a usable policy: {error}; {advice}") from None
+        raise PolicyFileError(f"{path} is not a usable policy: {error}; {EXPORT_AGAIN}") from None
