@@ -9,7 +9,7 @@ With --video it writes video.gif or video.mp4 of a few episodes drawn without a 
 the policy under changes of the eval env's params instead: NAME=V1,V2 changes one param to each value in turn (all
 values in one compiled program), NAME=V+NAME=V changes several together; --randomized-ends adds each param the run
 randomises at both ends of its range. Beside the nominal params, it writes a robustness table and plot
-(robustness-<episodes>-<seed>.json, .md and .png).
+(robustness-<episodes>-<seed>-<update|best>-<digest of the perturbations>.json, .md and .png).
 The run directory is locked while this writes.
 
 A video asked for where the run's env cannot draw (no GL platform) fails first: the presets, learners and runner
@@ -129,7 +129,7 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
                 f"env and checkpoint: {', '.join(f'{name} {seconds:.1f} s' for name, seconds in phases.items())})",
                 flush=True,
             )
-            path = rundir.eval_path(run_dir, args.episodes, args.seed, "best" if args.best else str(int(state.updates)))
+            path = rundir.eval_path(run_dir, args.episodes, args.seed, checkpoint_name(state, args.best))
             rundir.write_json(path, result)
             print(f"wrote {path}")
             if args.video:
@@ -148,6 +148,11 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
         quiet_libraries()
         return 2
     return 0
+
+
+def checkpoint_name(state, best: bool) -> str:
+    """How the files of an evaluation name the checkpoint evaluated: "best", or the latest's update count."""
+    return "best" if best else str(int(state.updates))
 
 
 def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> None:
@@ -175,8 +180,11 @@ def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> Non
     )
     text = robustness.table(rows)
     print(f"{text}\n({args.episodes} episodes a row, {time.perf_counter() - start:.1f} s with compilation)")
-    stem = run_dir / f"robustness-{args.episodes}-{args.seed}"
-    rundir.write_json(stem.with_suffix(".json"), {"device": jax.devices()[0].device_kind, "rows": rows})
+    request = [*args.perturb, *(["--randomized-ends"] if args.randomized_ends else [])]
+    stem = rundir.robustness_stem(run_dir, args.episodes, args.seed, checkpoint_name(state, args.best), request)
+    rundir.write_json(
+        stem.with_suffix(".json"), {"device": jax.devices()[0].device_kind, "perturb": request, "rows": rows}
+    )
     stem.with_suffix(".md").write_text(text + "\n")
     robustness.plot(rows, stem.with_suffix(".png"), f"{run_dir.name}: robustness")
     print(f"wrote {stem}.json, .md and .png")

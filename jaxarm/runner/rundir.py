@@ -13,7 +13,7 @@ Layout of `runs/<config>-<timestamp>/`:
   curve.png        learning curve
   eval.json        deterministic evaluation at the end of training
   eval-<episodes>-<seed>-<update|best>.json, video.gif, video.mp4   written by `experiments.eval`
-  robustness-<episodes>-<seed>.json, .md, .png   written by `experiments.eval --perturb`
+  robustness-<episodes>-<seed>-<update|best>-<digest>.json, .md, .png   written by `experiments.eval --perturb`
   export/          the policy exported by `experiments.export`
   teacher/         the run of a teacher named by preset (`teacher=preset:NAME`), trained first; kept when the
                    student starts afresh
@@ -28,6 +28,7 @@ import contextlib
 import dataclasses
 import errno
 import fcntl
+import hashlib
 import json
 import os
 import pathlib
@@ -377,6 +378,16 @@ def eval_path(run_dir: pathlib.Path, episodes: int, seed: int, checkpoint_name: 
     count, or "best"), so evaluations of different checkpoints never replace each other (eval.json stays
     training's)."""
     return run_dir / f"eval-{episodes}-{seed}-{checkpoint_name}.json"
+
+
+def robustness_stem(
+    run_dir: pathlib.Path, episodes: int, seed: int, checkpoint_name: str, request: Sequence[str]
+) -> pathlib.Path:
+    """Where `experiments.eval --perturb` writes its table (stem of its .json, .md and .png): named as `eval_path`,
+    and by a digest of the `request` (the perturbations asked for, in words), so that neither another checkpoint's
+    table nor another request's replaces it; the same request of the same checkpoint writes the same table again."""
+    digest = hashlib.sha256("\n".join(request).encode()).hexdigest()[:8]
+    return run_dir / f"robustness-{episodes}-{seed}-{checkpoint_name}-{digest}"
 
 
 def read_metrics(run_dir: pathlib.Path, drop_partial_last: bool = False) -> list[dict]:

@@ -251,10 +251,16 @@ def test_a_randomised_run_reports_nominal_and_randomised_evaluations(tmp_path):
     assert result["randomized/return_mean"] != result["return_mean"]
 
 
+def robustness_stem(run_dir: pathlib.Path, episodes: int, request: list[str]) -> pathlib.Path:
+    """Where `eval --perturb` writes the table of `request` of `finished_run`'s latest checkpoint (update 24)."""
+    return rundir.robustness_stem(run_dir, episodes, 12345, "24", request)
+
+
 def test_robustness_rows_vmap_each_params_values_and_match_the_nominal(finished_run, capsys):
-    argv = [str(finished_run), "--episodes", "12", "--perturb", "action_scale=0.1,0.002", "goal_size=0.05"]
-    assert eval_cli.main(argv) == 0
-    rows = json.loads((finished_run / "robustness-12-12345.json").read_text())["rows"]
+    request = ["action_scale=0.1,0.002", "goal_size=0.05"]
+    assert eval_cli.main([str(finished_run), "--episodes", "12", "--perturb", *request]) == 0
+    stem = robustness_stem(finished_run, 12, request)
+    rows = json.loads(stem.with_suffix(".json").read_text())["rows"]
     assert [(row["param"], row["value"]) for row in rows] == [
         ("nominal", None),
         ("action_scale", 0.1),
@@ -266,14 +272,15 @@ def test_robustness_rows_vmap_each_params_values_and_match_the_nominal(finished_
     assert same["return_mean"] == nominal["return_mean"] and same["success_rate"] == nominal["success_rate"]
     # An arm that barely moves reaches only goals it starts on.
     assert frozen["success_rate"] < 0.5 * nominal["success_rate"] and frozen["return_mean"] < nominal["return_mean"]
-    assert "| action_scale | 0.002 |" in (finished_run / "robustness-12-12345.md").read_text()
-    assert (finished_run / "robustness-12-12345.png").stat().st_size > 1000
+    assert "| action_scale | 0.002 |" in stem.with_suffix(".md").read_text()
+    assert stem.with_suffix(".png").stat().st_size > 1000
 
 
 def test_robustness_rows_of_params_changed_together(finished_run):
-    together = ["action_scale=0.1+goal_size=40", "action_scale=0.002+goal_size=30"]
-    assert eval_cli.main([str(finished_run), "--episodes", "12", "--perturb", "action_scale=0.002", *together]) == 0
-    rows = json.loads((finished_run / "robustness-12-12345.json").read_text())["rows"]
+    request = ["action_scale=0.002", "action_scale=0.1+goal_size=40", "action_scale=0.002+goal_size=30"]
+    assert eval_cli.main([str(finished_run), "--episodes", "12", "--perturb", *request]) == 0
+    stem = robustness_stem(finished_run, 12, request)
+    rows = json.loads(stem.with_suffix(".json").read_text())["rows"]
     assert [(row["param"], row["value"]) for row in rows] == [
         ("nominal", None),
         ("action_scale", 0.002),
@@ -284,14 +291,14 @@ def test_robustness_rows_of_params_changed_together(finished_run):
     # Both nominal values together reproduce the nominal episodes; a frozen arm with smaller goals reaches few.
     assert same["return_mean"] == nominal["return_mean"] and same["success_rate"] == nominal["success_rate"]
     assert max(frozen["success_rate"], frozen_smaller["success_rate"]) < 0.5 * nominal["success_rate"]
-    assert "| action_scale=0.002+goal_size=30 |  |" in (finished_run / "robustness-12-12345.md").read_text()
+    assert "| action_scale=0.002+goal_size=30 |  |" in stem.with_suffix(".md").read_text()
 
 
 def test_combined_changes_alone_draw_their_plot_without_a_warning(finished_run):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert eval_cli.main([str(finished_run), "--episodes", "4", "--perturb", "action_scale=0.1+goal_size=40"]) == 0
-    assert (finished_run / "robustness-4-12345.png").stat().st_size > 0
+    assert robustness_stem(finished_run, 4, ["action_scale=0.1+goal_size=40"]).with_suffix(".png").stat().st_size > 0
 
 
 def test_a_runs_randomised_ranges_give_their_ends():

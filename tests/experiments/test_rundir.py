@@ -346,3 +346,19 @@ def test_damaged_side_files_are_named_in_one_line_and_kept(tmp_path):
             rundir.append_provenance(tmp_path, "resume")
         assert str(raised.value).startswith(f"{provenance_path} is corrupt or from another version ({problem}")
         assert provenance_path.read_text() == content, "a damaged history is never written over"
+
+
+def test_robustness_tables_of_other_checkpoints_or_requests_never_replace_each_other(tmp_path):
+    request = ["action_scale=0.1,0.002"]
+    stem = rundir.robustness_stem(tmp_path, 200, 7, "24", request)
+    assert stem.name.startswith("robustness-200-7-24-") and rundir.foreign_files(tmp_path) == []
+    assert rundir.robustness_stem(tmp_path, 200, 7, "24", list(request)) == stem
+    others = [
+        rundir.robustness_stem(tmp_path, 200, 7, "best", request),
+        rundir.robustness_stem(tmp_path, 200, 7, "24", ["goal_size=0.05"]),
+        rundir.robustness_stem(tmp_path, 200, 7, "24", [*request, "--randomized-ends"]),
+    ]
+    assert len({stem, *others}) == 4
+    for path in [stem, *others]:
+        path.with_suffix(".json").write_text("{}")
+    assert rundir.foreign_files(tmp_path) == []
