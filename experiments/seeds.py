@@ -1,0 +1,342 @@
+"""The seeds protocol: `python -m experiments.seeds --config NAME --seeds 0-4 --goal 0.95 --minutes 4 [key=value ...]`.
+
+Trains one preset on several seeds, each as a user runs it: `python -m experiments.run --config NAME seed=S` in a
+process of its own, into OUT/seed-S. On a host of several GPUs the runs share them out, one run per GPU at a time
+(CUDA_VISIBLE_DEVICES); elsewhere they run one after another. Never vmapped together: float-level differences
+between two programs decide fragile recipes, and a user runs one seed in one program.
+
+Writes OUT/summary.json and OUT/seeds.md: each seed's placed fraction (its eval.json's success on fresh episodes),
+its command's wall clock (from the command's start to its end, summed over the commands of a resumed seed), the
+worst seed, the mean with a bootstrap 95% interval, the device and the command. The result is "met" when the worst
+seed reaches --goal within --minutes: a result is its worst seed.
+
+`python -m experiments.seeds --resume OUT [--stop-after-minutes M]` continues: finished seeds are kept, a stopped
+one resumes from its checkpoint. `--stop-after-minutes` passes to each run, for machines that limit a command's
+time; a seed whose runs were stopped counts its commands' wall clocks together.
+"""
+
+import argparse
+import dataclasses
+import json
+import os
+import pathlib
+import subprocess
+import sys
+import time
+import warnings
+from collections.abc import Sequence
+
+import numpy as np
+
+from experiments import distributed
+from experiments.run import minutes
+from jaxarm.runner import rundir
+
+SEEDS_FILE = "seeds.json"
+"""What was asked (preset, seeds, goal, overrides) and each seed's commands so far: `--resume` reads it."""
+MAX_SEEDS = 1000
+"""More separate runs than a study of seeds needs; a bound checked before anything is written."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Protocol:
+    """What a seeds study asks: the preset and overrides each seed's run takes, which seeds, and the goal."""
+
+    config: str
+    seeds: tuple[int, ...]
+    goal: float
+    minutes: float | None
+    overrides: tuple[str, ...]
+
+    def run_command(self, seed: int, out: pathlib.Path) -> list[str]:
+        """The command a user types to train `seed` into `out`."""
+        return [
+            "python", "-m", "experiments.run", "--config", self.config, "--out", str(out), *self.overrides,
+            f"seed={seed}",
+        ]  # fmt: skip
+
+
+@dataclasses.dataclass(frozen=True)
+class SeedResult:
+    """One seed's outcome: placed: its final evaluation's success; wall_s: its commands' wall clocks summed;
+    finished: whether it trained its whole budget; device: what it ran on."""
+
+    seed: int
+    placed: float | None
+    wall_s: float
+    finished: bool
+    device: str | None
+
+
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """`--seeds`: "0-4", "0,3,7" or "0-2,10" to the seeds in that order; ArgumentTypeError for anything else,
+    a repeated seed or more than MAX_SEEDS."""
+    seeds: list[int] = []
+    try:
+        for part in text.split(","):
+            low, _, high = part.partition("-")
+            seeds.extend(range(int(low), int(high or low) + 1))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seeds as 0-4, 0,3,7 or 0-2,10, got {text!r}") from None
+    if not seeds or min(seeds) < 0:
+        raise argparse.ArgumentTypeError(f"expected one or more seeds, each 0 or more, got {text!r}")
+    if len(set(seeds)) != len(seeds):
+        raise argparse.ArgumentTypeError(f"seeds {text!r} name a seed twice")
+    if len(seeds) > MAX_SEEDS:
+        raise argparse.ArgumentTypeError(f"{len(seeds)} seeds: at most {MAX_SEEDS}")
+    return tuple(seeds)
+
+
+def fraction(text: str) -> float:
+    """`--goal`: a fraction in [0, 1]."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = np.nan
+    if not 0 <= value <= 1:
+        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1], got {text!r}")
+    return value
+
+
+def bootstrap_interval(values: np.ndarray, seed: int = 0) -> tuple[float, float]:
+    """The percentile bootstrap 95% interval of the mean of `values` [N] (scipy.stats.bootstrap, 10,000
+    resamples, a fixed seed so that a table reads the same twice); (v, v) where every value is v."""
+    from scipy import stats  # ~1 s to import, paid only where a table is made
+
+    values = np.asarray(values, float)
+    if np.ptp(values) == 0:
+        return float(values[0]), float(values[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # few distinct values: scipy warns about the resamples
+        interval = stats.bootstrap(
+            (values,), np.mean, confidence_level=0.95, n_resamples=10_000, method="percentile", random_state=seed
+        ).confidence_interval
+    return float(interval.low), float(interval.high)
+
+
+def summarise(protocol: Protocol, results: Sequence[SeedResult], command: str) -> dict:
+    """The study's row: each seed's placed and wall clock, the worst seed, the mean with its bootstrap interval,
+    the devices and whether the worst seed met the goal (in time, where --minutes was given)."""
+    placed = np.array([np.nan if result.placed is None else result.placed for result in results])
+    done = all(result.finished for result in results)
+    in_time = protocol.minutes is None or all(result.wall_s <= 60 * protocol.minutes for result in results)
+    low, high = bootstrap_interval(placed) if done else (np.nan, np.nan)
+    return {
+        "preset": protocol.config,
+        "command": command,
+        "seeds": [dataclasses.asdict(result) for result in results],
+        "worst": float(np.min(placed)) if done else None,
+        "mean": float(np.mean(placed)) if done else None,
+        "interval": [low, high] if done else None,
+        "goal": protocol.goal,
+        "minutes": protocol.minutes,
+        "devices": sorted({result.device for result in results if result.device}),
+        "met": bool(done and in_time and np.min(placed) >= protocol.goal),
+        "finished": done,
+    }
+
+
+def markdown(summary: dict) -> str:
+    """`summary` as a table a reader takes in at a glance: a row per seed, then the worst and the mean."""
+
+    def percent(value: float | None) -> str:
+        return "—" if value is None else f"{100 * value:.1f}%"
+
+    lines = [
+        f"`{summary['command']}`",
+        "",
+        "| seed | placed | command wall | device |",
+        "|---:|---:|---:|---|",
+    ]
+    for seed in summary["seeds"]:
+        mark = "" if seed["finished"] else " (stopped)"
+        lines.append(
+            f"| {seed['seed']} | {percent(seed['placed'])}{mark} | {seed['wall_s']:.0f} s | {seed['device']} |"
+        )
+    if summary["finished"]:
+        low, high = summary["interval"]
+        goal = f"≥ {percent(summary['goal'])}" + (f" within {summary['minutes']:g} min" if summary["minutes"] else "")
+        lines += [
+            "",
+            f"worst seed {percent(summary['worst'])}; mean {percent(summary['mean'])} (bootstrap 95% interval "
+            f"{percent(low)}–{percent(high)}); goal {goal}: {'**met**' if summary['met'] else 'not met'}",
+        ]
+    return "\n".join(lines) + "\n"
+
+
+def seed_dir(out: pathlib.Path, seed: int) -> pathlib.Path:
+    return out / f"seed-{seed}"
+
+
+def seed_result(out: pathlib.Path, seed: int, walls: Sequence[float]) -> SeedResult:
+    """What seed-S's run directory holds now: its eval.json where the run evaluated its end."""
+    path = seed_dir(out, seed) / "eval.json"
+    evaluation = json.loads(path.read_text()) if path.exists() else {}
+    return SeedResult(
+        seed=seed,
+        placed=evaluation.get("success_rate"),
+        wall_s=float(sum(walls)),
+        finished=bool(evaluation.get("finished")),
+        device=evaluation.get("device"),
+    )
+
+
+def next_command(protocol: Protocol, out: pathlib.Path, seed: int, stop_after: float | None) -> list[str] | None:
+    """The command that moves `seed` on: a resume of its run where that has a checkpoint, else a new run (into the
+    same directory: a run that died before its first checkpoint starts afresh), or None where it has finished."""
+    run_dir = seed_dir(out, seed)
+    if seed_result(out, seed, []).finished:
+        return None
+    if rundir.any_checkpoint_files(run_dir):
+        command = ["python", "-m", "experiments.run", "--resume", str(run_dir)]
+    else:
+        command = protocol.run_command(seed, run_dir)
+    if stop_after is not None:
+        command += ["--stop-after-minutes", f"{stop_after:g}"]
+    return command
+
+
+def gpu_slots() -> list[str | None]:
+    """Where runs go at once: one per visible GPU (its CUDA_VISIBLE_DEVICES value), else one with no GPU named."""
+    count = distributed.gpus_here()
+    return list(distributed.local_gpus(count)) if count else [None]
+
+
+def train_seeds(
+    protocol: Protocol, out: pathlib.Path, walls: dict[int, list[float]], stop_after: float | None, record
+) -> None:
+    """Runs every unfinished seed's next command, as many at once as there are GPUs, appending each command's wall
+    clock to `walls[seed]` and calling `record()` after each ends, an interrupted one too (Ctrl-C reaches the
+    runs, which checkpoint: they are waited for, so that none is left running)."""
+    queue = [(seed, command) for seed in protocol.seeds if (command := next_command(protocol, out, seed, stop_after))]
+    free = gpu_slots()
+    running: dict[subprocess.Popen, tuple[int, str | None, float]] = {}
+
+    def finish(process: subprocess.Popen) -> None:
+        seed, gpu, started = running.pop(process)
+        walls.setdefault(seed, []).append(time.perf_counter() - started)
+        record()
+        free.append(gpu)
+        result = seed_result(out, seed, walls[seed])
+        state = f"placed {result.placed:.3f}" if result.finished and result.placed is not None else "not finished"
+        print(f"seed {seed}: rc {process.returncode}, {state} after {result.wall_s:.0f} s", flush=True)
+
+    try:
+        while queue or running:
+            while queue and free:
+                seed, command = queue.pop(0)
+                gpu = free.pop(0)
+                running[start_run(out, seed, command, gpu)] = (seed, gpu, time.perf_counter())
+            finish(wait_any(list(running)))
+    finally:
+        for process in list(running):
+            process.wait()
+            finish(process)
+
+
+def start_run(out: pathlib.Path, seed: int, command: list[str], gpu: str | None) -> subprocess.Popen:
+    """Starts `command` (`python -m experiments.run ...`) with this interpreter, on `gpu` alone where one is
+    named, its output appended to OUT/seed-S.log."""
+    env = dict(os.environ) if gpu is None else {**os.environ, "CUDA_VISIBLE_DEVICES": gpu}
+    print(f"seed {seed}{'' if gpu is None else f' on GPU {gpu}'}: {' '.join(command)} (log {out}/seed-{seed}.log)")
+    with (out / f"seed-{seed}.log").open("a") as log:
+        return subprocess.Popen([sys.executable, *command[1:]], env=env, stdout=log, stderr=log)
+
+
+def wait_any(processes: list[subprocess.Popen]) -> subprocess.Popen:
+    """The first of `processes` to end."""
+    while True:
+        for process in processes:
+            if process.poll() is not None:
+                return process
+        time.sleep(0.5)
+
+
+def parse_args(argv) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="python -m experiments.seeds", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--config", help="preset name (python -m experiments.run --list)")
+    parser.add_argument("--seeds", type=parse_seeds, default=parse_seeds("0-4"), help="e.g. 0-4 (the default)")
+    parser.add_argument("--goal", type=fraction, default=0.9, help="the placed fraction each seed must reach")
+    parser.add_argument("--minutes", type=minutes, help="each seed's command must end within this wall clock")
+    parser.add_argument("--out", help="study directory (default runs/seeds-<config>-<timestamp>)")
+    parser.add_argument("--resume", metavar="OUT", help="continue the study in OUT")
+    parser.add_argument(
+        "--stop-after-minutes", type=minutes, help="passed to each run: checkpoint and stop after this wall clock"
+    )
+    parser.add_argument("overrides", nargs="*", help="config overrides key=value, the same for every seed")
+    args = parser.parse_args(argv)
+    if bool(args.config) == bool(args.resume):
+        parser.error("give --config NAME (a new study) or --resume OUT (a stopped one)")
+    if args.resume and args.overrides:
+        parser.error("--resume takes what the study was asked from its seeds.json; give no overrides")
+    return args
+
+
+def read_study(out: pathlib.Path) -> tuple[Protocol, dict[int, list[float]]]:
+    """The protocol and wall clocks so far of the study in `out`; ValueError in one line naming what is wrong."""
+    path = out / SEEDS_FILE
+    try:
+        saved = json.loads(path.read_text())
+        protocol = Protocol(
+            config=str(saved["config"]),
+            seeds=tuple(int(seed) for seed in saved["seeds"]),
+            goal=float(saved["goal"]),
+            minutes=None if saved["minutes"] is None else float(saved["minutes"]),
+            overrides=tuple(str(item) for item in saved["overrides"]),
+        )
+        walls = {int(seed): [float(wall) for wall in values] for seed, values in saved["walls"].items()}
+    except FileNotFoundError:
+        raise ValueError(f"{out} holds no {SEEDS_FILE}: not a study of experiments.seeds") from None
+    except (OSError, ValueError, TypeError, KeyError, AttributeError) as error:
+        raise ValueError(f"{path} is damaged ({type(error).__name__}: {error}); start a new study") from None
+    return protocol, walls
+
+
+def main(argv=None) -> int:
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        if args.resume:
+            out = pathlib.Path(args.resume)
+            protocol, walls = read_study(out)
+        else:
+            from experiments import configs
+            from jaxarm.agents.common.config import apply_overrides
+
+            apply_overrides(configs.get(args.config), [*args.overrides, "seed=0"])  # refused here, not per seed
+            protocol = Protocol(args.config, args.seeds, args.goal, args.minutes, tuple(args.overrides))
+            out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"seeds-{args.config}")
+            rundir.check_output_dir(out, "--out")
+            out.mkdir(parents=True, exist_ok=True)
+            walls = {}
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    command = " ".join(
+        ["python -m experiments.seeds --config", protocol.config, "--seeds", ",".join(map(str, protocol.seeds))]
+        + ["--goal", f"{protocol.goal:g}"]
+        + ([] if protocol.minutes is None else ["--minutes", f"{protocol.minutes:g}"])
+        + list(protocol.overrides)
+    )
+
+    def record() -> None:
+        rundir.write_json(out / SEEDS_FILE, {**dataclasses.asdict(protocol), "walls": walls})
+
+    record()
+    try:
+        train_seeds(protocol, out, walls, args.stop_after_minutes, record)
+    except KeyboardInterrupt:
+        print(f"\ninterrupted; continue with: python -m experiments.seeds --resume {out}", file=sys.stderr)
+        return 130
+    summary = summarise(protocol, [seed_result(out, seed, walls.get(seed, [])) for seed in protocol.seeds], command)
+    rundir.write_json(out / "summary.json", summary)
+    (out / "seeds.md").write_text(markdown(summary))
+    print(markdown(summary), end="")
+    if not summary["finished"]:
+        print(f"some seeds stopped before their end; continue with: python -m experiments.seeds --resume {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
