@@ -20,6 +20,7 @@ import dataclasses
 import json
 import os
 import pathlib
+import signal
 import subprocess
 import sys
 import time
@@ -47,6 +48,13 @@ class Protocol:
     goal: float
     minutes: float | None
     overrides: tuple[str, ...]
+
+    @property
+    def command(self) -> str:
+        """The study's own command line, as a table cites it."""
+        minutes = [] if self.minutes is None else ["--minutes", f"{self.minutes:g}"]
+        seeds = ["--seeds", ",".join(map(str, self.seeds)), "--goal", f"{self.goal:g}", *minutes]
+        return " ".join(["python -m experiments.seeds --config", self.config, *seeds, *self.overrides])
 
     def run_command(self, seed: int, out: pathlib.Path) -> list[str]:
         """The command a user types to train `seed` into `out`."""
@@ -114,7 +122,7 @@ def bootstrap_interval(values: np.ndarray, seed: int = 0) -> tuple[float, float]
     return float(interval.low), float(interval.high)
 
 
-def summarise(protocol: Protocol, results: Sequence[SeedResult], command: str) -> dict:
+def summarise(protocol: Protocol, results: Sequence[SeedResult]) -> dict:
     """The study's row: each seed's placed and wall clock, the worst seed, the mean with its bootstrap interval,
     the devices and whether the worst seed met the goal (in time, where --minutes was given)."""
     placed = np.array([np.nan if result.placed is None else result.placed for result in results])
@@ -123,7 +131,7 @@ def summarise(protocol: Protocol, results: Sequence[SeedResult], command: str) -
     low, high = bootstrap_interval(placed) if done else (np.nan, np.nan)
     return {
         "preset": protocol.config,
-        "command": command,
+        "command": protocol.command,
         "seeds": [dataclasses.asdict(result) for result in results],
         "worst": float(np.min(placed)) if done else None,
         "mean": float(np.mean(placed)) if done else None,
@@ -206,8 +214,8 @@ def train_seeds(
     protocol: Protocol, out: pathlib.Path, walls: dict[int, list[float]], stop_after: float | None, record
 ) -> None:
     """Runs every unfinished seed's next command, as many at once as there are GPUs, appending each command's wall
-    clock to `walls[seed]` and calling `record()` after each ends, an interrupted one too (Ctrl-C reaches the
-    runs, which checkpoint: they are waited for, so that none is left running)."""
+    clock to `walls[seed]` and calling `record()` after each ends, an interrupted one too: on Ctrl-C or SIGTERM
+    the runs are told to stop (they checkpoint) and waited for, so that none is left running."""
     queue = [(seed, command) for seed in protocol.seeds if (command := next_command(protocol, out, seed, stop_after))]
     free = gpu_slots()
     running: dict[subprocess.Popen, tuple[int, str | None, float]] = {}
@@ -228,10 +236,23 @@ def train_seeds(
                 gpu = free.pop(0)
                 running[start_run(out, seed, command, gpu)] = (seed, gpu, time.perf_counter())
             finish(wait_any(list(running)))
+    except KeyboardInterrupt:
+        signal_all(running, signal.SIGTERM)  # each run checkpoints at its next chunk end and stops
+        raise
     finally:
-        for process in list(running):
-            process.wait()
-            finish(process)
+        while running:
+            try:
+                finish(wait_any(list(running)))
+            except KeyboardInterrupt:
+                signal_all(running, signal.SIGINT)  # a second Ctrl-C: the runs' second, which ends them at once
+
+
+def signal_all(running: dict[subprocess.Popen, tuple], signum: int) -> None:
+    """Sends `signum` to each run still running: they run in sessions of their own, out of a terminal's reach,
+    so that they hear one signal at a time, from here."""
+    for process in running:
+        if process.poll() is None:
+            process.send_signal(signum)
 
 
 def start_run(out: pathlib.Path, seed: int, command: list[str], gpu: str | None) -> subprocess.Popen:
@@ -240,7 +261,7 @@ def start_run(out: pathlib.Path, seed: int, command: list[str], gpu: str | None)
     env = dict(os.environ) if gpu is None else {**os.environ, "CUDA_VISIBLE_DEVICES": gpu}
     print(f"seed {seed}{'' if gpu is None else f' on GPU {gpu}'}: {' '.join(command)} (log {out}/seed-{seed}.log)")
     with (out / f"seed-{seed}.log").open("a") as log:
-        return subprocess.Popen([sys.executable, *command[1:]], env=env, stdout=log, stderr=log)
+        return subprocess.Popen([sys.executable, *command[1:]], env=env, stdout=log, stderr=log, start_new_session=True)
 
 
 def wait_any(processes: list[subprocess.Popen]) -> subprocess.Popen:
@@ -294,31 +315,46 @@ def read_study(out: pathlib.Path) -> tuple[Protocol, dict[int, list[float]]]:
     return protocol, walls
 
 
-def main(argv=None) -> int:
-    args = parse_args(sys.argv[1:] if argv is None else argv)
-    try:
-        if args.resume:
-            out = pathlib.Path(args.resume)
-            protocol, walls = read_study(out)
-        else:
-            from experiments import configs
-            from jaxarm.agents.common.config import apply_overrides
+def interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
 
-            apply_overrides(configs.get(args.config), [*args.overrides, "seed=0"])  # refused here, not per seed
-            protocol = Protocol(args.config, args.seeds, args.goal, args.minutes, tuple(args.overrides))
-            out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"seeds-{args.config}")
-            rundir.check_output_dir(out, "--out")
-            out.mkdir(parents=True, exist_ok=True)
-            walls = {}
+
+def main(argv=None) -> int:
+    # A cluster's time limit or `timeout` sends SIGTERM: the study stops as on Ctrl-C.
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        return study(parse_args(sys.argv[1:] if argv is None else argv))
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def open_study(args: argparse.Namespace) -> tuple[Protocol, pathlib.Path, dict[int, list[float]]]:
+    """(protocol, directory, wall clocks so far) of the study `args` ask for: a stopped one's, or a new one's in a
+    directory that holds no study yet; ValueError in one line for an unknown preset, a bad override or such a
+    directory, before any run starts."""
+    if args.resume:
+        out = pathlib.Path(args.resume)
+        protocol, walls = read_study(out)
+        return protocol, out, walls
+    from experiments import configs
+    from jaxarm.agents.common.config import apply_overrides
+
+    apply_overrides(configs.get(args.config), [*args.overrides, "seed=0"])  # refused here, not once per seed
+    out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"seeds-{args.config}")
+    rundir.check_output_dir(out, "--out")
+    if (out / SEEDS_FILE).exists():
+        raise ValueError(f"{out} holds a study already; continue it with --resume {out}, or give another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    return Protocol(args.config, args.seeds, args.goal, args.minutes, tuple(args.overrides)), out, {}
+
+
+def study(args: argparse.Namespace) -> int:
+    """Runs or continues the study `args` ask for; the exit code."""
+    try:
+        protocol, out, walls = open_study(args)
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    command = " ".join(
-        ["python -m experiments.seeds --config", protocol.config, "--seeds", ",".join(map(str, protocol.seeds))]
-        + ["--goal", f"{protocol.goal:g}"]
-        + ([] if protocol.minutes is None else ["--minutes", f"{protocol.minutes:g}"])
-        + list(protocol.overrides)
-    )
 
     def record() -> None:
         rundir.write_json(out / SEEDS_FILE, {**dataclasses.asdict(protocol), "walls": walls})
@@ -329,7 +365,8 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print(f"\ninterrupted; continue with: python -m experiments.seeds --resume {out}", file=sys.stderr)
         return 130
-    summary = summarise(protocol, [seed_result(out, seed, walls.get(seed, [])) for seed in protocol.seeds], command)
+    results = [seed_result(out, seed, walls.get(seed, [])) for seed in protocol.seeds]
+    summary = summarise(protocol, results)
     rundir.write_json(out / "summary.json", summary)
     (out / "seeds.md").write_text(markdown(summary))
     print(markdown(summary), end="")

@@ -2,7 +2,12 @@
 
 import argparse
 import json
+import os
 import pathlib
+import signal
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -49,11 +54,11 @@ def result(seed: int, placed: float, wall_s: float = 60.0, finished: bool = True
 
 def test_a_study_is_met_only_when_its_worst_seed_meets_the_goal_in_time():
     protocol = seeds.Protocol("ppo_arm2d", (0, 1, 2), goal=0.95, minutes=2.0, overrides=())
-    met = seeds.summarise(protocol, [result(0, 0.99), result(1, 0.96), result(2, 1.0)], "cmd")
+    met = seeds.summarise(protocol, [result(0, 0.99), result(1, 0.96), result(2, 1.0)])
     assert met["met"] and met["worst"] == 0.96 and met["devices"] == ["cpu"]
-    assert not seeds.summarise(protocol, [result(0, 0.99), result(1, 0.94), result(2, 1.0)], "cmd")["met"]
-    assert not seeds.summarise(protocol, [result(0, 0.99), result(1, 0.99, wall_s=121), result(2, 1.0)], "cmd")["met"]
-    stopped = seeds.summarise(protocol, [result(0, 0.99), result(1, 0.99, finished=False), result(2, 1.0)], "cmd")
+    assert not seeds.summarise(protocol, [result(0, 0.99), result(1, 0.94), result(2, 1.0)])["met"]
+    assert not seeds.summarise(protocol, [result(0, 0.99), result(1, 0.99, wall_s=121), result(2, 1.0)])["met"]
+    stopped = seeds.summarise(protocol, [result(0, 0.99), result(1, 0.99, finished=False), result(2, 1.0)])
     assert not stopped["met"] and stopped["worst"] is None
     assert "**met**" in seeds.markdown(met) and "(stopped)" in seeds.markdown(stopped)
 
@@ -64,6 +69,16 @@ def test_a_damaged_study_file_is_named_in_one_line(tmp_path):
         seeds.read_study(tmp_path)
     with pytest.raises(ValueError, match="holds no"):
         seeds.read_study(tmp_path / "nothing")
+
+
+def computed(run_dir: pathlib.Path) -> tuple[list[dict], dict]:
+    """A run's metrics rows and final evaluation less their clocks: what it computed."""
+    rows = [
+        {k: v for k, v in row.items() if k not in {"wall_time", "steps_per_second"}}
+        for row in rundir.read_metrics(run_dir)
+    ]
+    evaluation = json.loads((run_dir / "eval.json").read_text())
+    return rows, {k: v for k, v in evaluation.items() if k != "train_wall_time"}
 
 
 @pytest.mark.slow
@@ -84,11 +99,50 @@ def test_each_seed_is_a_separate_run_a_stopped_one_resumes_and_reproduces_an_uns
     assert seeds.main(["--resume", str(stopped)]) == 0  # nothing left to run
     assert json.loads((stopped / seeds.SEEDS_FILE).read_text())["walls"] == walls
     assert "seed-0:" not in capsys.readouterr().out
-
-    def computed(run_dir: pathlib.Path) -> tuple[list[dict], dict]:
-        timing = {"wall_time", "steps_per_second"}
-        rows = [{k: v for k, v in row.items() if k not in timing} for row in rundir.read_metrics(run_dir)]
-        evaluation = json.loads((run_dir / "eval.json").read_text())
-        return rows, {k: v for k, v in evaluation.items() if k not in {"train_wall_time", "eval_wall_time"}}
-
     assert computed(tmp_path / "whole" / "seed-0") == computed(stopped / "seed-0")
+
+
+@pytest.mark.slow
+def test_sigterm_stops_the_study_and_its_runs_at_a_checkpoint_leaving_none_running(tmp_path):
+    out = tmp_path / "study"
+    command = [sys.executable, "-m", "experiments.seeds", "--config", "ppo_arm2d_fixed", "--seeds", "0", "--goal", "0"]
+    long = [*SMALL, "total_env_steps=24576000"]  # far more than the test waits for
+    process = subprocess.Popen([*command, "--out", str(out), *long], stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 300
+    while not rundir.any_checkpoint_files(out / "seed-0") and time.monotonic() < deadline:
+        time.sleep(0.5)
+    run_pid = int((out / "seed-0" / ".lock").read_text())
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=300)
+    assert process.returncode == 130, stderr[-2000:]
+    assert stderr.strip().splitlines()[-1] == f"interrupted; continue with: python -m experiments.seeds --resume {out}"
+    with pytest.raises(ProcessLookupError):
+        os.kill(run_pid, 0)
+    assert len(json.loads((out / seeds.SEEDS_FILE).read_text())["walls"]["0"]) == 1
+
+
+SORTER_TINY = [
+    "env_kwargs.impl=jax",
+    "num_envs=8",
+    "rollout_length=8",
+    "num_minibatches=2",
+    "num_epochs=1",
+    "total_env_steps=128",
+    "updates_per_chunk=1",
+    "checkpoint_every_updates=2",
+    "shuffle_groups=1",
+    "eval_episodes=8",
+    "eval_env_params.max_episode_steps=20",
+]
+
+
+@pytest.mark.slow
+@pytest.mark.mjx
+def test_two_runs_of_one_command_and_seed_on_mjx_jax_compute_the_same(tmp_path):
+    """The same command and seed, run twice as a user runs it (two processes, the second reading the first's
+    compiled programs from the cache), give the same metrics row for row and the same evaluation on MJX-JAX."""
+    for name in ("first", "second"):
+        command = [sys.executable, "-m", "experiments.run", "--config", "ppo_sorter", "--out", str(tmp_path / name)]
+        done = subprocess.run([*command, *SORTER_TINY, "seed=3"], capture_output=True, text=True, timeout=1200)
+        assert done.returncode == 0, done.stderr[-2000:]
+    assert computed(tmp_path / "first") == computed(tmp_path / "second")
