@@ -49,10 +49,30 @@ def options_class(cls: type) -> type | None:
     return None if parameter is None else type(parameter.default)
 
 
+def kwarg_defaults(cls: type) -> dict[str, Any]:
+    """Every flat env kwarg `cls`'s constructor takes (each field of its options record as one) -> its default."""
+    defaults = {
+        name: parameter.default
+        for name, parameter in inspect.signature(cls).parameters.items()
+        if name != OPTIONS and parameter.kind not in (parameter.VAR_POSITIONAL, parameter.VAR_KEYWORD)
+    }
+    options = options_class(cls)
+    if options is not None:
+        defaults.update({field.name: field.default for field in dataclasses.fields(options)})
+    return defaults
+
+
 def constructor_kwargs(cls: type, kwargs: Mapping[str, Any]) -> dict[str, Any]:
     """Flat env kwargs as `cls`'s constructor takes them: those naming a field of its options record (if it has one
-    and `kwargs` gives none) gathered into one under `options`; the rest as they are, an unknown one for the
-    constructor to refuse."""
+    and `kwargs` gives none) gathered into one under `options`; the rest as they are. TypeError for a name `cls`
+    does not take, listing those it does (the constructor's own error names neither)."""
+    known = kwarg_defaults(cls)
+    for name in kwargs:
+        if name not in known and name != OPTIONS:
+            raise TypeError(
+                f"{cls.__name__} takes no env kwarg {name!r}{closest_match_hint(name, known)}; "
+                f"it takes {', '.join(known)}"
+            )
     options = options_class(cls)
     if options is None or OPTIONS in kwargs:
         return dict(kwargs)

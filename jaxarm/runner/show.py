@@ -7,7 +7,6 @@ of the env classes', where each field or argument is documented once.
 
 import dataclasses
 import enum
-import inspect
 import re
 import textwrap
 import typing
@@ -16,7 +15,7 @@ import numpy as np
 
 from jaxarm import envs, ranges
 from jaxarm.agents.common.config import RunConfig
-from jaxarm.envs.registry import OPTIONS, options_class
+from jaxarm.envs.registry import kwarg_defaults, options_class
 
 _ENTRY = re.compile(r"^\s{2,}(\w+): (.*)$")
 _SECTION = re.compile(r"^\s{0,4}[A-Z]\w*( \(.*\))?:$")
@@ -104,15 +103,10 @@ def env_kwarg_lines(config: RunConfig) -> list[str]:
     cls = type(env)
     built = {**envs.registered_kwargs(config.env), **dict(config.env_kwargs)}
     docs = attribute_docs(cls, "Args")
-    defaults = {
-        name: parameter.default
-        for name, parameter in inspect.signature(cls).parameters.items()
-        if name != OPTIONS and parameter.kind not in (parameter.VAR_POSITIONAL, parameter.VAR_KEYWORD)
-    }
     options = options_class(cls)
     if options is not None:
-        defaults.update({field.name: field.default for field in dataclasses.fields(options)})
         docs.update(attribute_docs(options))
+    defaults = kwarg_defaults(cls)
     lines = []
     for name, default in defaults.items():
         default = _enum_value(default)

@@ -8,6 +8,7 @@ the envs' own test files, in the same xdist worker as those files' tests (`same_
 """
 
 import copy
+import re
 import warnings
 
 import jax
@@ -200,8 +201,14 @@ def test_flat_env_kwargs_fill_a_panda_tasks_options_and_an_unknown_one_is_refuse
     options = PandaOptions(impl="jax", max_action_latency=1)
     assert constructor_kwargs(PegInsert, flat) == {"dynamics": "franka", "options": options}
     assert constructor_kwargs(PegInsert, {"options": options}) == {"options": options}
-    with pytest.raises(TypeError, match="unexpected keyword argument 'max_action_latancy'"):
+    # One line naming the closest and every valid name (as `--show` lists them), not the constructor's own error.
+    with pytest.raises(
+        TypeError,
+        match=re.escape("no env kwarg 'max_action_latancy' (did you mean 'max_action_latency'?); it takes dynamics,"),
+    ):
         envs.make("peg_insert", max_action_latancy=1)
+    with pytest.raises(TypeError, match=r"takes num_links, obs_mode, resolution, privileged$"):
+        envs.make("arm2d", foo=1)
 
 
 def test_a_diverged_step_terminates_with_zero_observation_and_reward():
