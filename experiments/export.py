@@ -38,10 +38,8 @@ def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Pat
         onnx_model: bytes | None = policy.onnx_policy(trainer, state, observation_size)
     except ImportError:
         onnx_model = None
-    try:
-        controller = from_env.controller(*config.make_eval_env())
-    except ValueError:  # the deployment loop runs the sorter and the peg only
-        controller = None
+    eval_env, eval_params = config.make_eval_env()
+    controller = from_env.controller(eval_env, eval_params) if from_env.runs(eval_env) else None
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / "policy.npz", out_dir / "policy.jax_export"]
     arrays.save(written[0])

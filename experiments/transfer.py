@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 from scipy import stats
 
-from jaxarm import headless, ranges
+from jaxarm import envs, headless, ranges
 from jaxarm.deploy import from_env, scoring
 from jaxarm.deploy.loop import DeploymentLoop, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
@@ -267,11 +267,20 @@ def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int,
     return summary | {"frames": frames} if record else summary
 
 
+def transferable_envs() -> list[str]:
+    """The registered envs the deployment loop runs as registered (the sorter's and the peg's with state
+    observations)."""
+    return [name for name in envs.names() if from_env.runs(envs.make(name))]
+
+
 def transfer(run_dir: pathlib.Path, model_name: str, episodes: int, seed: int, clip: bool, record: bool) -> dict:
-    """`run_episodes` of RUN's exported policy in its eval env; ValueError if the policy is missing or does not
-    fit the env."""
+    """`run_episodes` of RUN's exported policy in its eval env; ValueError if the deployment loop does not run the
+    env, or the policy is missing or does not fit the env."""
     config, _ = rundir.read_config(run_dir)
     env, params = config.make_eval_env()
+    if not from_env.runs(env):
+        kwargs = f" with env_kwargs {dict(config.env_kwargs)}" if config.env_kwargs else ""
+        raise ValueError(f"{run_dir}'s env is {config.env}{kwargs}; transfer runs {', '.join(transferable_envs())}")
     policy_path = run_dir / "export" / "policy.npz"
     if not policy_path.exists():
         raise ValueError(f"no {policy_path}: export the run first (python -m experiments.export {run_dir})")

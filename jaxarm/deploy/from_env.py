@@ -76,12 +76,22 @@ def peg_reward(params) -> scoring.PegReward:
     return scoring.PegReward(**{name: float(getattr(params, name)) for name in names})
 
 
-def controller(env, params) -> Controller:
-    """The numpy controller of `env` (a `PandaSort` or `PegInsert` with state observations) with `params`, posing
-    the arm in the env's own model. ValueError for any other env."""
+def runs(env) -> bool:
+    """Whether the deployment loop runs `env` (or the env it wraps): a `PandaSort` or `PegInsert` with state
+    observations."""
     env = getattr(env, "unwrapped", env)
-    if not isinstance(env, sort_env.PandaSort | peg_env.PegInsert) or env.obs_mode != "state":
-        raise ValueError(f"the deployment loop runs the sorter and the peg with state observations, not {env!r}")
+    return isinstance(env, sort_env.PandaSort | peg_env.PegInsert) and env.obs_mode == "state"
+
+
+def controller(env, params) -> Controller:
+    """The numpy controller of `env` (one the loop `runs`) with `params`, posing the arm in the env's own model.
+    ValueError for any other env."""
+    env = getattr(env, "unwrapped", env)
+    if not runs(env):
+        raise ValueError(
+            f"the deployment loop runs the sorter and the peg with state observations, not {type(env).__name__} "
+            f"with {getattr(env, 'obs_mode', 'its')} observations"
+        )
     kinematics = ArmKinematics(env.mj_model)
     if isinstance(env, sort_env.PandaSort):
         return sort.SortController(sort_task(env, params), kinematics)

@@ -43,6 +43,14 @@ def test_both_pandas_have_the_same_kinematics_and_the_stock_solver():
         np.testing.assert_allclose(rotation_a, rotation_b, atol=1e-6)
 
 
+def test_an_env_transfer_does_not_run_is_named_with_those_it_runs(tmp_path, capsys):
+    rundir.write_config(tmp_path, configs.get("ppo_arm2d"), "ppo_arm2d")
+    assert transfer.main([str(tmp_path)]) == 2
+    error = capsys.readouterr().err
+    assert f"{tmp_path}'s env is arm2d; transfer runs panda_sort, panda_sort3," in error
+    assert "peg_insert\n" in error and "pixels" not in error
+
+
 def wrist_step_response(model: mujoco.MjModel, start_qpos: np.ndarray, seconds: float) -> np.ndarray:
     """Joint 7's angle [T] after each physics step of `seconds`, its target stepped 0.1 rad from rest at
     `start_qpos` [7] (the other joints held)."""
