@@ -240,6 +240,15 @@ def test_an_edited_config_json_is_refused_on_reading(tmp_path):
         rundir.read_config(tmp_path)
 
 
+def test_a_word_for_a_number_says_what_the_field_takes():
+    # float's own error, "could not convert string to float: 'abc'", named neither.
+    with pytest.raises(ValueError, match="^bad value for num_envs: expected an integer, got 'abc'$"):
+        apply_overrides(PPOConfig(), ["num_envs=abc"], validate=False)
+    with pytest.raises(ValueError, match="^bad value for gamma: expected a number, got 'high'$"):
+        apply_overrides(PPOConfig(), ["gamma=high"], validate=False)
+    assert apply_overrides(PPOConfig(), ["total_env_steps=1e6"], validate=False).total_env_steps == 1_000_000
+
+
 def test_env_kwargs_take_true_and_false_as_the_config_fields_do():
     # "false" kept as a string would build an env with a truthy flag.
     sorter = PPOConfig(env="panda_sort")

@@ -194,6 +194,15 @@ class RunConfig:
         return env, envs.override_params(env_params, dict(self.eval_env_params), prefix="eval_env_params.")
 
 
+def parse_number(text: str, expected: str) -> float:
+    """`text` as a float; ValueError saying what was `expected` ("an integer") for anything else, where float's
+    own error ("could not convert string to float") names neither the field's type nor its syntax."""
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"expected {expected}, got {text!r}") from None
+
+
 def parse_value(text: str, annotation) -> Any:
     """Parses a CLI string into `annotation` (int, float, bool, str, tuple[int, ...]); ValueError otherwise."""
     if annotation is bool:
@@ -203,12 +212,13 @@ def parse_value(text: str, annotation) -> Any:
             return False
         raise ValueError(f"expected true/false, got {text!r}")
     if annotation is int:
-        number = float(text)
+        # Through float, so that 1e6 and 1_000_000.0 count as the integers they are.
+        number = parse_number(text, "an integer")
         if not number.is_integer():
             raise ValueError(f"expected an integer, got {text!r}")
         return int(number)
     if annotation is float:
-        return float(text)
+        return parse_number(text, "a number")
     if annotation is str:
         return text
     if typing.get_origin(annotation) is tuple:
