@@ -36,7 +36,7 @@ from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shar
 from jaxarm.agents.common.trainer import Trainer, make_chunk_runner
 from jaxarm.agents.ppo.distill import teacher_input
 from jaxarm.runner import learners, plots, processes, progress, rundir
-from jaxarm.runner.sinks import Sink, TensorBoardSink, WandbOptions, WandbSink
+from jaxarm.runner.sinks import Sink, TensorBoardSink, WandbOptions, WandbSink, wandb_run_id
 
 FINAL_EVAL_SEED_OFFSET = 1_000_003
 """Evaluations during and at the end of training use key `seed + FINAL_EVAL_SEED_OFFSET`: the same episodes
@@ -562,7 +562,9 @@ class _RunLog:
         purge_step = resumed_at + 1 if done_updates else None
         self.sinks: list[Sink] = [TensorBoardSink(run_dir / "tensorboard", purge_step=purge_step)]
         if options.wandb:
-            self.sinks.append(WandbSink(options.wandb, run_dir, json.loads((run_dir / "config.json").read_text())))
+            config = json.loads((run_dir / "config.json").read_text())
+            run_id = wandb_run_id(run_dir.name, rundir.first_provenance(run_dir))
+            self.sinks.append(WandbSink(options.wandb, run_dir, config, run_id))
         stack.enter_context(closing(self.sinks))
         self.bar = stack.enter_context(progress.Progress(trainer.num_updates * trainer.env_steps_per_update))
         self.file = stack.enter_context((run_dir / "metrics.jsonl").open("a"))

@@ -365,6 +365,11 @@ def append_provenance(directory: pathlib.Path, event: str) -> dict:
     return entry
 
 
+def first_provenance(directory: pathlib.Path) -> dict:
+    """The first record of `directory`'s provenance.json: where, when and how training first started there."""
+    return read_provenance(directory / PROVENANCE_FILE)[0]
+
+
 def write_json(path: pathlib.Path, data: dict) -> None:
     """Writes `data` to `path` whole or not at all (a temporary file renamed over it): a process killed while
     writing leaves the previous file."""

@@ -6,6 +6,7 @@ imported only when a run asks for it; offline mode is wandb's own (`WANDB_MODE=o
 """
 
 import dataclasses
+import hashlib
 import importlib
 import pathlib
 import sys
@@ -67,10 +68,20 @@ class WandbOptions:
     offline: bool = False
 
 
-class WandbSink:
-    """One wandb run per run directory (its name; resumed runs continue it), each metric against env steps."""
+def wandb_run_id(name: str, first_start: dict[str, Any]) -> str:
+    """The wandb run id of the run directory `name` whose training first started as `first_start` records (its
+    provenance record): the name and 8 hex digits of that start's host, time and command. wandb merges the runs of
+    one id in a project, so the name alone made two runs called `mine` one; a resumed run keeps its first start,
+    and so its id."""
+    started = f"{first_start['hostname']} {first_start['time']} {first_start['command']}"
+    return f"{name}-{hashlib.sha256(started.encode()).hexdigest()[:8]}"
 
-    def __init__(self, options: WandbOptions, run_dir: pathlib.Path, config: dict[str, Any]):
+
+class WandbSink:
+    """One wandb run per run directory (named as it, with the id `wandb_run_id`: resumed runs continue it), each
+    metric against env steps."""
+
+    def __init__(self, options: WandbOptions, run_dir: pathlib.Path, config: dict[str, Any], run_id: str):
         try:
             wandb = importlib.import_module("wandb")
         except ImportError:
@@ -78,7 +89,7 @@ class WandbSink:
         self.run = wandb.init(
             project=options.project,
             name=run_dir.name,
-            id=run_dir.name,
+            id=run_id,
             resume="allow",
             dir=str(run_dir),
             config=config,
