@@ -238,8 +238,9 @@ def _train_locked(
     run_steps = config.num_updates * config.env_steps_per_update
     if run_steps > config.total_env_steps and processes.is_primary():
         print(
-            f"total_env_steps={config.total_env_steps:,} runs as {run_steps:,} env steps: {config.num_updates:,} "
-            f"updates in whole chunks of {config.chunk_updates:,}",
+            f"total_env_steps={config.total_env_steps:,} runs as {run_steps:,} env steps "
+            f"(+{run_steps / config.total_env_steps - 1:.0%}): {config.num_updates:,} updates in whole chunks of "
+            f"{config.chunk_updates:,}",
             file=sys.stderr,
         )
     evaluators = _Evaluators.of(trainer, config)

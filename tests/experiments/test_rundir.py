@@ -308,7 +308,10 @@ def test_lists_parse_with_brackets_too():
 def test_a_budget_that_whole_chunks_overshoot_is_reported(tmp_path, capsys):
     # 1,024 env steps an update: 20,000 need 19.5 updates, run as 5 whole chunks of 4 (20,480 env steps).
     assert run_cli("total_env_steps=20000", "--out", str(tmp_path / "run")) == 0
-    assert "total_env_steps=20,000 runs as 20,480 env steps: 20 updates in whole chunks of 4" in capsys.readouterr().err
+    assert (
+        "total_env_steps=20,000 runs as 20,480 env steps (+2%): 20 updates in whole chunks of 4"
+        in capsys.readouterr().err
+    )
 
 
 def test_what_the_commands_write_beside_a_run_is_part_of_it(tmp_path):
