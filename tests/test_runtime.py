@@ -4,6 +4,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from jaxarm import _runtime
 
 
@@ -41,9 +43,13 @@ def test_a_child_process_makes_its_parents_choice():
     assert child.stdout.strip() == str(_runtime._cpu_flag_applied)
 
 
-def test_importing_the_learners_and_mjx_envs_prints_nothing():
-    """mujoco-mjx prints "Failed to import warp" on import without warp-lang; every command started with it."""
-    program = "import experiments.configs, jaxarm.envs.panda_sort, jaxarm.envs.peg_insert"
+@pytest.mark.parametrize(
+    "program",
+    ["import experiments.configs, jaxarm.envs.panda_sort, jaxarm.envs.peg_insert", "import jaxarm.interop.brax_env"],
+)
+def test_importing_the_learners_mjx_envs_and_brax_adapter_prints_nothing(program):
+    """mujoco-mjx prints "Failed to import warp" on import without warp-lang; every command started with it, and
+    the brax adapter (brax imports mujoco.mjx) imported alone."""
     done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert done.stdout == ""

@@ -29,11 +29,16 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-from brax.envs import base as brax_base
-from brax.envs.wrappers.training import VmapWrapper
 
-from jaxarm.envs import AutoReset, EnvState
-from jaxarm.interop.brax_compat import install_device_put_replicated
+from jaxarm._runtime import import_mjx_quietly
+
+import_mjx_quietly()  # before brax, which imports mujoco.mjx
+
+from brax.envs import base as brax_base  # noqa: E402
+from brax.envs.wrappers.training import VmapWrapper  # noqa: E402
+
+from jaxarm.envs import AutoReset, EnvState  # noqa: E402
+from jaxarm.interop.brax_compat import install_device_put_replicated  # noqa: E402
 
 # Keys the brax AutoResetWrapper adds to `info`; seeing one means brax is resetting this env too.
 _BRAX_AUTO_RESET_KEY = "first_pipeline_state"
