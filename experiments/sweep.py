@@ -18,6 +18,7 @@ as a checkpoint of all its members.
 import argparse
 import csv
 import dataclasses
+import functools
 import json
 import pathlib
 import shutil
@@ -358,7 +359,8 @@ def main(argv=None) -> int:
                 rundir.write_json(out / SWEEP_FILE, {"config": config_name, "seeds": seeds, "assignments": assignments})
             sweep(base, grid, seeds, out, title, stop_after_s)
     except Stopped as stopped:
-        print(f"{stopped}; continue with: python -m experiments.sweep --resume {out}")
+        if processes.is_primary():
+            print(f"{stopped}; continue with: python -m experiments.sweep --resume {out}")
         return 0
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
@@ -428,6 +430,10 @@ def read_group(folder: pathlib.Path) -> tuple[list[dict], dict] | None:
     return kept["rows"], curves
 
 
+def silent(line: str) -> None:
+    """The progress of a process that prints none (not the primary)."""
+
+
 def sweep(
     base: RunConfig,
     grid: Grid,
@@ -441,6 +447,8 @@ def sweep(
     into `out` (the other processes of a distributed sweep only train and checkpoint). Raises Stopped once
     `stop_after_s` seconds have passed with a group unfinished (its checkpoint in `out`)."""
     deadline = None if stop_after_s is None else time.perf_counter() + stop_after_s
+    # Every process reaches the same lines: the primary's alone reach the console, once.
+    progress = functools.partial(print, flush=True) if primary else silent
     rows: list[dict] = []
     curves: dict = {}
     shared = shared_changes(grid, base)
@@ -448,11 +456,10 @@ def sweep(
         folder = out / f"group-{index}"
         finished = read_group(folder)
         if finished is None:
-            print(
-                f"group {describe(changes(config, base, {}), [])}: {len(grid.dynamic)} settings × {seeds} seeds",
-                flush=True,
+            progress(f"group {describe(changes(config, base, {}), [])}: {len(grid.dynamic)} settings × {seeds} seeds")
+            metrics, results, wall = run_group(
+                config, grid.dynamic, seeds, folder / "checkpoints", deadline, progress=progress
             )
-            metrics, results, wall = run_group(config, grid.dynamic, seeds, folder / "checkpoints", deadline)
             finished = collect(config, base, shared, grid.dynamic, seeds, metrics, results, wall)
             if primary:
                 write_group(folder, *finished)

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from experiments import configs, distributed, run, sweep
+from jaxarm.agents.common.config import apply_overrides
 from jaxarm.runner import load_run, read_metrics, rundir
 
 OVERRIDES = [
@@ -271,6 +272,14 @@ def test_a_sweep_over_local_processes_starts_them_on_one_directory(monkeypatch, 
     assert started == [(sweep.main, ["--out", str(pathlib.Path("runs") / out.name), *asked], 2)]
     assert sweep.main(["--resume", "stopped", "--local-processes", "2"]) == 0
     assert started[-1] == (sweep.main, ["--resume", "stopped", "--local-processes", "2"], 2)
+
+
+def test_only_the_primary_process_prints_a_sweeps_progress(tmp_path, capsys):
+    # Each process of a distributed sweep runs `sweep` alike: the console had every line once per process.
+    # (The primary's lines: test_faults' sweeps.) One update of the smallest run: the compiling takes the time.
+    base = apply_overrides(configs.get("ppo_arm2d_fixed"), [*OVERRIDES, "total_env_steps=128", "eval_episodes=2"])
+    sweep.sweep(base, sweep.parse_grid(base, []), 1, tmp_path, "other", primary=False)
+    assert capsys.readouterr().out == ""
 
 
 def sweep_results(out, device_count: int, stopped: bool = False, processes: int = 1) -> list[dict]:
