@@ -8,6 +8,8 @@ From the run's latest checkpoint, writes into RUN_DIR/export/ (or --out):
   policy.onnx        the same as an ONNX model, when jax2onnx is installed (`pip install -e ".[export]"`)
   deploy.json, robot.mjb   for the sorter and the peg (state observations): the deployment loop's task and the
                      scene it poses the arm in; `jaxarm.deploy.files.load(dir)` builds its controller without JAX
+  export.json        which checkpoint the policy came from (its update count): `experiments.transfer` names its
+                     results by it
 Every form maps flat observations float32 [B, O] (or [O] for the numpy policy) to deterministic actions.
 """
 
@@ -18,7 +20,7 @@ import sys
 from jaxarm.agents.common import checkpoint
 from jaxarm.deploy import files as deploy_files
 from jaxarm.deploy import from_env
-from jaxarm.export import policy
+from jaxarm.export import origin, policy
 from jaxarm.runner import learners, rundir
 
 
@@ -41,6 +43,8 @@ def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Pat
     eval_env, eval_params = config.make_eval_env()
     controller = from_env.controller(eval_env, eval_params) if from_env.runs(eval_env) else None
     out_dir.mkdir(parents=True, exist_ok=True)
+    # Removed first and written last: an export cut short leaves no record, never one naming another checkpoint.
+    (out_dir / origin.FILE).unlink(missing_ok=True)
     written = [out_dir / "policy.npz", out_dir / "policy.jax_export"]
     arrays.save(written[0])
     written[1].write_bytes(serialized)
@@ -49,6 +53,8 @@ def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Pat
         written[2].write_bytes(onnx_model)
     if controller is not None:
         written += deploy_files.save(out_dir, controller)
+    written.append(out_dir / origin.FILE)
+    rundir.write_json(written[-1], origin.record(str(int(state.updates))))
     return written
 
 

@@ -17,7 +17,7 @@ from jaxarm import envs
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
-from jaxarm.export import numpy_policy
+from jaxarm.export import numpy_policy, origin
 from jaxarm.interop.gymnasium_env import GymnasiumEnv
 from jaxarm.runner import learners, rundir
 
@@ -89,7 +89,8 @@ def test_every_exported_form_acts_as_the_learner(exported):
     assert np.std(expected) > 0.1, "a policy this flat would hide errors in the export"
     files = sorted(path.name for path in (run_dir / "export").iterdir())
     with_onnx = importlib.util.find_spec("jax2onnx") is not None
-    assert files == ["policy.jax_export", "policy.npz", *(["policy.onnx"] if with_onnx else [])]
+    assert files == ["export.json", "policy.jax_export", "policy.npz", *(["policy.onnx"] if with_onnx else [])]
+    assert origin.read(run_dir / "export") == str(int(state.updates))  # as experiments.eval names a checkpoint
 
     policy = numpy_policy.load(run_dir / "export" / "policy.npz")
     np.testing.assert_allclose(policy(obs), expected, atol=TOLERANCE)
