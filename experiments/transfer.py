@@ -9,8 +9,9 @@ deployment loop (`jaxarm.deploy`): the robot's reading -> the env's observation 
 by `python -m experiments.export RUN`) -> the env's controller in numpy -> servo targets within Franka's speed and
 acceleration limits (clipped, and each clip counted; `--no-clip` only counts). Each episode starts where the run's
 eval env would start one (its reset, drawn by JAX); from there no jaxarm env code runs, and success and return are
-recomputed from MuJoCo's state in numpy (`jaxarm.deploy.scoring`). Writes RUN/transfer-<model>-<episodes>-<seed>.json
-and, with --video, RUN/transfer-<model>.gif (or .mp4) of the first episode.
+recomputed from MuJoCo's state in numpy (`jaxarm.deploy.scoring`). Writes
+RUN/transfer-<model>-<episodes>-<seed>-<update>[-noclip].json (<update>: the checkpoint the policy was exported from,
+as RUN/export/export.json says) and, with --video, the same name .gif (or .mp4) of the first episode.
 """
 
 import argparse
@@ -37,7 +38,7 @@ from jaxarm.envs.panda_sort.objects import object_mass_inertia, pose_index, velo
 from jaxarm.envs.panda_sort.render import dress_objects
 from jaxarm.envs.peg_insert import model as peg_model
 from jaxarm.envs.peg_insert.env import PegInsert
-from jaxarm.export import numpy_policy
+from jaxarm.export import numpy_policy, origin
 from jaxarm.runner import rundir, video
 
 MODELS = ("jaxarm", "menagerie")
@@ -274,8 +275,9 @@ def transferable_envs() -> list[str]:
 
 
 def transfer(run_dir: pathlib.Path, model_name: str, episodes: int, seed: int, clip: bool, record: bool) -> dict:
-    """`run_episodes` of RUN's exported policy in its eval env; ValueError if the deployment loop does not run the
-    env, or the policy is missing or does not fit the env."""
+    """`run_episodes` of RUN's exported policy in its eval env, with the checkpoint it came from ("checkpoint");
+    ValueError if the deployment loop does not run the env, or the policy or its export.json is missing or damaged,
+    or the policy does not fit the env."""
     config, _ = rundir.read_config(run_dir)
     env, params = config.make_eval_env()
     if not from_env.runs(env):
@@ -287,7 +289,8 @@ def transfer(run_dir: pathlib.Path, model_name: str, episodes: int, seed: int, c
     policy = numpy_policy.load(policy_path)
     if policy.observation_size != env.spec.observation_shape[0] or policy.action_size != env.spec.action_shape[0]:
         raise ValueError(f"{policy_path} does not fit the run's env ({env.spec})")
-    return run_episodes(env, params, policy, model_name, episodes, seed, clip, record)
+    checkpoint_name = origin.read(policy_path.parent)
+    return {"checkpoint": checkpoint_name} | run_episodes(env, params, policy, model_name, episodes, seed, clip, record)
 
 
 def main(argv=None) -> int:
@@ -309,7 +312,8 @@ def main(argv=None) -> int:
         ranges.check_value("--episodes", args.episodes, int, ranges.AT_ONCE)
         result = transfer(run_dir, args.model, args.episodes, args.seed, not args.no_clip, args.video is not None)
         frames = result.pop("frames", [])
-        path = run_dir / f"transfer-{args.model}-{args.episodes}-{args.seed}.json"
+        stem = rundir.transfer_stem(run_dir, args.model, args.episodes, args.seed, result["checkpoint"], result["clip"])
+        path = stem.with_suffix(".json")
         rundir.write_json(path, result)
         low, high = result["success_ci95"]
         print(
@@ -321,7 +325,7 @@ def main(argv=None) -> int:
         )
         print(f"wrote {path}")
         if args.video:
-            video_path = run_dir / f"transfer-{args.model}.{args.video}"
+            video_path = stem.with_suffix(f".{args.video}")
             video.write_video(video_path, frames)
             print(f"wrote {video_path} ({len(frames)} frames)")
     except (ValueError, UnsafeAction, video.RenderError, mujoco.FatalError) as error:

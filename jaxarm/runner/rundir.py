@@ -14,7 +14,8 @@ Layout of `runs/<config>-<timestamp>/`:
   eval.json        deterministic evaluation at the end of training
   eval-<episodes>-<seed>-<update|best>.json, video.gif, video.mp4   written by `experiments.eval`
   robustness-<episodes>-<seed>-<update|best>-<digest>.json, .md, .png   written by `experiments.eval --perturb`
-  export/          the policy exported by `experiments.export`
+  transfer-<model>-<episodes>-<seed>-<update|best>[-noclip].json, .gif, .mp4   written by `experiments.transfer`
+  export/          the policy exported by `experiments.export`, and export.json: the checkpoint it came from
   teacher/         the run of a teacher named by preset (`teacher=preset:NAME`), trained first; kept when the
                    student starts afresh
   .lock            held (flock) by the one process writing to the directory
@@ -393,6 +394,15 @@ def robustness_stem(
     table nor another request's replaces it; the same request of the same checkpoint writes the same table again."""
     digest = hashlib.sha256("\n".join(request).encode()).hexdigest()[:8]
     return run_dir / f"robustness-{episodes}-{seed}-{checkpoint_name}-{digest}"
+
+
+def transfer_stem(
+    run_dir: pathlib.Path, model: str, episodes: int, seed: int, checkpoint_name: str, clip: bool
+) -> pathlib.Path:
+    """Where `experiments.transfer` writes its results (stem of its .json and video): named by the Panda `model`,
+    the episodes, the seed, the checkpoint the exported policy came from (as `eval_path` names it) and `-noclip`
+    where commands beyond Franka's limits were sent, so that no other transfer replaces it."""
+    return run_dir / f"transfer-{model}-{episodes}-{seed}-{checkpoint_name}{'' if clip else '-noclip'}"
 
 
 def read_metrics(run_dir: pathlib.Path, drop_partial_last: bool = False) -> list[dict]:

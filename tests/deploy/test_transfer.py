@@ -21,6 +21,8 @@ from jaxarm.envs.panda.robot import MENAGERIE_TIMESTEP, resolve_panda_ids, tcp_p
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.peg_insert.env import PegInsert
 from jaxarm.envs.peg_insert.params import RUNNING_TARGET_MAX_LEAD
+from jaxarm.export import origin
+from jaxarm.export.numpy_policy import EXPORT_AGAIN
 from jaxarm.runner import rundir
 
 
@@ -129,9 +131,10 @@ def test_the_transfer_cli_runs_an_exported_sorter_policy_on_both_pandas(tmp_path
     policy = random_policy(config, env.spec.observation_shape[0], env.spec.action_shape[0], np.random.default_rng(0))
     (tmp_path / "export").mkdir()
     policy.save(tmp_path / "export" / "policy.npz")
+    rundir.write_json(tmp_path / "export" / origin.FILE, origin.record("24"))
     for name in transfer.MODELS:
         assert transfer.main([str(tmp_path), "--model", name, "--episodes", "2"]) == 0
-        result = json.loads((tmp_path / f"transfer-{name}-2-12345.json").read_text())
+        result = json.loads((tmp_path / f"transfer-{name}-2-12345-24.json").read_text())
         assert result["model"] == name and result["ticks"] == 40 and result["steps_mean"] == 20
         assert 0.0 <= result["success_rate"] <= result["success_ci95"][1] <= 1.0
         assert len(result["acceleration_clips"]) == len(result["speed_clips"]) == 7
@@ -152,6 +155,23 @@ def test_transfer_refuses_a_damaged_policy_too_many_episodes_and_a_video_without
     )
     assert transfer.main([str(tmp_path), "--episodes", "100000000"]) == 2
     assert capsys.readouterr().err == "error: --episodes must be in [1, 1048576], got 100000000\n"
+
+    # A policy without its record of the checkpoint it came from (an earlier version's export) is refused: its
+    # results could not be told from another checkpoint's.
+    config, _ = rundir.read_config(tmp_path)
+    env, _ = config.make_eval_env()
+    random_policy(config, env.spec.observation_shape[0], env.spec.action_shape[0], np.random.default_rng(0)).save(
+        policy_path
+    )
+    origin_path = tmp_path / "export" / origin.FILE
+    assert transfer.main([str(tmp_path), "--episodes", "2"]) == 2
+    missing = f"error: no {origin_path} (which checkpoint the policy came from); {EXPORT_AGAIN}\n"
+    assert capsys.readouterr().err == missing
+    for content in ['{"checkpoint": "../24"}', '{"update": 24}', "[]", "\x00"]:
+        origin_path.write_text(content)
+        assert transfer.main([str(tmp_path), "--episodes", "2"]) == 2
+        error = capsys.readouterr().err
+        assert error.startswith(f"error: {origin_path} is damaged or edited (") and error.count("\n") == 1, error
 
     def no_gl():
         raise mujoco.FatalError("an OpenGL platform library has not been loaded into this process")

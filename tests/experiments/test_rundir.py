@@ -365,3 +365,18 @@ def test_robustness_tables_of_other_checkpoints_or_requests_never_replace_each_o
     for path in [stem, *others]:
         path.with_suffix(".json").write_text("{}")
     assert rundir.foreign_files(tmp_path) == []
+
+
+def test_transfers_of_other_checkpoints_or_clipping_never_replace_each_other(tmp_path):
+    stems = [
+        rundir.transfer_stem(tmp_path, "jaxarm", 200, 7, "24", clip=True),
+        rundir.transfer_stem(tmp_path, "jaxarm", 200, 7, "24", clip=False),
+        rundir.transfer_stem(tmp_path, "jaxarm", 200, 7, "best", clip=True),
+        rundir.transfer_stem(tmp_path, "menagerie", 200, 7, "24", clip=True),
+    ]
+    assert stems[0].name == "transfer-jaxarm-200-7-24" and stems[1].name == "transfer-jaxarm-200-7-24-noclip"
+    assert len(set(stems)) == 4
+    for stem in stems:
+        for suffix in (".json", ".gif", ".mp4"):
+            stem.with_suffix(suffix).write_text("")
+    assert rundir.foreign_files(tmp_path) == []
