@@ -165,14 +165,19 @@ def check_fields(instance: Any) -> None:
 
 def param_array(name: str, value: Any, like: np.ndarray) -> np.ndarray:
     """`value` as an array of `like`'s dtype; ValueError naming `name` for a non-number, a non-integer or an int32
-    overflow where `like` holds integers, and NaN or inf where it holds floats. Shapes are the caller's to check."""
+    overflow where `like` holds integers, and NaN, inf or a magnitude beyond the dtype's largest where it holds
+    floats. Shapes are the caller's to check."""
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a number or an array of numbers, got {value!r}") from None
     if not np.all(np.isfinite(array)):
         raise ValueError(f"{name} must be finite, got {value}")
-    if np.issubdtype(like.dtype, np.integer):
+    if np.issubdtype(like.dtype, np.floating):
+        largest = float(np.finfo(like.dtype).max)
+        if np.any(np.abs(array) > largest):  # it would become inf
+            raise ValueError(f"{name} must fit in {like.dtype} (at most {largest:g} in magnitude), got {value}")
+    elif np.issubdtype(like.dtype, np.integer):
         if not np.all(array == np.round(array)):
             raise ValueError(f"{name} must be an integer, got {value}")
         if np.any(array < INT32.min) or np.any(array > INT32.max):

@@ -49,14 +49,15 @@ class ParamRange:
 
     def check_within(self, name: str, field: dataclasses.Field, like: np.ndarray) -> None:
         """ValueError, naming `randomize.NAME`, unless every value this range draws for the param `field` (with
-        `like`'s dtype) lies in the param's declared range and, for integers, in int32 and at least one exists."""
+        `like`'s dtype) lies in the param's declared range and in the dtype (int32, float32) and, for integers, at
+        least one exists."""
         text = f"randomize.{name}={'log:' if self.log else ''}{self.low:g}..{self.high:g}"
         low, high = self.low, self.high
         if np.issubdtype(like.dtype, np.integer):
             low, high = float(np.ceil(low)), float(np.floor(high))
             if low > high:
                 raise ValueError(f"{text} holds no whole number, and {name} is an integer")
-            allowed_values.param_array(text, [low, high], like)  # int32 overflow
+        allowed_values.param_array(text, [low, high], like)  # beyond int32, or float32's largest: drawn as inf
         declared = allowed_values.declared_range(field)
         if declared is None:
             return

@@ -95,6 +95,7 @@ def test_configs_take_ranges_from_overrides_and_check_them():
         ("goal_mode=0..7", "must be one of 0, 1, 2"),
         ("max_episode_steps=1..1e10", "must fit in int32"),
         ("max_episode_steps=2.2..2.7", "holds no whole number"),
+        ("goal_bonus=-1e40..1", "must fit in float32 (at most 3.40282e+38 in magnitude)"),
     ],
 )
 def test_ranges_that_draw_values_a_param_may_not_take_are_refused(text, message):
