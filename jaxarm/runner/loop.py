@@ -184,9 +184,11 @@ def resume(run_dir: pathlib.Path, overrides: Sequence[str] = (), options=Options
     run_dir = pathlib.Path(run_dir)
     # Checked before the lock writes anything: a directory that is no run, or overrides it may not take.
     config, preset = rundir.read_config(run_dir)
-    rundir.check_config_unedited(run_dir, config)
+    unchecked = rundir.check_config_unedited(run_dir, config)
     config = rundir.apply_resume_overrides(config, list(overrides))
     with _locked_by_primary(run_dir):
+        if unchecked and processes.is_primary():
+            print(f"warning: {unchecked}", file=sys.stderr)
         finished = None if overrides else rundir.finished_evaluation(run_dir, config)
         if finished is not None:
             # Nothing asked: evaluating again would only rewrite eval.json (experiments.eval writes its own file).

@@ -262,15 +262,24 @@ def record_checkpoint_config(run_dir: pathlib.Path) -> None:
     write_json(run_dir / "checkpoints" / "config.json", json.loads((run_dir / "config.json").read_text()))
 
 
-def check_config_unedited(run_dir: pathlib.Path, config: RunConfig) -> None:
+def check_config_unedited(run_dir: pathlib.Path, config: RunConfig) -> str | None:
     """RunDirError when `config` (run_dir's config.json) differs from the config of the latest checkpoint in a
-    field a resume may not change (`check_resumable`); nothing to check where that record is missing or
-    unreadable."""
+    field a resume may not change (`check_resumable`). Where the run has checkpoints but that record is missing,
+    nothing can be checked: returns a warning saying so, in one line (refusing would stop a run whose record a kill
+    between its first checkpoint and the record left missing); else None."""
+    record = run_dir / "checkpoints" / "config.json"
+    if not record.exists():
+        if not any_checkpoint_files(run_dir):
+            return None  # a run that starts afresh: no checkpoint to hold its config to
+        return (
+            f"{record}, the config of the latest checkpoint, is missing: an edit of {run_dir / 'config.json'} "
+            "since then cannot be checked; resuming with config.json as it is"
+        )
     try:
-        saved, _ = read_config(run_dir, run_dir / "checkpoints" / "config.json")
+        saved, _ = read_config(run_dir, record)
     except ValueError:
-        # None (a run saved before this record) or damaged with its checkpoints: restoring them says what is wrong.
-        return
+        # Damaged with its checkpoints: restoring them says what is wrong.
+        return None
     changed = [
         field.name for field in dataclasses.fields(config) if getattr(config, field.name) != getattr(saved, field.name)
     ]
@@ -278,6 +287,7 @@ def check_config_unedited(run_dir: pathlib.Path, config: RunConfig) -> None:
         check_resumable(
             config, name, f"editing {run_dir / 'config.json'} ({name} was {getattr(saved, name)!r} at the checkpoint)"
         )
+    return None
 
 
 def read_config(

@@ -242,6 +242,20 @@ def test_an_edited_config_is_held_to_what_a_resume_may_change(reference, tmp_pat
     assert run.main(["--resume", str(edited)]) == 0, "what the CLI may change, an edit may change too"
 
 
+def test_an_edit_that_cannot_be_checked_is_said_in_one_line(reference, tmp_path, capsys):
+    edited = tmp_path / "edited"
+    shutil.copytree(reference, edited)
+    (edited / "checkpoints" / "config.json").unlink()
+    config = json.loads((edited / "config.json").read_text())
+    (edited / "config.json").write_text(json.dumps({**config, "learning_rate": 0.01}))
+    assert run.main(["--resume", str(edited)]) == 0
+    (line,) = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+    assert line == (
+        f"warning: {edited / 'checkpoints' / 'config.json'}, the config of the latest checkpoint, is missing: an "
+        f"edit of {edited / 'config.json'} since then cannot be checked; resuming with config.json as it is"
+    )
+
+
 def test_a_budget_below_the_work_done_is_refused(reference):
     config, preset = rundir.read_config(reference)
     # What `--resume RUN total_env_steps=4096` asks of a run whose budget may change (no annealed schedule).
