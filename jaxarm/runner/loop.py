@@ -451,7 +451,9 @@ def _start(
             rundir.append_provenance(run_dir, "resume")
             if overrides:
                 rundir.record_resume(run_dir, config, preset, overrides, done_updates)
-            rundir.truncate_metrics(run_dir, done_updates)
+            gap = rundir.missing_metrics(run_dir, rundir.truncate_metrics(run_dir, done_updates), done_updates)
+            if gap:
+                print(f"warning: {gap}", file=sys.stderr)
         wall_offset = max([row["wall_time"] for row in rundir.read_metrics(run_dir)], default=0.0)
         best_path = run_dir / "best.json"
         best = json.loads(best_path.read_text()) if best_path.exists() else None

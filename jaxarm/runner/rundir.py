@@ -440,10 +440,34 @@ def read_metrics(run_dir: pathlib.Path, drop_partial_last: bool = False) -> list
     return rows
 
 
-def truncate_metrics(run_dir: pathlib.Path, max_update: int) -> None:
-    """Drops metric rows after `max_update` (rows a killed run logged past its last checkpoint, or half wrote)."""
+def truncate_metrics(run_dir: pathlib.Path, max_update: int) -> list[dict]:
+    """Drops metric rows after `max_update` (rows a killed run logged past its last checkpoint, or half wrote);
+    returns the rows kept."""
     rows = [row for row in read_metrics(run_dir, drop_partial_last=True) if row["updates"] <= max_update]
     (run_dir / "metrics.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
+    return rows
+
+
+def missing_metrics(run_dir: pathlib.Path, rows: list[dict], done_updates: int) -> str | None:
+    """None where `rows` (metrics.jsonl's) hold one row for each of the `done_updates` a resumed checkpoint has
+    done; else, in one line, which are missing (metrics.jsonl cut short, deleted or edited) and that the run goes
+    on: the checkpoint holds all that training needs, and refusing would not bring the rows back."""
+    logged = {row.get("updates") for row in rows}
+    missing = [update for update in range(1, done_updates + 1) if update not in logged]
+    if not missing:
+        return None
+    spans: list[list[int]] = []
+    for update in missing:
+        if spans and spans[-1][1] == update - 1:
+            spans[-1][1] = update
+        else:
+            spans.append([update, update])
+    shown = ", ".join(str(low) if low == high else f"{low}-{high}" for low, high in spans[:3])
+    return (
+        f"{run_dir / 'metrics.jsonl'} lacks the rows of updates {shown}{', ...' if len(spans) > 3 else ''} "
+        f"({len(missing):,} of the {done_updates:,} the checkpoint has done: cut short, deleted or edited); resuming "
+        "from the checkpoint, which holds all training needs; the curve will have that gap"
+    )
 
 
 def flatten_metrics(metrics, prefix: str = "") -> dict[str, np.ndarray]:

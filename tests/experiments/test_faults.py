@@ -256,6 +256,24 @@ def test_an_edit_that_cannot_be_checked_is_said_in_one_line(reference, tmp_path,
     )
 
 
+@pytest.mark.parametrize("kept", [10, 0, None])
+def test_metrics_cut_short_or_deleted_are_named_on_resume_and_the_rows_left_are_kept(reference, tmp_path, capsys, kept):
+    cut = tmp_path / "cut"
+    shutil.copytree(reference, cut)
+    rows = rundir.read_metrics(cut)
+    if kept is None:
+        (cut / "metrics.jsonl").unlink()
+    else:
+        (cut / "metrics.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows[:kept]))
+    # A resume that trains on (here: none left to do, then the final evaluation) goes from the checkpoint.
+    assert run.main(["--resume", str(cut), "eval_episodes=4"]) == 0
+    (line,) = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+    missing = 24 - (kept or 0)
+    assert line.startswith(f"warning: {cut / 'metrics.jsonl'} lacks the rows of updates {25 - missing}-24 ")
+    assert f"({missing} of the 24 the checkpoint has done: cut short, deleted or edited); resuming" in line
+    assert rundir.read_metrics(cut) == rows[: kept or 0], "the rows left are kept as they were"
+
+
 def test_a_budget_below_the_work_done_is_refused(reference):
     config, preset = rundir.read_config(reference)
     # What `--resume RUN total_env_steps=4096` asks of a run whose budget may change (no annealed schedule).

@@ -380,3 +380,12 @@ def test_transfers_of_other_checkpoints_or_clipping_never_replace_each_other(tmp
         for suffix in (".json", ".gif", ".mp4"):
             stem.with_suffix(suffix).write_text("")
     assert rundir.foreign_files(tmp_path) == []
+
+
+def test_missing_metric_rows_are_named_by_their_spans(tmp_path):
+    rows = [{"updates": update} for update in (1, 2, 5, 6, 9, 11, 13)]
+    assert rundir.missing_metrics(tmp_path, rows[:2], 2) is None
+    message = rundir.missing_metrics(tmp_path, rows, 14)
+    assert message is not None and message.startswith(
+        f"{tmp_path / 'metrics.jsonl'} lacks the rows of updates 3-4, 7-8, 10, ... (7 of the 14 the checkpoint"
+    )
