@@ -8,34 +8,27 @@ config field and env param with its default and meaning. On a host of several GP
 process per GPU by itself (`--local-processes 1` keeps one process); `num_envs` is the total over all of them.
 """
 
-import os
 import signal
 import sys
 
-
-def _exit_during_start_up(signum, frame):
-    print("\ninterrupted while starting: nothing was written", file=sys.stderr, flush=True)
-    os._exit(130)
-
+from experiments import start_up
 
 if __name__ == "__main__":
-    # First: a KeyboardInterrupt raised inside the imports below can be swallowed by a library's broad `except`
-    # (the run then trained to the end in 4 of 15 Ctrl-C during start-up), and nothing is written before main().
-    signal.signal(signal.SIGINT, _exit_during_start_up)
+    start_up.exit_on_ctrl_c()  # first: nothing is written before main()
 
-import argparse  # noqa: E402
-import logging  # noqa: E402
-import math  # noqa: E402
-import pathlib  # noqa: E402
+import argparse
+import logging
+import math
+import pathlib
 
-from experiments import configs, distributed  # noqa: E402
-from jaxarm.agents.common import checkpoint  # noqa: E402
-from jaxarm.agents.common.config import RunConfig, apply_overrides  # noqa: E402
-from jaxarm.agents.ppo import PPOConfig  # noqa: E402
-from jaxarm.envs.panda.mjx_impl import warp_available  # noqa: E402
-from jaxarm.runner import loop, processes, rundir, show  # noqa: E402
-from jaxarm.runner.cache import enable_compilation_cache  # noqa: E402
-from jaxarm.runner.sinks import WandbOptions  # noqa: E402
+from experiments import configs, distributed
+from jaxarm.agents.common import checkpoint
+from jaxarm.agents.common.config import RunConfig, apply_overrides
+from jaxarm.agents.ppo import PPOConfig
+from jaxarm.envs.panda.mjx_impl import warp_available
+from jaxarm.runner import loop, processes, rundir, show
+from jaxarm.runner.cache import enable_compilation_cache
+from jaxarm.runner.sinks import WandbOptions
 
 
 def minutes(text: str) -> float:

@@ -9,11 +9,19 @@ seeds and values are shared out over them, each run whole on one device (as many
 `--local-processes N` runs the sweep as N processes of this host, one GPU each, and `--distributed` as one of
 several processes on several hosts.
 
-`--stop-after-minutes M` checkpoints every member after the chunk that passes M minutes and stops;
+`--stop-after-minutes M` checkpoints every member after the chunk that passes M minutes and stops, and Ctrl-C or
+SIGTERM at the next chunk end (Ctrl-C again: at once, keeping the checkpoints saved before);
 `python -m experiments.sweep --resume SWEEP_DIR [--stop-after-minutes M]` continues it, computing what an
 uninterrupted sweep computes. Finished groups are kept in the sweep directory (group-<k>/), the group in progress
 as a checkpoint of all its members.
 """
+
+import sys
+
+from experiments import start_up
+
+if __name__ == "__main__":
+    start_up.exit_on_ctrl_c()  # first, as in experiments.run: nothing is written before main()
 
 import argparse
 import csv
@@ -22,9 +30,9 @@ import functools
 import json
 import pathlib
 import shutil
-import sys
 import textwrap
 import time
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
@@ -32,14 +40,14 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from experiments import configs, distributed
-from experiments.run import minutes
+from experiments.run import minutes, quiet_libraries
 from jaxarm import ranges
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import PAIR_FIELDS, RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.sharding import ENV_AXIS, gathered, members_mesh, over_members
 from jaxarm.agents.common.trainer import Trainer, run_updates
-from jaxarm.runner import learners, plots, processes, rundir
+from jaxarm.runner import learners, loop, plots, processes, rundir
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.stats import confidence_halfwidth
 
@@ -51,7 +59,12 @@ CURVES_FILE = "curves.npz"
 
 
 class Stopped(Exception):
-    """The sweep checkpointed its group in progress at its time limit (`--resume` continues it)."""
+    """The sweep checkpointed its group in progress and stopped, at its time limit or, where `interrupted`, asked
+    to (Ctrl-C, SIGTERM); `--resume` continues it."""
+
+    def __init__(self, message: str, interrupted: bool = False):
+        super().__init__(message)
+        self.interrupted = interrupted
 
 
 @dataclasses.dataclass(frozen=True)
@@ -111,6 +124,7 @@ def run_group(
     saves: pathlib.Path | None = None,
     deadline: float | None = None,
     progress=print,
+    stopping: Callable[[], bool] | None = None,
 ):
     """Trains every (dynamic combination × seed) of one static group in one vmapped program.
 
@@ -119,8 +133,9 @@ def run_group(
     process) as divide their count, each member computed as on one device.
 
     With `saves` (a checkpoint folder), training continues from the latest checkpoint there, and once the clock
-    (`time.perf_counter`) passes `deadline` with chunks left, the members and their metrics so far are
-    checkpointed there and Stopped is raised. Every process calls this alike.
+    (`time.perf_counter`) passes `deadline`, or `stopping()` says so (a stop asked for), with chunks left, the
+    members and their metrics so far are checkpointed there and Stopped is raised. Every process calls this
+    alike.
     """
     trainer = learners.make_trainer(config)
     members = [(combo, seed) for combo in dynamic for seed in range(seeds)]
@@ -152,10 +167,15 @@ def run_group(
         state, metrics = chunk(state, hparams)
         chunks.append(gathered(metrics))
         progress(f"  chunk {index + 1}/{num_chunks} ({time.perf_counter() - start:.1f} s)")
-        out_of_time = deadline is not None and time.perf_counter() > deadline and index + 1 < num_chunks
-        if saves is not None and processes.any_process(out_of_time):
+        asked = stopping is not None and stopping()
+        out_of_time = deadline is not None and time.perf_counter() > deadline
+        if saves is not None and processes.any_process((out_of_time or asked) and index + 1 < num_chunks):
             checkpoint.save(saves, index + 1, group_checkpoint(state, chunks, spent + time.perf_counter() - start))
-            raise Stopped(f"stopped after chunk {index + 1}/{num_chunks} of a group, checkpointed in {saves}")
+            raise Stopped(
+                f"{'interrupted: ' if asked else ''}stopped after chunk {index + 1}/{num_chunks} of a group, "
+                f"checkpointed in {saves}",
+                interrupted=asked,
+            )
     metrics = joined(chunks)
     env, env_params = config.make_eval_env()
     eval_keys = jax.random.split(jax.random.PRNGKey(config.seed + 1_000_003), len(members))
@@ -330,6 +350,7 @@ def main(argv=None) -> int:
         if not (args.out or args.resume):  # one directory for all of them, named here as a sweep of one names it
             argv = ["--out", str(rundir.new_run_dir(f"sweep-{args.config}")), *argv]
         return distributed.spawn(main, argv, args.local_processes)
+    out: pathlib.Path | None = None
     try:
         if args.distributed:
             distributed.join(args)
@@ -348,20 +369,33 @@ def main(argv=None) -> int:
             out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"sweep-{config_name}")
         title = f"{config_name}, {seeds} seeds"
         stop_after_s = None if args.stop_after_minutes is None else 60 * args.stop_after_minutes
-        if not processes.is_primary():  # every process trains its members; process 0 alone writes results
-            sweep(base, grid, seeds, out, title, stop_after_s, primary=False)
-            return 0
-        with rundir.locked(out, check=check_stopped_sweep if args.resume else rundir.check_empty):
-            if args.resume:
-                rundir.append_provenance(out, "sweep resumed")
-            else:
-                rundir.append_provenance(out, "sweep")
-                rundir.write_json(out / SWEEP_FILE, {"config": config_name, "seeds": seeds, "assignments": assignments})
-            sweep(base, grid, seeds, out, title, stop_after_s)
+        # From here Ctrl-C and SIGTERM stop the sweep at a chunk end, with its group in progress checkpointed.
+        stop = loop.StopRequests(aborted=continue_with(out))
+        with stop.installed():
+            if not processes.is_primary():  # every process trains its members; process 0 alone writes results
+                sweep(base, grid, seeds, out, title, stop_after_s, primary=False, stopping=lambda: stop.requested)
+                return 0
+            with rundir.locked(out, check=check_stopped_sweep if args.resume else rundir.check_empty):
+                if args.resume:
+                    rundir.append_provenance(out, "sweep resumed")
+                else:
+                    rundir.append_provenance(out, "sweep")
+                    asked = {"config": config_name, "seeds": seeds, "assignments": assignments}
+                    rundir.write_json(out / SWEEP_FILE, asked)
+                sweep(base, grid, seeds, out, title, stop_after_s, stopping=lambda: stop.requested)
     except Stopped as stopped:
+        if stopped.interrupted:
+            if processes.is_primary():
+                print(f"{stopped}{continue_with(out)}", file=sys.stderr)
+            quiet_libraries()
+            return 130
         if processes.is_primary():
-            print(f"{stopped}; continue with: python -m experiments.sweep --resume {out}")
+            print(f"{stopped}{continue_with(out)}")
         return 0
+    except KeyboardInterrupt:  # before the sweep trains (or in a process that is not the main thread's)
+        print(f"\ninterrupted{resumable(out) or ': nothing was trained'}", file=sys.stderr)
+        quiet_libraries()
+        return 130
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -369,6 +403,19 @@ def main(argv=None) -> int:
         print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
         return 2
     return 0
+
+
+def continue_with(out: pathlib.Path | None) -> str:
+    """How a message ends that says how to go on with the sweep in `out`."""
+    return f"; continue with: python -m experiments.sweep --resume {out}"
+
+
+def resumable(out: pathlib.Path | None) -> str:
+    """`continue_with(out)` where `out` holds a sweep that `--resume` takes (its sweep.json, no results yet), else
+    nothing."""
+    if out is None or not (out / SWEEP_FILE).exists() or (out / "results.md").exists():
+        return ""
+    return continue_with(out)
 
 
 def read_sweep(directory: pathlib.Path) -> dict:
@@ -442,10 +489,12 @@ def sweep(
     title: str,
     stop_after_s: float | None = None,
     primary: bool = True,
+    stopping: Callable[[], bool] | None = None,
 ) -> None:
     """Trains every group of `grid` not yet finished in `out` and, where `primary`, writes the tables and curves
     into `out` (the other processes of a distributed sweep only train and checkpoint). Raises Stopped once
-    `stop_after_s` seconds have passed with a group unfinished (its checkpoint in `out`)."""
+    `stop_after_s` seconds have passed with a group unfinished (its checkpoint in `out`), or once `stopping()` says
+    so, at a chunk end or between groups."""
     deadline = None if stop_after_s is None else time.perf_counter() + stop_after_s
     # Every process reaches the same lines: the primary's alone reach the console, once.
     progress = functools.partial(print, flush=True) if primary else silent
@@ -457,13 +506,19 @@ def sweep(
         finished = read_group(folder)
         if finished is None:
             progress(f"group {describe(changes(config, base, {}), [])}: {len(grid.dynamic)} settings × {seeds} seeds")
+            saves = folder / "checkpoints"
             metrics, results, wall = run_group(
-                config, grid.dynamic, seeds, folder / "checkpoints", deadline, progress=progress
+                config, grid.dynamic, seeds, saves, deadline, progress=progress, stopping=stopping
             )
             finished = collect(config, base, shared, grid.dynamic, seeds, metrics, results, wall)
             if primary:
                 write_group(folder, *finished)
-                shutil.rmtree(folder / "checkpoints", ignore_errors=True)  # its members' state: kept results suffice
+                shutil.rmtree(saves, ignore_errors=True)  # its members' state: kept results suffice
+            asked = stopping is not None and stopping()
+            if processes.any_process(asked and index + 1 < len(grid.groups)):
+                raise Stopped(
+                    f"interrupted: stopped after group {index + 1}/{len(grid.groups)}, kept in {folder}", True
+                )
         rows += finished[0]
         curves.update(finished[1])
     if not primary:

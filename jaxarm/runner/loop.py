@@ -104,14 +104,19 @@ def better(result: dict, best: dict | None) -> bool:
 class StopRequests:
     """Ctrl-C (SIGINT) and SIGTERM, while installed, ask the loop to stop at the next chunk end; a second Ctrl-C
     ends the process at once with status 130, keeping the checkpoints saved so far. Installed only in the main
-    thread (signals cannot be caught elsewhere)."""
+    thread (signals cannot be caught elsewhere). `aborted` ends the line said then (e.g. how to resume)."""
 
-    def __init__(self):
+    def __init__(self, aborted: str = ""):
         self.requested = False
+        self.aborted = aborted
 
     def _handle(self, signum, frame):
         if self.requested and signum == signal.SIGINT:
-            print("\nSIGINT again: aborted; the checkpoints saved before are kept", file=sys.stderr, flush=True)
+            print(
+                f"\nSIGINT again: aborted; the checkpoints saved before are kept{self.aborted}",
+                file=sys.stderr,
+                flush=True,
+            )
             # Not KeyboardInterrupt: unwinding while XLA compiles or runs on other threads printed a traceback
             # (rc -2, 3 of 3 tries during compilation) or segfaulted at interpreter exit (rc -11), and nothing is
             # left to clean up that a resume does not (rows past the last checkpoint dropped, TensorBoard's purged).

@@ -216,6 +216,48 @@ def test_a_sweep_stopped_twice_and_resumed_computes_what_an_uninterrupted_one_do
     assert result_rows(stopped) == result_rows(straight)
 
 
+def interrupted_sweep(out: pathlib.Path, signals: int) -> subprocess.CompletedProcess:
+    """`experiments.sweep` of one group of 2 chunks into `out`, sent `signals` SIGINTs (0.5 s apart) once it names
+    its group, while its first chunk compiles."""
+    command = [sys.executable, "-u", "-m", "experiments.sweep", "--config", "ppo_arm2d_fixed", "--seeds", "2"]
+    child = subprocess.Popen(
+        [*command, *SWEEP, "updates_per_chunk=2", "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert child.stdout is not None
+    lines = []
+    for line in child.stdout:
+        lines.append(line)
+        if line.startswith("group"):
+            for index in range(signals):
+                time.sleep(0.5 * index)
+                child.send_signal(signal.SIGINT)
+            break
+    rest, err = child.communicate(timeout=300)
+    return subprocess.CompletedProcess(child.args, child.returncode, "".join(lines) + rest, err)
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_a_sweep_checkpoints_its_group_and_says_how_to_resume_in_one_line(tmp_path, capsys):
+    once, twice = tmp_path / "once", tmp_path / "twice"
+    resume = "; continue with: python -m experiments.sweep --resume "
+    stopped = interrupted_sweep(once, 1)
+    assert stopped.returncode == 130 and "Traceback" not in stopped.stderr, stopped.stderr[-3000:]
+    assert stopped.stderr.strip().splitlines()[-1] == (
+        f"interrupted: stopped after chunk 1/2 of a group, checkpointed in {once / 'group-0' / 'checkpoints'}"
+        f"{resume}{once}"
+    )
+    aborted = interrupted_sweep(twice, 2)
+    assert aborted.returncode == 130 and "Traceback" not in aborted.stderr, aborted.stderr[-3000:]
+    assert aborted.stderr.strip().splitlines()[-1] == (
+        f"SIGINT again: aborted; the checkpoints saved before are kept{resume}{twice}"
+    )
+    assert sweep.main(["--resume", str(once)]) == 0
+    assert "resumed after chunk 1/2" in capsys.readouterr().out and (once / "results.csv").exists()
+
+
 def test_eval_of_the_best_and_of_the_latest_checkpoint_write_different_files(reference, capsys):
     assert eval_cli.main([str(reference), "--episodes", "4"]) == 0
     assert eval_cli.main([str(reference), "--episodes", "4", "--best"]) == 0
