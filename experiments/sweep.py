@@ -396,11 +396,16 @@ def main(argv=None) -> int:
         print(f"\ninterrupted{resumable(out) or ': nothing was trained'}", file=sys.stderr)
         quiet_libraries()
         return 130
+    except checkpoint.CheckpointError as error:  # a group's checkpoint could not be written (a full disk)
+        print(f"error: {error}{resumable(out)}", file=sys.stderr)
+        quiet_libraries()
+        return 2
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     except OSError as error:
-        print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
+        print(f"error: {rundir.os_error_message(error, out)}{resumable(out)}", file=sys.stderr)
+        quiet_libraries()
         return 2
     return 0
 

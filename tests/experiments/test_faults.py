@@ -258,6 +258,25 @@ def test_ctrl_c_during_a_sweep_checkpoints_its_group_and_says_how_to_resume_in_o
     assert "resumed after chunk 1/2" in capsys.readouterr().out and (once / "results.csv").exists()
 
 
+def test_a_full_disk_at_a_sweeps_checkpoint_is_one_line_and_the_sweep_resumes(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "sweep"
+    argv = ["--config", "ppo_arm2d_fixed", "--seeds", "2", *SWEEP, "updates_per_chunk=2", "--out", str(out)]
+
+    def full_disk(manager, step, *args, **kwargs):
+        (pathlib.Path(manager.directory) / f"{step}{checkpoint.TEMPORARY_SUFFIX}-1").mkdir(parents=True)
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(ocp.CheckpointManager, "save", full_disk)
+    assert sweep.main([*argv, "--stop-after-minutes", "0"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    saves = out / "group-0" / "checkpoints"
+    assert line.startswith(f"error: cannot write checkpoint 1 in {saves}: No space left on device"), line
+    assert line.endswith(f"; continue with: python -m experiments.sweep --resume {out}"), line
+    monkeypatch.undo()
+    assert sweep.main(["--resume", str(out)]) == 0, "space freed: the sweep goes on"
+    assert (out / "results.csv").exists() and checkpoint.half_written(saves) == []
+
+
 def test_eval_of_the_best_and_of_the_latest_checkpoint_write_different_files(reference, capsys):
     assert eval_cli.main([str(reference), "--episodes", "4"]) == 0
     assert eval_cli.main([str(reference), "--episodes", "4", "--best"]) == 0
