@@ -10,6 +10,7 @@ every GPU's memory: GPUs are counted with `nvidia-smi`, never through JAX.
 """
 
 import argparse
+import ctypes
 import itertools
 import os
 import signal
@@ -31,6 +32,10 @@ STOP_GRACE_S = 60.0
 """How long the others get to checkpoint and stop once one local process has failed (then they are killed)."""
 POLL_S = 0.2
 MAX_PORT = 65535
+PR_SET_PDEATHSIG = 1
+"""prctl's option (linux/prctl.h) that sends a process a signal when the thread that forked it ends."""
+PEER_LOST = ("Gloo", "coordination service", "Connection reset by peer", "DEADLINE_EXCEEDED")
+"""Words of JAX's errors in a process whose peers have gone (their collectives or its coordination service)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
@@ -204,11 +209,13 @@ def local_gpus(count: int) -> list[str]:
     return gpus[:count]
 
 
-def spawn(main: Callable[[list[str]], int], argv: Sequence[str], count: int) -> int:
+def spawn(main: Callable[[list[str]], int], argv: Sequence[str], count: int, resume: str = "") -> int:
     """Runs `main(ARGV)` as `count` processes of one job on this host (process i sees the i-th GPU) and waits for
     them. SIGINT and SIGTERM are passed on once to every process (each checkpoints and stops); where one fails, the
     others get SIGTERM, and SIGKILL after STOP_GRACE_S (a process waiting in a collective for a dead peer never
-    reaches its checkpoint). Returns the first non-zero exit code, else 0.
+    reaches its checkpoint); where one dies of a signal (killed), one line names it and ends with `resume` (the
+    command that continues the job). Should this process die, each of them gets SIGTERM (`_die_with_parent`).
+    Returns the exit code of the first that failed (128 + N for one killed by signal N), else 0.
 
     The processes are forked from this one, so they start with its imports done (jax, MuJoCo, Warp: 6 s of each
     process's start on a GPU host). JAX must not have started its backend here (RuntimeError): a forked process
@@ -229,10 +236,11 @@ def spawn(main: Callable[[list[str]], int], argv: Sequence[str], count: int) -> 
     sys.stdout.flush()
     sys.stderr.flush()  # else each process would write again what this one had buffered
     children = []
+    launcher = os.getpid()
     for index, gpu in enumerate(gpus):
         pid = os.fork()
         if pid == 0:
-            _run_forked(main, [*base, "--process-id", str(index)], gpu)
+            _run_forked(main, [*base, "--process-id", str(index)], gpu, launcher, resume)
         children.append(pid)
     codes: dict[int, int] = {}
 
@@ -243,7 +251,7 @@ def spawn(main: Callable[[list[str]], int], argv: Sequence[str], count: int) -> 
 
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, forward)
-    failed_at = None
+    failed_at, failure = None, 0
     while len(codes) < len(children):
         for pid in children:
             if pid not in codes:
@@ -252,28 +260,67 @@ def spawn(main: Callable[[list[str]], int], argv: Sequence[str], count: int) -> 
                     codes[pid] = os.waitstatus_to_exitcode(status)
         if failed_at is None and any(code != 0 for code in codes.values()):
             failed_at = time.monotonic()
+            failure = next(code for code in codes.values() if code != 0)
+            killed = [(children.index(pid), pid, -code) for pid, code in codes.items() if code < 0]
+            if killed:
+                index, pid, number = killed[0]
+                failure = 128 + number
+                print(
+                    f"error: process {index} (pid {pid}) was killed by {signal.Signals(number).name}; the others are "
+                    f"told to stop{f'; continue with: {resume}' if resume else ''}",
+                    file=sys.stderr,
+                    flush=True,
+                )
             forward(signal.SIGTERM, None)
         if failed_at is not None and time.monotonic() - failed_at > STOP_GRACE_S:
             for pid in children:
                 if pid not in codes:
                     os.kill(pid, signal.SIGKILL)
         time.sleep(POLL_S)
-    return next((codes[pid] for pid in children if codes[pid] != 0), 0)
+    return failure
 
 
-def _run_forked(main: Callable[[list[str]], int], argv: list[str], gpu: str) -> NoReturn:
+def _die_with_parent(launcher: int) -> None:
+    """Has the kernel send this forked process SIGTERM when its launcher dies (SIGKILL included), so that it
+    checkpoints and stops rather than train on alone (Linux; elsewhere nothing). A launcher already gone: SIGTERM
+    at once."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    if os.getppid() != launcher:
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
+def peer_lost_message(error: BaseException, index: int, resume: str) -> str | None:
+    """One line for process `index` stopped by `error`, where JAX's words say its peers have gone (`PEER_LOST`);
+    None for any other error."""
+    text = str(error)
+    if not any(words in text for words in PEER_LOST):
+        return None
+    first_line = text.strip().splitlines()[0][:200]
+    return (
+        f"error: process {index} stopped: another process of the job has gone ({type(error).__name__}: "
+        f"{first_line}){f'; continue with: {resume}' if resume else ''}"
+    )
+
+
+def _run_forked(main: Callable[[list[str]], int], argv: list[str], gpu: str, launcher: int, resume: str) -> NoReturn:
     """The body of one forked process: `main(argv)` on GPU `gpu`, then out at once with its exit code."""
     code = 1
     try:
         # Its own process group: a Ctrl-C at the terminal reaches the launcher alone, which passes it on once (a
         # second SIGINT would make each process exit without its checkpoint).
         os.setpgid(0, 0)
+        _die_with_parent(launcher)
         os.environ["CUDA_VISIBLE_DEVICES"] = gpu
         code = main(argv)
     except SystemExit as exit_:
         code = exit_code(exit_.code)
-    except BaseException:
-        traceback.print_exc()
+    except BaseException as error:
+        message = peer_lost_message(error, int(argv[argv.index("--process-id") + 1]), resume)
+        if message is None:
+            traceback.print_exc()
+        else:
+            print(message, file=sys.stderr)
     finally:
         _leave(code)
 
@@ -295,8 +342,9 @@ def _leave(code: int) -> NoReturn:
     from their last output to their exit, ~1 s this way; H200s, 2026-11-27)."""
     sys.stdout.flush()
     sys.stderr.flush()
-    try:
-        jax.distributed.shutdown()
-    except Exception as error:  # a peer that died first: leave anyway
-        print(f"jax.distributed could not shut down cleanly ({error})", file=sys.stderr, flush=True)
+    if code == 0:  # a failed process leaves at once: its peers may have gone, and the barrier would wait for them
+        try:
+            jax.distributed.shutdown()
+        except Exception as error:  # a peer that died first: leave anyway
+            print(f"jax.distributed could not shut down cleanly ({error})", file=sys.stderr, flush=True)
     os._exit(code)

@@ -143,7 +143,7 @@ def start_local_processes(args: argparse.Namespace, argv: list[str], count: int)
             "--local-processes 1 for that)",
             flush=True,
         )
-    return distributed.spawn(main, argv, count)
+    return distributed.spawn(main, argv, count, f"python -m experiments.run --resume {run_dir}")
 
 
 def main(argv=None) -> int:

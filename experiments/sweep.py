@@ -347,9 +347,11 @@ def main(argv=None) -> int:
     if args.distributed and not (args.out or args.resume):
         parser.error("with --distributed give --out: every process must write to the same sweep directory")
     if args.local_processes is not None and args.local_processes > 1:
-        if not (args.out or args.resume):  # one directory for all of them, named here as a sweep of one names it
-            argv = ["--out", str(rundir.new_run_dir(f"sweep-{args.config}")), *argv]
-        return distributed.spawn(main, argv, args.local_processes)
+        shared = args.resume or args.out
+        if not shared:  # one directory for all of them, named here as a sweep of one names it
+            shared = str(rundir.new_run_dir(f"sweep-{args.config}"))
+            argv = ["--out", shared, *argv]
+        return distributed.spawn(main, argv, args.local_processes, resume_command(shared))
     out: pathlib.Path | None = None
     try:
         if args.distributed:
@@ -410,9 +412,14 @@ def main(argv=None) -> int:
     return 0
 
 
+def resume_command(out: str | pathlib.Path | None) -> str:
+    """The command that goes on with the sweep in `out`."""
+    return f"python -m experiments.sweep --resume {out}"
+
+
 def continue_with(out: pathlib.Path | None) -> str:
     """How a message ends that says how to go on with the sweep in `out`."""
-    return f"; continue with: python -m experiments.sweep --resume {out}"
+    return f"; continue with: {resume_command(out)}"
 
 
 def resumable(out: pathlib.Path | None) -> str:

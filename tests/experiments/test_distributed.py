@@ -6,6 +6,7 @@ import argparse
 import csv
 import os
 import pathlib
+import signal
 import socket
 import subprocess
 import sys
@@ -218,7 +219,7 @@ def started(monkeypatch, tmp_path):
     monkeypatch.setattr(distributed, "gpus_here", lambda: 4)
     monkeypatch.setattr(run, "warp_available", lambda: True)
     calls = []
-    monkeypatch.setattr(distributed, "spawn", lambda main, argv, count: calls.append((main, argv, count)) or 0)
+    monkeypatch.setattr(distributed, "spawn", lambda main, argv, count, *_: calls.append((main, argv, count)) or 0)
 
     def no_backend(*args, **kwargs):
         raise AssertionError("the launching process asked JAX for its devices")
@@ -264,7 +265,7 @@ def test_overrides_and_saved_configs_decide_the_engine_without_building_it(start
 def test_a_sweep_over_local_processes_starts_them_on_one_directory(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     started = []
-    monkeypatch.setattr(distributed, "spawn", lambda main, argv, count: started.append((main, argv, count)) or 0)
+    monkeypatch.setattr(distributed, "spawn", lambda main, argv, count, *_: started.append((main, argv, count)) or 0)
     asked = ["--config", "ppo_arm2d", "--seeds", "2", "--local-processes", "2", "learning_rate=3e-4,1e-3"]
     assert sweep.main(asked) == 0
     (out,) = (tmp_path / "runs").iterdir()
@@ -377,6 +378,98 @@ def test_where_one_local_process_fails_the_launcher_stops_the_others(tmp_path):
     assert launcher.stdout.count("the launcher goes on") == 1  # not in the forked processes, which leave at once
     assert marker.read_text() == "stopped"  # process 0 was told to stop (SIGTERM), not left waiting for its peer
     assert time.monotonic() - start < distributed.STOP_GRACE_S
+
+
+DIES_OR_LOSES_ITS_LAUNCHER = textwrap.dedent("""
+    import os, pathlib, signal, sys, time
+    from experiments import distributed
+
+    def main(argv):
+        marker = pathlib.Path(argv[0]) / argv[argv.index("--process-id") + 1]
+        def stopped(signum, frame):
+            marker.write_text("stopped")
+            sys.exit(0)
+        signal.signal(signal.SIGTERM, stopped)
+        marker.write_text(str(os.getpid()))
+        if sys.argv[2] == "dies" and marker.name == "1":
+            os.kill(os.getpid(), signal.SIGKILL)
+        time.sleep(120)
+
+    sys.exit(distributed.spawn(main, [sys.argv[1]], 2, "python -m experiments.run --resume RUN"))
+""")
+
+
+def test_a_killed_local_process_is_named_in_one_line_with_the_resume_command(tmp_path):
+    launcher = subprocess.run(
+        [sys.executable, "-c", DIES_OR_LOSES_ITS_LAUNCHER, str(tmp_path), "dies"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert launcher.returncode == 128 + signal.SIGKILL, launcher.stderr
+    assert launcher.stderr == (
+        f"error: process 1 (pid {(tmp_path / '1').read_text()}) was killed by SIGKILL; the others are told to stop; "
+        "continue with: python -m experiments.run --resume RUN\n"
+    )
+    assert (tmp_path / "0").read_text() == "stopped"
+
+
+def test_local_processes_stop_when_their_launcher_is_killed(tmp_path):
+    launcher = subprocess.Popen([sys.executable, "-c", DIES_OR_LOSES_ITS_LAUNCHER, str(tmp_path), "orphaned"])
+    markers = [tmp_path / "0", tmp_path / "1"]
+    start = time.monotonic()
+    while not all(marker.exists() and marker.read_text() for marker in markers):
+        assert time.monotonic() - start < 60 and launcher.poll() is None
+        time.sleep(0.1)
+    launcher.kill()
+    launcher.wait()
+    while not all(marker.read_text() == "stopped" for marker in markers):
+        assert time.monotonic() - start < 60, "a process trains on without its launcher"
+        time.sleep(0.1)
+
+
+def test_a_jax_error_of_a_lost_peer_is_one_line():
+    lost = RuntimeError("UNKNOWN: Gloo AllGather failed: [pair.cc:538] Read error: Connection reset by peer\nmore")
+    assert distributed.peer_lost_message(lost, 0, "python -m experiments.run --resume RUN") == (
+        "error: process 0 stopped: another process of the job has gone (RuntimeError: UNKNOWN: Gloo AllGather "
+        "failed: [pair.cc:538] Read error: Connection reset by peer); continue with: python -m experiments.run "
+        "--resume RUN"
+    )
+    assert distributed.peer_lost_message(RuntimeError("out of memory"), 0, "") is None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("victim", ["process 1", "launcher"])
+def test_a_run_of_two_local_processes_ends_in_one_line_when_one_or_its_launcher_is_killed(tmp_path, victim):
+    run_dir = tmp_path / "run"
+    launcher = subprocess.Popen(
+        [sys.executable, "-m", "experiments.run", "--config", "ppo_arm2d", "--local-processes", "2"]
+        + ["--out", str(run_dir), *OVERRIDES[:-5], "total_env_steps=1000000", *OVERRIDES[-4:]],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    metrics, start = run_dir / "metrics.jsonl", time.monotonic()
+    while not (metrics.exists() and metrics.read_text().count("\n") >= 4):  # two chunks done
+        assert launcher.poll() is None and time.monotonic() - start < 300
+        time.sleep(0.2)
+    children = [
+        int(pid) for pid in pathlib.Path(f"/proc/{launcher.pid}/task/{launcher.pid}/children").read_text().split()
+    ]
+    os.kill(children[1] if victim == "process 1" else launcher.pid, signal.SIGKILL)
+    _, err = launcher.communicate(timeout=120)  # the pipes close once every process has gone
+    lines = [line for line in err.splitlines() if line.startswith(("error:", "interrupted:", "Traceback"))]
+    resume = f"continue with: python -m experiments.run --resume {run_dir}"
+    if victim == "process 1":
+        assert launcher.returncode == 128 + signal.SIGKILL
+        killed = f"error: process 1 (pid {children[1]}) was killed by SIGKILL; the others are told to stop; {resume}"
+        assert killed in lines and "Traceback" not in err, err
+        # The survivor's own line, where its collective failed before the launcher's SIGTERM ended it (the two race).
+        assert all(line.startswith("error: ") and "Gloo" in line for line in lines if line != killed), err
+        assert len(lines) <= 2, err
+    else:  # each process checkpoints and says so
+        assert len(lines) == 2 and all(line.startswith("interrupted: checkpoint at update ") for line in lines), err
+        assert all(line.endswith(resume) for line in lines)
 
 
 def test_local_processes_are_forked_only_before_jax_starts_its_backend():
