@@ -25,8 +25,8 @@ class SortTask:
 
     Attributes:
       objects_count, control_mode, running_target, target_first: the env's constructor arguments.
-      ee_step, ee_yaw_step, joint_step, max_lead, max_yaw_lead, max_joint_lead, ik_damping, ik_posture_gain,
-        carry_height: the env params of those names.
+      ee_step, ee_yaw_step, joint_step, max_lead, max_yaw_lead, max_joint_lead: the env params of those names.
+      ik_damping, ik_posture_gain, carry_height: the env params of those names.
       start_qpos: [7] the arm's start posture, towards which the IK's null space pulls.
       home_tcp_rotation: [3, 3] the tool's orientation at yaw 0, pointing down.
       bins: where the bins are (scoring.Bins).
