@@ -47,7 +47,7 @@ from jaxarm.agents.common.config import PAIR_FIELDS, RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.sharding import ENV_AXIS, gathered, members_mesh, over_members
 from jaxarm.agents.common.trainer import Trainer, run_updates
-from jaxarm.runner import learners, loop, plots, processes, rundir
+from jaxarm.runner import learners, plots, processes, rundir, signals
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.stats import confidence_halfwidth
 
@@ -372,7 +372,7 @@ def main(argv=None) -> int:
         title = f"{config_name}, {seeds} seeds"
         stop_after_s = None if args.stop_after_minutes is None else 60 * args.stop_after_minutes
         # From here Ctrl-C and SIGTERM stop the sweep at a chunk end, with its group in progress checkpointed.
-        stop = loop.StopRequests(aborted=continue_with(out))
+        stop = signals.StopRequests(aborted=continue_with(out))
         with stop.installed():
             if not processes.is_primary():  # every process trains its members; process 0 alone writes results
                 sweep(base, grid, seeds, out, title, stop_after_s, primary=False, stopping=lambda: stop.requested)

@@ -16,7 +16,8 @@ from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
 from jaxarm.agents.common.trainer import run_updates
 from jaxarm.agents.ppo.distill import learner_as_teacher
-from jaxarm.runner import learners, loop, rundir
+from jaxarm.runner import learners, rundir
+from jaxarm.runner.teacher import teacher_config as preset_teacher_config
 
 
 def time_jitted(run, state, repeats: int) -> tuple[float, float]:
@@ -48,7 +49,7 @@ def benchmark_trainer(config: RunConfig):
     that a distilled student's program compiles and runs as in its run, with no teacher trained first."""
     if not rundir.teacher_preset(config):
         return learners.make_trainer(config)
-    teacher_config = loop.teacher_config(config, configs.get)
+    teacher_config = preset_teacher_config(config, configs.get)
     teacher = agents_registry.make_trainer(teacher_config)
     key, hparams = jax.random.PRNGKey(teacher_config.seed), teacher_config.hparams()
     state = jax.jit(teacher.init)(key, hparams)

@@ -18,7 +18,7 @@ from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.envs.panda_sort.params import PandaSortParams
 from jaxarm.envs.peg_insert.params import PegInsertParams
-from jaxarm.runner import loop, rundir
+from jaxarm.runner import rundir, teacher
 
 
 @pytest.mark.parametrize(
@@ -261,4 +261,4 @@ def test_every_teacher_a_preset_names_exists_and_observes_what_its_student_gives
     students = [name for name in configs.names() if rundir.teacher_preset(configs.get(name))]
     assert {"ppo_sorter_pixels", "ppo_sorter_pixels_dr"} <= set(students)
     for name in students:
-        loop.teacher_config(configs.get(name), configs.get)  # raises on an unknown preset or another observation
+        teacher.teacher_config(configs.get(name), configs.get)  # raises on an unknown preset or another observation

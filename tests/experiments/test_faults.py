@@ -397,7 +397,7 @@ def test_tensorboard_shows_each_step_once_after_a_kill_and_resume(tmp_path):
 def test_a_second_ctrl_c_ends_the_process_at_once_with_130():
     program = (
         "import os, signal, time\n"
-        "from jaxarm.runner.loop import StopRequests\n"
+        "from jaxarm.runner.signals import StopRequests\n"
         "with StopRequests().installed():\n"
         "    os.kill(os.getpid(), signal.SIGINT)\n"
         "    os.kill(os.getpid(), signal.SIGINT)\n"

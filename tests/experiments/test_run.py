@@ -20,7 +20,7 @@ from experiments import run
 from jaxarm import envs
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.ppo.warm_start import warm_start
-from jaxarm.runner import learners, loop, robustness, rundir
+from jaxarm.runner import learners, loop, robustness, rundir, runlog
 
 SMALL = [
     "num_envs=64",
@@ -340,7 +340,7 @@ def test_a_ten_billion_step_budget_runs_resumes_and_counts_past_int32(tmp_path):
     assert config.num_updates * config.env_steps_per_update >= 10_000_000_000
     assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 9))
     # The host counts env steps in Python ints: rows of a run far past int32 carry exact counts.
-    far = next(loop.metric_rows({"loss": np.zeros(1)}, 3_000_000, 1024, 0.0, 1.0))
+    far = next(runlog.metric_rows({"loss": np.zeros(1)}, 3_000_000, 1024, 0.0, 1.0))
     assert far["env_steps"] == 3_000_001 * 1024
 
 

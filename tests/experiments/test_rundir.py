@@ -17,7 +17,7 @@ import pytest
 from experiments import configs, run
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import learners, loop, provenance, rundir
+from jaxarm.runner import learners, loop, programs, provenance, rundir
 from tests.experiments.test_run import SMALL  # the same compiled chunk as there
 
 
@@ -145,7 +145,7 @@ def test_damaged_files_are_named_with_what_to_do(reference, tmp_path, capsys):
 
 def test_ctrl_c_checkpoints_at_the_chunk_end_and_resume_is_bit_identical(reference, tmp_path, capsys, monkeypatch):
     run_dir = tmp_path / "interrupted"
-    runner_of = loop._ChunkRunners.__call__
+    runner_of = programs.ChunkRunners.__call__
     calls = []
 
     def interrupting_runner(runners, count):
@@ -159,7 +159,7 @@ def test_ctrl_c_checkpoints_at_the_chunk_end_and_resume_is_bit_identical(referen
 
         return run_chunk
 
-    monkeypatch.setattr(loop._ChunkRunners, "__call__", interrupting_runner)
+    monkeypatch.setattr(programs.ChunkRunners, "__call__", interrupting_runner)
     assert run_cli("checkpoint_every_updates=12", "--out", str(run_dir)) == 130
     error = capsys.readouterr().err
     assert "SIGINT: stopping at the next chunk end" in error
@@ -174,7 +174,7 @@ def test_ctrl_c_checkpoints_at_the_chunk_end_and_resume_is_bit_identical(referen
 
 def test_the_first_chunk_compiles_on_the_pool_while_the_start_state_is_made(tmp_path, monkeypatch):
     events, compiled_on = [], []
-    make_runner, start, compile_lowered = loop.make_chunk_runner, loop._start, jax.stages.Lowered.compile
+    make_runner, start, compile_lowered = programs.make_chunk_runner, loop._start, jax.stages.Lowered.compile
 
     def counted(trainer, count, *placement):
         events.append(count)
@@ -188,7 +188,7 @@ def test_the_first_chunk_compiles_on_the_pool_while_the_start_state_is_made(tmp_
         compiled_on.append(threading.current_thread().name)
         return compile_lowered(lowered, *args, **kwargs)
 
-    monkeypatch.setattr(loop, "make_chunk_runner", counted)
+    monkeypatch.setattr(programs, "make_chunk_runner", counted)
     monkeypatch.setattr(loop, "_start", started)
     monkeypatch.setattr(jax.stages.Lowered, "compile", recorded)
     # 2 updates, one chunk of 2; resumed, 22 more: chunks of 4 with one program made ahead, the last 2 at its call.

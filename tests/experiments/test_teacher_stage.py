@@ -12,7 +12,7 @@ import pytest
 from experiments import configs, run
 from experiments.benchmarks.timing import compile_updates
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import learners, loop, rundir
+from jaxarm.runner import learners, loop, rundir, teacher
 
 TINY = ["num_envs=16", "rollout_length=4", "num_minibatches=2", "updates_per_chunk=2", "eval_episodes=4"]
 """Both stages at a size that compiles and trains in seconds on a CPU."""
@@ -75,6 +75,15 @@ def test_a_preset_teacher_trains_first_and_each_stop_resumes_its_own_stage(tmp_p
     assert {path: path.stat().st_mtime_ns for path in teacher_files} == teacher_files, "the finished teacher is reused"
     assert loop.load_run(run_dir)[0] == config
     assert loop.resume(run_dir)[0] == result, "a finished run is left as it is"
+
+
+def test_a_run_without_a_preset_teacher_reaches_its_learner_without_the_teacher_stage(tmp_path, monkeypatch):
+    def never(*args, **kwargs):
+        raise AssertionError("a run without a preset teacher entered the teacher stage")
+
+    monkeypatch.setattr(teacher, "train_teacher", never)
+    monkeypatch.setattr(loop, "_train_learner", lambda config, *rest: {"learner of": config.env})
+    assert loop.train(apply_overrides(configs.get("ppo_arm2d"), TINY), tmp_path / "run") == {"learner of": "arm2d"}
 
 
 @pytest.mark.parametrize(
