@@ -242,6 +242,12 @@ def spawn(main: Callable[[list[str]], int], argv: Sequence[str], count: int, res
         if pid == 0:
             _run_forked(main, [*base, "--process-id", str(index)], gpu, launcher, resume)
         children.append(pid)
+    return _wait(children, resume)
+
+
+def _wait(children: list[int], resume: str) -> int:
+    """Waits for the processes `children` as `spawn` says: SIGINT and SIGTERM passed on once, the others stopped
+    where one fails. Returns the exit code of the first that failed (`_failure`), else 0."""
     codes: dict[int, int] = {}
 
     def forward(signum, frame):
@@ -260,23 +266,28 @@ def spawn(main: Callable[[list[str]], int], argv: Sequence[str], count: int, res
                     codes[pid] = os.waitstatus_to_exitcode(status)
         if failed_at is None and any(code != 0 for code in codes.values()):
             failed_at = time.monotonic()
-            failure = next(code for code in codes.values() if code != 0)
-            killed = [(children.index(pid), pid, -code) for pid, code in codes.items() if code < 0]
-            if killed:
-                index, pid, number = killed[0]
-                failure = 128 + number
-                print(
-                    f"error: process {index} (pid {pid}) was killed by {signal.Signals(number).name}; the others are "
-                    f"told to stop{f'; continue with: {resume}' if resume else ''}",
-                    file=sys.stderr,
-                    flush=True,
-                )
+            failure = _failure(children, codes, resume)
             forward(signal.SIGTERM, None)
         if failed_at is not None and time.monotonic() - failed_at > STOP_GRACE_S:
-            for pid in children:
-                if pid not in codes:
-                    os.kill(pid, signal.SIGKILL)
+            forward(signal.SIGKILL, None)
         time.sleep(POLL_S)
+    return failure
+
+
+def _failure(children: list[int], codes: dict[int, int], resume: str) -> int:
+    """The exit code of the first of `children` to fail (`codes`: those ended so far), 128 + N for one killed by
+    signal N, which one line names, ending with `resume`."""
+    failure = next(code for code in codes.values() if code != 0)
+    killed = [(children.index(pid), pid, -code) for pid, code in codes.items() if code < 0]
+    if killed:
+        index, pid, number = killed[0]
+        failure = 128 + number
+        print(
+            f"error: process {index} (pid {pid}) was killed by {signal.Signals(number).name}; the others are "
+            f"told to stop{f'; continue with: {resume}' if resume else ''}",
+            file=sys.stderr,
+            flush=True,
+        )
     return failure
 
 

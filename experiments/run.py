@@ -146,6 +146,28 @@ def start_local_processes(args: argparse.Namespace, argv: list[str], count: int)
     return distributed.spawn(main, argv, count, f"python -m experiments.run --resume {run_dir}")
 
 
+def shown_config(args: argparse.Namespace) -> tuple[RunConfig, str]:
+    """(config, preset) that `--show` describes: `--resume`'s with its overrides, or the preset with its own."""
+    if args.resume:
+        config, preset = rundir.read_config(pathlib.Path(args.resume))
+        return rundir.apply_resume_overrides(config, args.overrides), preset
+    return apply_overrides(configs.get(args.config), args.overrides), args.config
+
+
+def train_or_resume(args: argparse.Namespace, options: loop.Options) -> tuple[pathlib.Path, dict]:
+    """(run directory, final evaluation) of the run `--resume` continues, or of a new one of `--config`."""
+    if args.resume:
+        run_dir = pathlib.Path(args.resume)
+        result, _ = loop.resume(run_dir, args.overrides, options)
+        return run_dir, result
+    preset = args.config
+    config = apply_overrides(configs.get(preset), args.overrides)
+    if args.out:
+        rundir.check_output_dir(pathlib.Path(args.out), "--out")
+    run_dir = pathlib.Path(args.out) if args.out else rundir.new_run_dir(preset)
+    return run_dir, loop.train(config, run_dir, preset=preset, options=options)
+
+
 def main(argv=None) -> int:
     # Start-up is over: from here Ctrl-C raises KeyboardInterrupt (caught below), and the loop checkpoints on it.
     signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -170,13 +192,7 @@ def _main(argv) -> int:
     )
     try:
         if args.show:
-            if args.resume:
-                config, preset = rundir.read_config(pathlib.Path(args.resume))
-                config = rundir.apply_resume_overrides(config, args.overrides)
-            else:
-                preset = args.config
-                config = apply_overrides(configs.get(preset), args.overrides)
-            print(show.describe(config, preset))
+            print(show.describe(*shown_config(args)))
             return 0
         count = local_processes(args)
         if count > 1:
@@ -184,16 +200,7 @@ def _main(argv) -> int:
         if args.distributed:
             distributed.join(args)
         enable_compilation_cache()
-        if args.resume:
-            run_dir = pathlib.Path(args.resume)
-            result, _ = loop.resume(run_dir, args.overrides, options)
-        else:
-            preset = args.config
-            config = apply_overrides(configs.get(preset), args.overrides)
-            if args.out:
-                rundir.check_output_dir(pathlib.Path(args.out), "--out")
-            run_dir = pathlib.Path(args.out) if args.out else rundir.new_run_dir(preset)
-            result = loop.train(config, run_dir, preset=preset, options=options)
+        run_dir, result = train_or_resume(args, options)
     except (ValueError, checkpoint.CheckpointError, loop.TrainingDiverged) as error:
         print(f"error: {cli_message(error)}", file=sys.stderr)
         quiet_libraries()

@@ -322,7 +322,8 @@ def write_tables(rows: list[dict], out: pathlib.Path, shared: list[str]) -> None
     (out / "results.md").write_text("\n".join(lines) + "\n")
 
 
-def main(argv=None) -> int:
+def parse_args(argv: list[str]) -> argparse.Namespace:
+    """`main`'s arguments; exits with the usage where they do not go together."""
     parser = argparse.ArgumentParser(
         prog="python -m experiments.sweep", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -337,7 +338,6 @@ def main(argv=None) -> int:
     )
     distributed.add_arguments(parser, "--out")
     parser.add_argument("assignments", nargs="*", help="key=v1,v2,... (one value: a plain override)")
-    argv = sys.argv[1:] if argv is None else list(argv)
     args = parser.parse_args(argv)
     distributed.check_arguments(parser, args)
     if bool(args.config) == bool(args.resume):
@@ -346,6 +346,12 @@ def main(argv=None) -> int:
         parser.error("--resume takes the sweep's own preset, seeds and assignments; give no --out or key=values")
     if args.distributed and not (args.out or args.resume):
         parser.error("with --distributed give --out: every process must write to the same sweep directory")
+    return args
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = parse_args(argv)
     if args.local_processes is not None and args.local_processes > 1:
         shared = args.resume or args.out
         if not shared:  # one directory for all of them, named here as a sweep of one names it
@@ -369,31 +375,9 @@ def main(argv=None) -> int:
             out = pathlib.Path(args.resume)
         else:
             out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"sweep-{config_name}")
-        title = f"{config_name}, {seeds} seeds"
-        stop_after_s = None if args.stop_after_minutes is None else 60 * args.stop_after_minutes
-        # From here Ctrl-C and SIGTERM stop the sweep at a chunk end, with its group in progress checkpointed.
-        stop = signals.StopRequests(aborted=continue_with(out))
-        with stop.installed():
-            if not processes.is_primary():  # every process trains its members; process 0 alone writes results
-                sweep(base, grid, seeds, out, title, stop_after_s, primary=False, stopping=lambda: stop.requested)
-                return 0
-            with rundir.locked(out, check=check_stopped_sweep if args.resume else rundir.check_empty):
-                if args.resume:
-                    rundir.append_provenance(out, "sweep resumed")
-                else:
-                    rundir.append_provenance(out, "sweep")
-                    asked = {"config": config_name, "seeds": seeds, "assignments": assignments}
-                    rundir.write_json(out / SWEEP_FILE, asked)
-                sweep(base, grid, seeds, out, title, stop_after_s, stopping=lambda: stop.requested)
+        run_sweep(args, out, asked, base, grid)
     except Stopped as stopped:
-        if stopped.interrupted:
-            if processes.is_primary():
-                print(f"{stopped}{continue_with(out)}", file=sys.stderr)
-            quiet_libraries()
-            return 130
-        if processes.is_primary():
-            print(f"{stopped}{continue_with(out)}")
-        return 0
+        return stopped_status(stopped, out)
     except KeyboardInterrupt:  # before the sweep trains (or in a process that is not the main thread's)
         print(f"\ninterrupted{resumable(out) or ': nothing was trained'}", file=sys.stderr)
         quiet_libraries()
@@ -409,6 +393,41 @@ def main(argv=None) -> int:
         print(f"error: {rundir.os_error_message(error, out)}{resumable(out)}", file=sys.stderr)
         quiet_libraries()
         return 2
+    return 0
+
+
+def run_sweep(args: argparse.Namespace, out: pathlib.Path, asked: dict, base: RunConfig, grid: Grid) -> None:
+    """Trains the sweep `asked` ({"config", "seeds", "assignments"}; `base` and `grid` read from it) into `out` as
+    `args` say, process 0 alone writing it (under its lock). From here Ctrl-C and SIGTERM stop it at a chunk end,
+    with its group in progress checkpointed (Stopped)."""
+    config_name, seeds, assignments = asked["config"], asked["seeds"], asked["assignments"]
+    title = f"{config_name}, {seeds} seeds"
+    stop_after_s = None if args.stop_after_minutes is None else 60 * args.stop_after_minutes
+    stop = signals.StopRequests(aborted=continue_with(out))
+    with stop.installed():
+        if not processes.is_primary():  # every process trains its members; process 0 alone writes results
+            sweep(base, grid, seeds, out, title, stop_after_s, primary=False, stopping=lambda: stop.requested)
+            return
+        with rundir.locked(out, check=check_stopped_sweep if args.resume else rundir.check_empty):
+            if args.resume:
+                rundir.append_provenance(out, "sweep resumed")
+            else:
+                rundir.append_provenance(out, "sweep")
+                asked = {"config": config_name, "seeds": seeds, "assignments": assignments}
+                rundir.write_json(out / SWEEP_FILE, asked)
+            sweep(base, grid, seeds, out, title, stop_after_s, stopping=lambda: stop.requested)
+
+
+def stopped_status(stopped: Stopped, out: pathlib.Path | None) -> int:
+    """Says how the sweep in `out` goes on after `stopped` (process 0); the exit status: 130 where a signal stopped
+    it, 0 where its time limit did."""
+    if stopped.interrupted:
+        if processes.is_primary():
+            print(f"{stopped}{continue_with(out)}", file=sys.stderr)
+        quiet_libraries()
+        return 130
+    if processes.is_primary():
+        print(f"{stopped}{continue_with(out)}")
     return 0
 
 

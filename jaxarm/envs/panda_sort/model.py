@@ -116,17 +116,8 @@ def _add_object(worldbody, slot: int) -> None:
     )
 
 
-def build_spec(
-    objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm_grip: bool = False, robot_xml: Path = PANDA_XML
-) -> mujoco.MjSpec:
-    """The scene as an MjSpec: robot and table from assets/scene.xml with the robot's `dynamics`
-    (`franka_dynamics.DYNAMICS`), the rest from `layout`; `firm_grip` sets FIRM_GRIP_TIMESTEP and
-    FIRM_GRIP_SOLREF; `robot_xml` replaces jaxarm's Panda (`robot.scene_spec`)."""
-    spec = scene_spec(ASSETS / "scene.xml", robot_xml)
-    set_dynamics(spec, dynamics)
-    if firm_grip:
-        spec.option.timestep = FIRM_GRIP_TIMESTEP
-    world = spec.worldbody
+def _add_static(world: mujoco.MjsBody, layout: Layout) -> list[str]:
+    """Adds `layout`'s tables, bin walls and blocker to `world`; returns their geoms' names, in that order."""
     static = [f"table{k}" for k in range(len(layout.tables))]
     for name, box in zip(static, layout.tables, strict=True):
         _add_box(world, name, box, [0.55, 0.45, 0.35, 1])
@@ -136,13 +127,12 @@ def build_spec(
     if layout.blocker is not None:
         _add_box(world, "blocker", layout.blocker, [0.7, 0.2, 0.2, 1])
         static.append("blocker")
-    if layout.front_view is not None:
-        camera = spec.camera("front")
-        camera.pos = layout.front_view.pos
-        camera.alt.type = mujoco.mjtOrientation.mjORIENTATION_XYAXES
-        camera.alt.xyaxes = layout.front_view.xyaxes
-    for slot in range(objects_count):
-        _add_object(world, slot)
+    return static
+
+
+def _add_pairs(spec: mujoco.MjSpec, objects_count: int, static: list[str], firm_grip: bool) -> None:
+    """The explicit contact pairs, in the order the env's pair ids rely on: the gripper's with every object geom
+    (FIRM_GRIP_SOLREF with `firm_grip`), then each object geom's with the `static` geoms and later objects'."""
 
     def pair(name1: str, name2: str, friction, condim: int = 3, **kwargs) -> mujoco.MjsPair:
         return spec.add_pair(geomname1=name1, geomname2=name2, condim=condim, friction=friction, **kwargs)
@@ -161,6 +151,27 @@ def build_spec(
             for later in slot_geoms[slot + 1 :]:
                 for other in later:
                     pair(geom, other, OBJECT_FRICTION)
+
+
+def build_spec(
+    objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm_grip: bool = False, robot_xml: Path = PANDA_XML
+) -> mujoco.MjSpec:
+    """The scene as an MjSpec: robot and table from assets/scene.xml with the robot's `dynamics`
+    (`franka_dynamics.DYNAMICS`), the rest from `layout`; `firm_grip` sets FIRM_GRIP_TIMESTEP and
+    FIRM_GRIP_SOLREF; `robot_xml` replaces jaxarm's Panda (`robot.scene_spec`)."""
+    spec = scene_spec(ASSETS / "scene.xml", robot_xml)
+    set_dynamics(spec, dynamics)
+    if firm_grip:
+        spec.option.timestep = FIRM_GRIP_TIMESTEP
+    static = _add_static(spec.worldbody, layout)
+    if layout.front_view is not None:
+        camera = spec.camera("front")
+        camera.pos = layout.front_view.pos
+        camera.alt.type = mujoco.mjtOrientation.mjORIENTATION_XYAXES
+        camera.alt.xyaxes = layout.front_view.xyaxes
+    for slot in range(objects_count):
+        _add_object(spec.worldbody, slot)
+    _add_pairs(spec, objects_count, static, firm_grip)
     return spec
 
 
