@@ -4,7 +4,7 @@
 ranges (uniform, or log-uniform; integers uniformly over the whole numbers in the range) on top of the params
 it is given and keeps them in the state for the episode, so under `AutoReset` and `VmapEnv` every env of a
 batch runs its own physics and every new episode new physics. Everything else (the time limit, statistics) reads
-the params the caller passes.
+the params the caller passes: `max_episode_steps` is refused, since a range of it would change nothing.
 """
 
 import dataclasses
@@ -99,8 +99,9 @@ class RandomizedSim(struct.PyTreeNode, Generic[Sim]):
 class Randomized(Env):
     """`env` with the params in `ranges` drawn afresh at every reset (see the module docstring).
 
-    Raises ValueError for a name that is not one of the env's params, or a range that draws values the param
-    may not take (outside its declared range, beyond int32, or no whole number for an integer param).
+    Raises ValueError for a name that is not one of the env's params, `max_episode_steps` (the time limit reads
+    the caller's params), or a range that draws values the param may not take (outside its declared range, beyond
+    int32, or no whole number for an integer param).
     """
 
     def __init__(self, env: Env, ranges: Mapping[str, ParamRange]):
@@ -110,6 +111,12 @@ class Randomized(Env):
         if unknown:
             raise ValueError(
                 f"randomize: {', '.join(unknown)} not among the env's params ({', '.join(sorted(fields))})"
+            )
+        if "max_episode_steps" in ranges:
+            # `Env.step` truncates at the params the caller passes, which every env of a batch shares: a value
+            # drawn per episode would be kept in the state and read by nothing.
+            raise ValueError(
+                "randomize.max_episode_steps: max_episode_steps sets the rollout's length; set it with env_params"
             )
         for name, drawn in ranges.items():
             drawn.check_within(name, fields[name], np.asarray(getattr(defaults, name)))

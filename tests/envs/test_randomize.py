@@ -91,17 +91,26 @@ def test_configs_take_ranges_from_overrides_and_check_them():
     [
         ("goal_size=-40..-10", "goal_size=-40..-10 draws values goal_size may not take: it must be > 0"),
         ("world_size=0..400", "must be > 0"),
-        ("max_episode_steps=0..5", "must be >= 1"),
+        ("hold_steps=-5..3", "must be >= 0"),
         ("goal_mode=0..7", "must be one of 0, 1, 2"),
-        ("max_episode_steps=1..1e10", "must fit in int32"),
-        ("max_episode_steps=2.2..2.7", "holds no whole number"),
+        ("hold_steps=1..1e10", "must fit in int32"),
+        ("hold_steps=2.2..2.7", "holds no whole number"),
         ("goal_bonus=-1e40..1", "must fit in float32 (at most 3.40282e+38 in magnitude)"),
     ],
 )
 def test_ranges_that_draw_values_a_param_may_not_take_are_refused(text, message):
     with pytest.raises(ValueError, match=f"randomize.*{re.escape(message)}"):
         apply_overrides(PPOConfig(env="arm2d"), [f"randomize.{text}"])
-    apply_overrides(PPOConfig(env="arm2d"), ["randomize.goal_mode=0..2", "randomize.max_episode_steps=50..200"])
+    apply_overrides(PPOConfig(env="arm2d"), ["randomize.goal_mode=0..2", "randomize.hold_steps=10..50"])
+
+
+def test_a_range_of_the_time_limit_is_refused_since_it_would_change_nothing():
+    # The time limit reads the params the caller passes, not those drawn per episode (as --perturb refuses it).
+    message = "randomize.max_episode_steps: max_episode_steps sets the rollout's length; set it with env_params"
+    with pytest.raises(ValueError, match=re.escape(message)):
+        apply_overrides(PPOConfig(env="arm2d"), ["randomize.max_episode_steps=50..200"])
+    with pytest.raises(ValueError, match=re.escape(message)):
+        Randomized(envs.make("arm2d"), {"max_episode_steps": ParamRange(200, 200)})
 
 
 def test_a_randomised_env_forwards_attributes_and_copies():

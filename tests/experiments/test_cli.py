@@ -327,7 +327,7 @@ def test_eval_refuses_more_episodes_than_it_can_step_at_once(tmp_path, capsys):
         "env_params.max_episode_steps=0",
         "env_params.max_episode_steps=1e10",
         "randomize.goal_size=-40..-10",
-        "randomize.max_episode_steps=1..1e10",
+        "randomize.hold_steps=1..1e10",
     ],
 )
 def test_a_bad_value_is_refused_before_any_directory_is_written(bad, tmp_path, capsys):
