@@ -68,7 +68,7 @@ def tick_times(preset: str, ticks: int, warmup: int, seed: int) -> tuple[np.ndar
     config = configs.get(preset)
     env, params = config.make_eval_env()
     controller = from_env.controller(env, params)
-    task = controller.task  # type: ignore[attr-defined]
+    task = controller.task
     rng = np.random.default_rng(seed)
     observation_size = env.spec.observation_shape[0]
     policy = random_policy(config, observation_size, controller.action_size, rng)

@@ -54,9 +54,9 @@ def save(directory: str | pathlib.Path, controller: Controller) -> list[pathlib.
     directory = pathlib.Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     task_path, model_path = directory / TASK_FILE, directory / MODEL_FILE
-    task = controller.task  # type: ignore[attr-defined]
+    task = controller.task
     task_path.write_text(json.dumps({"task": name, "numbers": _plain(task)}, indent=1))
-    mujoco.mj_saveModel(controller.kinematics.model, str(model_path))  # type: ignore[attr-defined]
+    mujoco.mj_saveModel(controller.kinematics.model, str(model_path))
     return [task_path, model_path]
 
 

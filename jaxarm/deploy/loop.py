@@ -13,6 +13,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from jaxarm.deploy.kinematics import ArmKinematics
 from jaxarm.deploy.limits import limit_targets
 from jaxarm.deploy.reading import ArmReading
 
@@ -23,8 +24,22 @@ class UnsafeAction(RuntimeError):
     there. The message says at which tick and what the action was, in one line."""
 
 
+class Task(Protocol):
+    """A task's numbers (`sort.SortTask`, `peg.PegTask`): a frozen dataclass of plain numbers and arrays, which
+    `files.save` writes field by field."""
+
+    @property
+    def start_qpos(self) -> np.ndarray: ...
+
+
 class Controller(Protocol):
     """A task's observation and control at a robot (`sort.SortController`, `peg.PegController`)."""
+
+    @property
+    def task(self) -> Task: ...
+
+    @property
+    def kinematics(self) -> ArmKinematics: ...
 
     @property
     def action_size(self) -> int: ...
