@@ -5,11 +5,15 @@ the x-axis every learner and batch size shares. wandb is an optional extra (`pip
 imported only when a run asks for it; offline mode is wandb's own (`WANDB_MODE=offline`, or `offline=True`).
 """
 
+import contextlib
 import dataclasses
 import hashlib
 import importlib
+import importlib.abc
 import pathlib
 import sys
+import threading
+from collections.abc import Iterator
 from typing import Any, Protocol
 
 
@@ -23,16 +27,40 @@ def summary_writer_class() -> type:
     """tensorboardX's SummaryWriter. tensorboardX imports torch wherever it is installed, only to accept torch
     tensors (the rows hold floats): its import took 2.7-3.8 s of a run's start on an H200 host with torch (sampled,
     2026-11-27; without torch, 0.03-0.1 s on the 2-core CPU), while the run's other processes waited. Where torch is
-    not imported yet, it is hidden while tensorboardX imports, and importable again after."""
+    not imported yet, it is hidden from this thread while tensorboardX imports (`hidden_from_this_thread`)."""
     if "torch" in sys.modules:
         from tensorboardX import SummaryWriter
     else:
-        sys.modules["torch"] = None  # type: ignore[assignment]  # `import torch` raises ImportError meanwhile
-        try:
+        with hidden_from_this_thread("torch"):
             from tensorboardX import SummaryWriter
-        finally:
-            del sys.modules["torch"]
     return SummaryWriter
+
+
+class _HiddenFromThread(importlib.abc.MetaPathFinder):
+    """A finder under which `import NAME` fails in one thread (ModuleNotFoundError) and is left to the other
+    finders in every other thread."""
+
+    def __init__(self, name: str, thread: int):
+        self.name, self.thread = name, thread
+
+    def find_spec(self, fullname, path, target=None):
+        if fullname == self.name and threading.get_ident() == self.thread:
+            raise ModuleNotFoundError(f"{fullname} is hidden while tensorboardX imports", name=fullname)
+        return None
+
+
+@contextlib.contextmanager
+def hidden_from_this_thread(name: str) -> Iterator[None]:
+    """Within the block, `import NAME` fails in this thread alone. Not by `sys.modules[NAME] = None`, which every
+    thread sees: the run's compile thread runs meanwhile, and code there may import NAME or find a None in its
+    place. `sys.meta_path` is replaced, never changed in place, so that a thread going through its finders as this
+    one installs or removes its own sees one list throughout."""
+    finder = _HiddenFromThread(name, threading.get_ident())
+    sys.meta_path = [finder, *sys.meta_path]
+    try:
+        yield
+    finally:
+        sys.meta_path = [other for other in sys.meta_path if other is not finder]
 
 
 class TensorBoardSink:

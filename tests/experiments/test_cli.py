@@ -1,10 +1,12 @@
 """What the entry points offer: --help on each, --show, the compilation cache, metric sinks and video files."""
 
+import importlib
 import json
 import os
 import pathlib
 import subprocess
 import sys
+import threading
 import time
 import types
 
@@ -153,6 +155,22 @@ def test_tensorboard_starts_without_importing_torch(tmp_path):
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.splitlines() == ["torch after the sink: False", "torch imported"]
+
+
+def test_torch_is_hidden_from_the_importing_thread_alone(tmp_path, monkeypatch):
+    # A module in place of torch: the run's compile thread may import it while tensorboardX imports.
+    (tmp_path / "hidden_probe.py").write_text("")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    elsewhere = []
+    with sinks.hidden_from_this_thread("hidden_probe"):
+        with pytest.raises(ModuleNotFoundError, match="hidden while tensorboardX imports"):
+            importlib.import_module("hidden_probe")
+        assert "hidden_probe" not in sys.modules, "hidden by a finder, not by a None in sys.modules"
+        other = threading.Thread(target=lambda: elsewhere.append(importlib.import_module("hidden_probe")))
+        other.start()
+        other.join()
+    assert elsewhere and importlib.import_module("hidden_probe") is elsewhere[0]
+    monkeypatch.delitem(sys.modules, "hidden_probe")
 
 
 @pytest.fixture
