@@ -336,9 +336,14 @@ def open_study(args: argparse.Namespace) -> tuple[Protocol, pathlib.Path, dict[i
         out = pathlib.Path(args.resume)
         protocol, walls = read_study(out)
         return protocol, out, walls
+    import jax
+
     from experiments import configs
     from jaxarm.agents.common.config import apply_overrides
 
+    # Validating builds the env, which starts JAX's backend: on the CPU, so that this process takes none of the
+    # GPUs' memory from the runs (on a GPU, JAX takes most of it at start: two runs failed so, out of memory).
+    jax.config.update("jax_platforms", "cpu")
     apply_overrides(configs.get(args.config), [*args.overrides, "seed=0"])  # refused here, not once per seed
     out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"seeds-{args.config}")
     rundir.check_output_dir(out, "--out")
