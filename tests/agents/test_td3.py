@@ -27,7 +27,7 @@ from jaxarm.agents.td3.losses import (
     smoothed_target_action,
 )
 from jaxarm.agents.td3.networks import make_networks
-from jaxarm.agents.td3.train import Experience, n_step_experience
+from jaxarm.agents.td3.train import Experience, annealed_step_sizes, n_step_experience
 from tests.agents.probe_envs import HOST_CHECKS, ConstantRewardEnv, HostCheckedEnv, ImageTargetEnv, TargetActionEnv
 
 SMALL = dict(
@@ -228,6 +228,17 @@ def test_ddpg_preset_is_one_critic_no_smoothing_no_delay():
     assert registry.name_of(config) == "td3" and config.hidden_sizes == (100,) and config.batch_size == 32
     state = make_trainer(config).init(jax.random.PRNGKey(0), config.hparams())
     assert all(leaf.shape[0] == 1 for leaf in jax.tree.leaves(state.critic_params))
+
+
+def test_annealed_step_sizes_fall_linearly_to_zero_over_the_run_and_stay_without_annealing():
+    config = TD3Config(total_env_steps=400, num_envs=4, rollout_length=1, actor_learning_rate=1e-3)  # 100 updates
+    hparams = config.hparams()
+    annealed = dataclasses.replace(config, anneal_learning_rate=True)
+    for updates, remaining in [(0, 1.0), (25, 0.75), (100, 0.0)]:
+        step_sizes = annealed_step_sizes(annealed, hparams, jnp.int32(updates))
+        np.testing.assert_allclose(step_sizes.actor_learning_rate, 1e-3 * remaining, rtol=1e-6)
+        np.testing.assert_allclose(step_sizes.critic_learning_rate, config.critic_learning_rate * remaining, rtol=1e-6)
+        assert annealed_step_sizes(config, hparams, jnp.int32(updates)) is hparams
 
 
 def test_config_rejects_a_delay_that_does_not_divide_the_gradient_steps():

@@ -47,6 +47,12 @@ class Trainer:
     numpy_policy: Callable[[Any], NumpyPolicy] | None = None
 
 
+def remaining_fraction(updates: jax.Array, num_updates: int) -> jax.Array:
+    """[] float32: the share of a run of `num_updates` still to come after `updates` [] int, the factor of a step
+    size annealed linearly to 0 over the run."""
+    return 1.0 - updates.astype(jnp.float32) / num_updates
+
+
 def run_updates(trainer: Trainer, state, hparams, num_updates: int):
     """Runs `num_updates` updates in one `lax.scan`; metrics come back stacked, [num_updates] per leaf."""
     return jax.lax.scan(lambda carry, _: trainer.update(carry, hparams), state, None, length=num_updates)

@@ -25,7 +25,7 @@ from jaxarm.agents.common import normalizer as observation_normalizer
 from jaxarm.agents.common.config import HParams
 from jaxarm.agents.common.networks import numpy_mlp_policy
 from jaxarm.agents.common.permutation import random_permutation
-from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
+from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, remaining_fraction, summarise_episodes
 from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.agents.ppo.distill import Teacher
@@ -293,8 +293,9 @@ def advantage_samples(
 
 def learning_rate_at(config: PPOConfig, hparams: HParams, updates: jax.Array) -> jax.Array:
     """The step size after `updates` updates: annealed linearly to 0 over the run, or constant."""
-    progress = updates.astype(jnp.float32) / config.num_updates
-    return hparams.learning_rate * (1.0 - progress if config.anneal_learning_rate else 1.0)
+    return hparams.learning_rate * (
+        remaining_fraction(updates, config.num_updates) if config.anneal_learning_rate else 1.0
+    )
 
 
 def update(

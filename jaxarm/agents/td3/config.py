@@ -28,6 +28,8 @@ class TD3Config(RunConfig):
       target_noise: std of the target-policy smoothing noise (used only if `target_smoothing`).
       target_noise_clip: the smoothing noise is clipped to ±this.
       reward_scale: rewards are multiplied by this in the critic target.
+      anneal_learning_rate: decay both step sizes linearly to 0 over the run, so that the policy settles where
+        training ends instead of swinging between evaluations (DDPG's deterministic policy does: ddpg_arm2d).
       normalize_observations: the networks read observations standardised by a running mean and std (brax's;
         of a camera observation, its proprio part), updated with every collected step; replay keeps them raw.
       hidden_sizes: hidden layer widths of the actor and of each critic.
@@ -74,6 +76,7 @@ class TD3Config(RunConfig):
     target_noise_clip: float = dynamic(0.5, NON_NEGATIVE)
     reward_scale: float = dynamic(1.0, POSITIVE)
 
+    anneal_learning_rate: bool = False
     normalize_observations: bool = False
     hidden_sizes: tuple[int, ...] = static((256, 256), COUNT)
     activation: str = static("relu", ACTIVATION)

@@ -29,7 +29,7 @@ from jaxarm.agents.common import replay
 from jaxarm.agents.common.augment import shift_observation
 from jaxarm.agents.common.config import HParams
 from jaxarm.agents.common.networks import numpy_mlp_policy
-from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, summarise_episodes
+from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, remaining_fraction, summarise_episodes
 from jaxarm.agents.td3.config import TD3Config
 from jaxarm.agents.td3.losses import (
     actor_loss,
@@ -361,6 +361,18 @@ def learn(
     return state, (jnp.mean(critic_losses), jnp.mean(actor_losses), jnp.mean(q_means))
 
 
+def annealed_step_sizes(config: TD3Config, hparams: HParams, updates: jax.Array) -> HParams:
+    """`hparams` with the actor's and the critics' step sizes after `updates` updates: annealed linearly to 0 over
+    the run (`anneal_learning_rate`), or as they are."""
+    if not config.anneal_learning_rate:
+        return hparams
+    remaining = remaining_fraction(updates, config.num_updates)
+    return hparams.replace(
+        actor_learning_rate=hparams.actor_learning_rate * remaining,
+        critic_learning_rate=hparams.critic_learning_rate * remaining,
+    )
+
+
 def update(
     config: TD3Config,
     networks: TD3Networks,
@@ -372,6 +384,7 @@ def update(
 ) -> tuple[TD3State, TD3Metrics]:
     """One update (the module docstring): collect, store, and learn once `learning_starts` env steps are in."""
     key, collect_key, learn_key = jax.random.split(state.key, 3)
+    step_sizes = annealed_step_sizes(config, hparams, state.updates)
     env_state, env_steps, experience, states = collect(
         config, networks, batch_env, env_params, state, hparams, collect_key
     )
@@ -395,7 +408,7 @@ def update(
         skip_learning,
         state,
         learn_key,
-        hparams,
+        step_sizes,
     )
     metrics = TD3Metrics(
         episodes=summarise_episodes(states),
