@@ -14,7 +14,7 @@ GL_HINT = (
     "headless rendering needs an offscreen GL: MUJOCO_GL=egl with Mesa's libegl1 libegl-mesa0 libgl1-mesa-dri "
     "on a CPU machine (apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri), or a GPU driver's EGL"
 )
-"""What to do when MuJoCo cannot draw (the README's words)."""
+"""What to do when MuJoCo cannot draw (the words of docs/install.md)."""
 
 
 class GLImportError(ImportError):

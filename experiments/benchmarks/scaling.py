@@ -47,7 +47,7 @@ def safe_sizes(env_name: str, sizes: list[int]) -> list[int]:
     if dropped:
         print(
             f"  {env_name}: skipping {', '.join(f'{size:,}' for size in dropped)} envs on the CPU "
-            f"(above {limit} the CPU runtime can deadlock on this env; see the README)",
+            f"(above {limit} the CPU runtime can deadlock on this env; see docs/tutorials/panda.md)",
             flush=True,
         )
     return [size for size in sizes if size <= limit]

@@ -199,7 +199,7 @@ class VmapEnv(Wrapper):
         if limit is not None and num_envs > limit and jax.default_backend() == "cpu":
             warnings.warn(
                 f"{type(self.unwrapped).__name__} with {num_envs} envs on the CPU: above {limit} envs jaxlib's CPU "
-                f"runtime has deadlocked on it (see the README); the run may hang",
+                f"runtime has deadlocked on it (see docs/tutorials/panda.md); the run may hang",
                 stacklevel=2,
             )
 

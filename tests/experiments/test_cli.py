@@ -20,7 +20,7 @@ from jaxarm import headless
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.runner import cache, learners, rundir, sinks, video
 
-README = (pathlib.Path(__file__).resolve().parents[2] / "README.md").read_text()
+INSTALL_PAGE = (pathlib.Path(__file__).resolve().parents[2] / "docs" / "install.md").read_text()
 
 SMALL = [
     "num_envs=64",
@@ -258,7 +258,7 @@ def test_a_missing_gl_platform_gets_a_one_line_hint():
     assert str(raised.value).endswith(headless.GL_HINT) and "\n" not in str(raised.value)
 
 
-def test_a_mujoco_gl_that_cannot_load_fails_at_import_with_the_readmes_hint():
+def test_a_mujoco_gl_that_cannot_load_fails_at_import_with_the_install_pages_hint():
     """mujoco loads MUJOCO_GL's platform when imported, before any command can probe it."""
     env = {**os.environ, "MUJOCO_GL": "bogus"}
     command = [sys.executable, "-m", "experiments.eval", "no-such-run", "--video"]
@@ -298,7 +298,7 @@ def test_eval_video_of_a_panda_run_without_a_display_fails_before_the_learners_i
     assert done.stderr.startswith("error: cannot draw here (FatalError: ")
 
 
-def test_eval_video_without_gl_fails_at_once_with_the_readmes_hint(tmp_path, monkeypatch, capsys):
+def test_eval_video_without_gl_fails_at_once_with_the_install_pages_hint(tmp_path, monkeypatch, capsys):
     """Checked before the checkpoint loads or anything compiles (a Panda env compiled for 9.5 minutes first)."""
 
     def no_gl():
@@ -317,8 +317,8 @@ def test_eval_video_without_gl_fails_at_once_with_the_readmes_hint(tmp_path, mon
     assert eval_cli.main([str(run_dir), "--video"]) == 2
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and error.strip().endswith(headless.GL_HINT) and "glGetError" in error
-    readme_words = ("MUJOCO_GL=egl", "libegl1 libegl-mesa0 libgl1-mesa-dri")
-    assert all(part in README and part in headless.GL_HINT for part in readme_words)
+    install_words = ("MUJOCO_GL=egl", "libegl1 libegl-mesa0 libgl1-mesa-dri")
+    assert all(part in INSTALL_PAGE and part in headless.GL_HINT for part in install_words)
     assert time.perf_counter() - start < 10
 
 

@@ -110,7 +110,7 @@ def test_every_exported_form_acts_as_the_learner(exported):
 
 
 def test_the_numpy_policy_drives_the_gymnasium_adapter(exported):
-    # The README's example: the policy file alone acts in the Gymnasium env.
+    # docs/tutorials/deploy.md's example: the policy file alone acts in the Gymnasium env.
     run_dir, _, _ = exported
     policy = numpy_policy.load(run_dir / "export" / "policy.npz")
     env = GymnasiumEnv(envs.make("arm2d"))
