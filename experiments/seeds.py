@@ -157,7 +157,7 @@ def markdown(summary: dict) -> str:
         "|---:|---:|---:|---|",
     ]
     for seed in summary["seeds"]:
-        mark = "" if seed["finished"] else " (stopped)"
+        mark = "" if seed["finished"] else " (not finished)"
         lines.append(
             f"| {seed['seed']} | {percent(seed['placed'])}{mark} | {seed['wall_s']:.0f} s | {seed['device']} |"
         )
@@ -376,7 +376,11 @@ def study(args: argparse.Namespace) -> int:
     (out / "seeds.md").write_text(markdown(summary))
     print(markdown(summary), end="")
     if not summary["finished"]:
-        print(f"some seeds stopped before their end; continue with: python -m experiments.seeds --resume {out}")
+        unfinished = ", ".join(f"{out}/seed-{result.seed}.log" for result in results if not result.finished)
+        print(
+            f"some seeds did not finish (their logs say why: {unfinished}); continue them with: "
+            f"python -m experiments.seeds --resume {out}"
+        )
     return 0
 
 

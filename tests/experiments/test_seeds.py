@@ -60,7 +60,7 @@ def test_a_study_is_met_only_when_its_worst_seed_meets_the_goal_in_time():
     assert not seeds.summarise(protocol, [result(0, 0.99), result(1, 0.99, wall_s=121), result(2, 1.0)])["met"]
     stopped = seeds.summarise(protocol, [result(0, 0.99), result(1, 0.99, finished=False), result(2, 1.0)])
     assert not stopped["met"] and stopped["worst"] is None
-    assert "**met**" in seeds.markdown(met) and "(stopped)" in seeds.markdown(stopped)
+    assert "**met**" in seeds.markdown(met) and "(not finished)" in seeds.markdown(stopped)
 
 
 def test_a_damaged_study_file_is_named_in_one_line(tmp_path):
@@ -90,7 +90,7 @@ def test_each_seed_is_a_separate_run_a_stopped_one_resumes_and_reproduces_an_uns
     assert seeds.main([*args, "--seeds", "0", "--out", str(tmp_path / "whole")]) == 0
     stopped = tmp_path / "stopped"
     assert seeds.main([*args, "--seeds", "0-1", "--out", str(stopped), "--stop-after-minutes", "0"]) == 0
-    assert "continue with: python -m experiments.seeds --resume" in capsys.readouterr().out
+    assert "continue them with: python -m experiments.seeds --resume" in capsys.readouterr().out
     assert seeds.main(["--resume", str(stopped)]) == 0
     summary = json.loads((stopped / "summary.json").read_text())
     assert summary["met"] and summary["finished"] and [seed["seed"] for seed in summary["seeds"]] == [0, 1]
