@@ -61,7 +61,9 @@ def main(argv=None) -> int:
     began = time.perf_counter()
     run_dir = pathlib.Path(args.run_dir)
     try:
-        problem = gl_problem(run_dir) if args.video else None
+        problem = (gl_problem(run_dir) if args.video else None) or (
+            ends_problem(run_dir) if args.randomized_ends else None
+        )
         if problem is None:
             return evaluate_run(run_dir, args, began)
     except headless.GLImportError as error:  # a MUJOCO_GL that mujoco cannot load, met where mujoco is imported
@@ -70,15 +72,35 @@ def main(argv=None) -> int:
     return 2
 
 
+def saved_config(run_dir: pathlib.Path) -> dict | None:
+    """The run's config.json as saved, read without importing the learners; None where it cannot be read (for
+    `evaluate_run` to report)."""
+    try:
+        saved = json.loads((run_dir / "config.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return saved if isinstance(saved, dict) else None
+
+
+def ends_problem(run_dir: pathlib.Path) -> str | None:
+    """Why `--randomized-ends` has nothing to evaluate in the run in `run_dir` (it randomises no env param), found
+    before the seconds of imports an evaluation takes; None where it has, or the config is for `evaluate_run`."""
+    saved = saved_config(run_dir)
+    if saved is None or saved.get("randomize"):
+        return None
+    return "--randomized-ends: the run randomises no env param"
+
+
 def gl_problem(run_dir: pathlib.Path) -> str | None:
     """Why the env of the run in `run_dir` cannot draw here (`headless.gl_problem`); None where it draws without
     OpenGL or GL works. Imports the env's class alone. A directory without a readable run is for
     `evaluate_run` to report."""
     from jaxarm.envs import registry
 
+    saved = saved_config(run_dir)
     try:
-        draws_with_gl = registry.draws_with_gl(json.loads((run_dir / "config.json").read_text())["env"])
-    except (OSError, ValueError, KeyError, TypeError):
+        draws_with_gl = registry.draws_with_gl(saved["env"]) if saved else False
+    except (ValueError, KeyError, TypeError):
         return None
     return headless.gl_problem() if draws_with_gl else None
 
@@ -164,9 +186,7 @@ def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> Non
 
     env, env_params = config.make_eval_env()
     perturbations: dict[str, list[float]] = {}
-    if args.randomized_ends:
-        if not config.randomize:
-            raise ValueError("--randomized-ends: the run randomises no env param")
+    if args.randomized_ends:  # a run that randomises nothing was refused before the imports (ends_problem)
         perturbations = robustness.range_ends(dict(config.randomize), env_params)
     combined = [robustness.parse_combined(text) for text in args.perturb if "+" in text]
     for text in args.perturb:

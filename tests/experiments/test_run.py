@@ -307,9 +307,13 @@ def test_a_runs_randomised_ranges_give_their_ends():
     assert ends == {"action_latency": [0, 2], "mass_scale": [0.5, 3.0]}
 
 
-def test_the_ends_of_no_randomisation_are_refused(finished_run, capsys):
+def test_the_ends_of_no_randomisation_are_refused_before_the_checkpoint_loads(finished_run, capsys, monkeypatch):
+    def never(*args, **kwargs):
+        raise AssertionError("evaluated a run before checking that it randomises anything")
+
+    monkeypatch.setattr(eval_cli, "evaluate_run", never)
     assert eval_cli.main([str(finished_run), "--episodes", "4", "--randomized-ends"]) == 2
-    assert "randomises no env param" in capsys.readouterr().err
+    assert capsys.readouterr().err == "error: --randomized-ends: the run randomises no env param\n"
 
 
 @pytest.mark.parametrize(
