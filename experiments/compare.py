@@ -29,7 +29,10 @@ class RunCurves:
     Attributes:
       label: the run directory's name, or the label given.
       batch: env steps per update (num_envs × rollout_length; None where the config has no rollout).
-      env_steps, wall_seconds: [U] env steps and seconds since the first jit at each update.
+      env_steps, wall_seconds: [U] env steps and seconds since the first jit at each update (every update of a
+        chunk logs the chunk's end).
+      update_seconds: [U] `wall_seconds` with each chunk's updates spread evenly over its seconds
+        (`update_times`): what curves over wall clock are drawn against.
       success, returns: [U] rolling means (weighted by finished episodes) of the training success rate and
         episode return.
       steps_per_second: the median env-steps rate after the first logged chunk (compile excluded).
@@ -42,6 +45,7 @@ class RunCurves:
     batch: int | None
     env_steps: np.ndarray
     wall_seconds: np.ndarray
+    update_seconds: np.ndarray
     success: np.ndarray
     returns: np.ndarray
     steps_per_second: float
@@ -55,7 +59,9 @@ def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
     """Reads a run directory; ValueError if it holds no finished episodes."""
     config, _ = rundir.read_config(run_dir)
     metrics = rundir.read_metrics(run_dir)
-    rows = [row for row in metrics if row.get("episodes/episodes", 0) > 0]
+    ended = update_times(np.array([row["wall_time"] for row in metrics], float))
+    kept = [index for index, row in enumerate(metrics) if row.get("episodes/episodes", 0) > 0]
+    rows = [metrics[index] for index in kept]
     evaluations = [row for row in metrics if "eval/success_rate" in row]
     if not rows:
         raise ValueError(f"{run_dir} has no metrics with finished episodes")
@@ -74,6 +80,7 @@ def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
         batch=config.num_envs * rollout if rollout else None,
         env_steps=column("env_steps"),
         wall_seconds=wall,
+        update_seconds=ended[kept],
         success=plots.rolling_mean(column("episodes/success_rate"), window, episodes),
         returns=plots.rolling_mean(column("episodes/return_mean"), window, episodes),
         steps_per_second=float(np.median(rates)) if len(rates) else float("nan"),
@@ -121,6 +128,20 @@ def table(runs: list[RunCurves]) -> str:
             f"{best} | {evaluated} |"
         )
     return "\n".join(lines)
+
+
+def update_times(chunk_ends: np.ndarray) -> np.ndarray:
+    """[U] seconds at which each update ended, from `chunk_ends` [U], the wall clock each metrics row logs: every
+    update of a chunk logs the chunk's end. Each chunk's updates are spread evenly over its own seconds, so that a
+    curve over wall clock rises as training went rather than in a vertical step per chunk."""
+    times = np.empty_like(chunk_ends)
+    firsts = np.flatnonzero(np.r_[True, np.diff(chunk_ends) != 0])
+    previous = 0.0
+    for begin, end in zip(firsts, [*firsts[1:], len(chunk_ends)], strict=True):
+        count = end - begin
+        times[begin:end] = previous + (chunk_ends[begin] - previous) * np.arange(1, count + 1) / count
+        previous = chunk_ends[begin]
+    return times
 
 
 def device_name(runs: list[RunCurves], given: str | None) -> str:
@@ -197,7 +218,7 @@ def main(argv=None) -> int:
     print(table(runs))
     curves = {
         run.label: (
-            (run.env_steps, run.wall_seconds, run.success, run.returns),
+            (run.env_steps, run.update_seconds, run.success, run.returns),
             (run.eval_env_steps, run.eval_wall_seconds, run.eval_success),
         )
         for run in runs

@@ -54,6 +54,7 @@ def test_a_run_reads_back_with_its_batch_rate_and_episode_weighted_curves(tmp_pa
     assert run.label == "a" and run.batch == 64 * 16
     # The update with no finished episode is left out; with 3 rows the rolling window is 1 update.
     np.testing.assert_allclose(run.wall_seconds, [10.0, 12.0, 14.0])
+    np.testing.assert_allclose(run.update_seconds, [5.0, 12.0, 14.0])  # the first chunk's two updates: 5 s each
     np.testing.assert_allclose(run.success, [0.0, 1.0, 1.0])
     np.testing.assert_allclose(run.returns, [-1.0, 3.0, 5.0])
     assert run.steps_per_second == 400.0  # median after the first chunk (wall 10 s holds the compilation)
@@ -61,6 +62,12 @@ def test_a_run_reads_back_with_its_batch_rate_and_episode_weighted_curves(tmp_pa
     assert run.eval_success.shape == (0,)
     assert np.isnan(compare.value_at(run, run.success, 9.0))
     assert compare.value_at(run, run.returns, 13.0) == 3.0
+
+
+def test_each_chunks_updates_are_spread_over_its_seconds_for_curves_over_wall_clock():
+    # Chunks of 2, 1 and 3 updates ending at 10, 12 and 18 s (a resumed run's clock goes on the same way).
+    chunk_ends = np.array([10.0, 10.0, 12.0, 18.0, 18.0, 18.0])
+    np.testing.assert_allclose(compare.update_times(chunk_ends), [5.0, 10.0, 12.0, 14.0, 16.0, 18.0])
 
 
 def test_the_table_compares_runs_at_the_wall_clock_all_of_them_reached(tmp_path):
