@@ -17,9 +17,9 @@ import argparse
 import pathlib
 import sys
 
+from jaxarm import deployable
 from jaxarm.agents.common import checkpoint
 from jaxarm.deploy import files as deploy_files
-from jaxarm.deploy import from_env
 from jaxarm.export import origin, policy
 from jaxarm.runner import learners, rundir
 
@@ -41,7 +41,7 @@ def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Pat
     except ImportError:
         onnx_model = None
     eval_env, eval_params = config.make_eval_env()
-    controller = from_env.controller(eval_env, eval_params) if from_env.runs(eval_env) else None
+    controller = deployable.controller(eval_env, eval_params) if deployable.runs(eval_env) else None
     out_dir.mkdir(parents=True, exist_ok=True)
     # Removed first and written last: an export cut short leaves no record, never one naming another checkpoint.
     (out_dir / origin.FILE).unlink(missing_ok=True)

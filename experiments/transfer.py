@@ -25,11 +25,12 @@ import mujoco
 import numpy as np
 from scipy import stats
 
-from jaxarm import envs, headless, ranges
-from jaxarm.deploy import from_env, scoring
+from jaxarm import deployable, envs, headless, ranges
+from jaxarm.deploy import scoring
 from jaxarm.deploy.loop import DeploymentLoop, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
 from jaxarm.deploy.reading import HoleEstimate, ObjectEstimate
+from jaxarm.deployable import panda_sort, peg_insert
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda.robot import MENAGERIE_PANDA_XML, MENAGERIE_TIMESTEP
 from jaxarm.envs.panda_sort import PandaSort
@@ -125,7 +126,7 @@ def sort_episode(robot: MujocoRobot, loop: DeploymentLoop, env: PandaSort, param
     data.qpos[:] = sim.qpos
     robot.command(sim.ctrl)
     mujoco.mj_forward(model, data)
-    bins, reward = from_env.bins(env.layout), from_env.sort_reward(env, params)
+    bins, reward = panda_sort.bins(env.layout), panda_sort.sort_reward(env, params)
     shape, size = sim.shape, sim.size.astype(np.float64)
     tcp_site = ids.robot.tcp_site
 
@@ -177,7 +178,7 @@ def peg_episode(robot: MujocoRobot, loop: DeploymentLoop, env: PegInsert, params
     data.qpos[:] = sim.qpos
     robot.command(sim.ctrl)
     mujoco.mj_forward(model, data)
-    reward = from_env.peg_reward(params)
+    reward = peg_insert.peg_reward(params)
     radius, half_length = model.geom_size[ids.peg_geom, :2]
     hole_bottom = np.array([*sim.hole, peg_model.HOLE_FLOOR])
 
@@ -226,7 +227,7 @@ def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int,
     """Runs `episodes` episodes of `policy` (flat observation -> action, numpy) in the eval `env`'s scene with
     `model_name`'s Panda, from the env's resets drawn from `seed`; the summary, and the first episode's frames
     under "frames" when `record`."""
-    controller = from_env.controller(env, params)
+    controller = deployable.controller(env, params)
     run_episode = sort_episode if isinstance(env, PandaSort) else peg_episode
     model = plant_model(env, params, model_name)
     if isinstance(env, PegInsert):
@@ -271,7 +272,7 @@ def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int,
 def transferable_envs() -> list[str]:
     """The registered envs the deployment loop runs as registered (the sorter's and the peg's with state
     observations)."""
-    return [name for name in envs.names() if from_env.runs(envs.make(name))]
+    return [name for name in envs.names() if deployable.runs(envs.make(name))]
 
 
 def transfer(run_dir: pathlib.Path, model_name: str, episodes: int, seed: int, clip: bool, record: bool) -> dict:
@@ -280,7 +281,7 @@ def transfer(run_dir: pathlib.Path, model_name: str, episodes: int, seed: int, c
     or the policy does not fit the env."""
     config, _ = rundir.read_config(run_dir)
     env, params = config.make_eval_env()
-    if not from_env.runs(env):
+    if not deployable.runs(env):
         kwargs = f" with env_kwargs {dict(config.env_kwargs)}" if config.env_kwargs else ""
         raise ValueError(f"{run_dir}'s env is {config.env}{kwargs}; transfer runs {', '.join(transferable_envs())}")
     policy_path = run_dir / "export" / "policy.npz"

@@ -21,14 +21,14 @@ BUILD_EVERYTHING = """
 import pathlib, sys
 import jaxarm
 from experiments import transfer
-from jaxarm.deploy import from_env
+from jaxarm import deployable
 from jaxarm.envs import registry
 
 where = pathlib.Path(jaxarm.__file__).parent
 assert where.is_relative_to(sys.argv[1]), f"jaxarm imported from {where}, not from the installed wheel"
 for name in registry.names():
     env = registry.make(name)
-    if from_env.runs(env):
+    if deployable.runs(env):
         for model in transfer.MODELS:
             transfer.plant_model(env, env.default_params(), model)
         print(name, "with its transfer plants")

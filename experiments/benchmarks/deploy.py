@@ -17,7 +17,7 @@ import numpy as np
 
 from experiments import configs
 from experiments.benchmarks.record import add_out_argument, write_record
-from jaxarm.deploy import from_env
+from jaxarm import deployable
 from jaxarm.deploy.loop import Controller, DeploymentLoop
 from jaxarm.deploy.reading import ArmReading, HoleEstimate, ObjectEstimate
 from jaxarm.envs.panda.base import CONTROL_DT
@@ -67,7 +67,7 @@ def tick_times(preset: str, ticks: int, warmup: int, seed: int) -> tuple[np.ndar
     deployment loop."""
     config = configs.get(preset)
     env, params = config.make_eval_env()
-    controller = from_env.controller(env, params)
+    controller = deployable.controller(env, params)
     task = controller.task
     rng = np.random.default_rng(seed)
     observation_size = env.spec.observation_shape[0]

@@ -6,7 +6,7 @@ target, joint limits) in numpy, within Franka's joint speed and acceleration lim
 `kinematics.py` poses the arm with MuJoCo's C library; `ik.py` is the env's IK maths in numpy; `limits.py` the
 datasheet's limits; `scoring.py` the tasks' scoring; `mujoco_robot.py` is stock MuJoCo playing the robot. These
 import numpy and mujoco alone, so a robot's computer needs no JAX: `files.py` loads a controller from the
-deploy.json and robot.mjb that `python -m experiments.export` writes. `from_env.py` (JAX) reads a task's numbers
-from a jaxarm env and its params.
-This package's own import must stay free of JAX.
+deploy.json and robot.mjb that `python -m experiments.export` writes. `jaxarm.deployable` (JAX), above this package
+and the envs, reads a task's numbers from a jaxarm env and its params.
+No module here imports JAX or `jaxarm.envs`.
 """

@@ -15,7 +15,8 @@ PEG_TIP_SITE = "peg_tip"
 
 @dataclasses.dataclass(frozen=True)
 class PegTask:
-    """What the peg's observation and control need to know, as plain numbers (`from_env.peg_task` reads them).
+    """What the peg's observation and control need to know, as plain numbers
+    (`jaxarm.deployable.peg_insert.peg_task` reads them).
 
     Attributes:
       running_target: the env's constructor argument.

@@ -20,8 +20,9 @@ MODE_JOINT = "joint"
 
 @dataclasses.dataclass(frozen=True)
 class SortTask:
-    """What the sorter's observation and control need to know, as plain numbers (`from_env.sort_task` reads them
-    from an env and its params; the env's docstrings say what each means).
+    """What the sorter's observation and control need to know, as plain numbers
+    (`jaxarm.deployable.panda_sort.sort_task` reads them from an env and its params; the env's docstrings say what
+    each means).
 
     Attributes:
       objects_count, control_mode, running_target, target_first: the env's constructor arguments.

@@ -12,7 +12,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxarm.deploy import from_env, limits, peg, sort
+from jaxarm import deployable
+from jaxarm.deploy import limits, peg, sort
 from jaxarm.deploy.reading import ArmReading, HoleEstimate, ObjectEstimate
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda_sort import IN_CORRECT_BIN, IN_PLAY, MODE_JOINT, PandaSort, PandaSortSim
@@ -103,7 +104,7 @@ def sorter_inputs(env: PandaSort, sim: PandaSortSim) -> tuple[ArmReading, Object
 @pytest.mark.parametrize("control_mode", ["ee", MODE_JOINT])
 def test_the_sorter_observes_and_acts_as_the_env(control_mode):
     env, params, sim, actions, obs, ctrl, *_ = sorter_case(control_mode)
-    controller = from_env.controller(env, params)
+    controller = deployable.controller(env, params)
     assert isinstance(controller, sort.SortController)
     reading, objects = sorter_inputs(env, sim)
     pose = controller.kinematics.pose(reading.arm_q)
@@ -166,7 +167,7 @@ def test_the_peg_observes_and_acts_as_the_env(running_target):
         return obs, *jax.vmap(ctrl)(actions)
 
     obs, targets, arm = (np.asarray(value) for value in reference(sim, jnp.asarray(actions)))
-    controller = from_env.controller(env, params)
+    controller = deployable.controller(env, params)
     assert isinstance(controller, peg.PegController)
     reading = ArmReading(arm_q=qpos[:7].astype(np.float64), arm_qvel=qvel[:7].astype(np.float64), finger_q=qpos[7:9])
     pose = controller.kinematics.pose(reading.arm_q)

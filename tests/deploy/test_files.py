@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from experiments.benchmarks.deploy import random_inputs
-from jaxarm.deploy import files, from_env
+from jaxarm import deployable
+from jaxarm.deploy import files
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.peg_insert.env import PegInsert
 
@@ -16,7 +17,7 @@ def test_saved_controllers_observe_and_act_as_the_originals(tmp_path):
     rng = np.random.default_rng(0)
     envs = [PandaSort(objects_count=3, running_target=True, target_first=True), PegInsert()]
     for index, env in enumerate(envs):
-        original = from_env.controller(env, env.default_params())
+        original = deployable.controller(env, env.default_params())
         written = files.save(tmp_path / str(index), original)
         assert sorted(path.name for path in written) == ["deploy.json", "robot.mjb"]
         loaded = files.load(tmp_path / str(index))
@@ -40,7 +41,7 @@ def test_saved_controllers_observe_and_act_as_the_originals(tmp_path):
 def test_damaged_or_foreign_deploy_files_are_refused_in_one_line_naming_the_file(tmp_path):
     with pytest.raises(ValueError, match="no deploy files for a object; they are written for SortController"):
         files.save(tmp_path, object())  # type: ignore[arg-type]
-    task_path, model_path = files.save(tmp_path, from_env.controller(PegInsert(), PegInsert().default_params()))
+    task_path, model_path = files.save(tmp_path, deployable.controller(PegInsert(), PegInsert().default_params()))
     saved = json.loads(task_path.read_text())
     for edited, error in [
         ("{", "JSONDecodeError"),

@@ -4,7 +4,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxarm.deploy import from_env, scoring
+from jaxarm import deployable
+from jaxarm.deploy import scoring
+from jaxarm.deployable import panda_sort
 from jaxarm.envs.panda_sort import make_layout, reward
 from tests.deploy.test_controller import sorter_case
 
@@ -12,7 +14,7 @@ from tests.deploy.test_controller import sorter_case
 @pytest.mark.parametrize("tosser", [False, True])
 def test_objects_score_as_in_the_env(tosser):
     layout = make_layout(tosser=tosser)
-    bins = from_env.bins(layout)
+    bins = panda_sort.bins(layout)
     rng = np.random.default_rng(0)
     # Around and inside every bin, above and below its rim, on the table and below it.
     centres = np.repeat(np.array(layout.bin_centers), 40, axis=0)
@@ -32,7 +34,7 @@ def test_target_and_shaping_potential_are_the_envs():
     env, params, sim, _, _, _, outcome, target, potential = sorter_case("ee")
     qpos = np.asarray(sim.qpos, np.float64)
     position = qpos[env.ids.object_qpos[:, None] + np.arange(3)]
-    controller = from_env.controller(env, params)
+    controller = deployable.controller(env, params)
     tcp = controller.kinematics.pose(qpos[:7]).tcp
     np.testing.assert_array_equal(
         scoring.next_outcome(np.asarray(sim.outcome), np.asarray(sim.shape), position, controller.task.bins), outcome
@@ -51,7 +53,7 @@ def test_target_and_shaping_potential_are_the_envs():
             finger_q=qpos[7:9],
             finger_ctrl=np.asarray(sim.ctrl, np.float64)[7:],
         )
-        ours = scoring.shaping_potential(state, controller.task.bins, from_env.sort_reward(env, params))
+        ours = scoring.shaping_potential(state, controller.task.bins, panda_sort.sort_reward(env, params))
         np.testing.assert_allclose(ours, potential[slot], atol=1e-5)
     # With slot 0 (in play) the target, its reach term counts beside slot 1's full marks.
     assert potential[0, 0] > potential[1, 0] == 1.0
