@@ -8,5 +8,5 @@ datasheet's limits; `scoring.py` the tasks' scoring; `mujoco_robot.py` is stock 
 import numpy and mujoco alone, so a robot's computer needs no JAX: `files.py` loads a controller from the
 deploy.json and robot.mjb that `python -m experiments.export` writes. `jaxarm.deployable` (JAX), above this package
 and the envs, reads a task's numbers from a jaxarm env and its params.
-No module here imports JAX or `jaxarm.envs`.
+No module here imports JAX or `jaxarm.envs` (tests/deploy/test_imports.py).
 """
