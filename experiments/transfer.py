@@ -26,19 +26,10 @@ import numpy as np
 from scipy import stats
 
 from jaxarm import deployable, envs, headless, ranges
-from jaxarm.deploy import scoring
 from jaxarm.deploy.loop import DeploymentLoop, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
-from jaxarm.deploy.reading import HoleEstimate, ObjectEstimate
-from jaxarm.deployable import panda_sort, peg_insert
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda.robot import MENAGERIE_PANDA_XML, MENAGERIE_TIMESTEP
-from jaxarm.envs.panda_sort import PandaSort
-from jaxarm.envs.panda_sort import model as sort_model
-from jaxarm.envs.panda_sort.objects import object_mass_inertia, pose_index, velocity_index
-from jaxarm.envs.panda_sort.render import dress_objects
-from jaxarm.envs.peg_insert import model as peg_model
-from jaxarm.envs.peg_insert.env import PegInsert
 from jaxarm.export import numpy_policy, origin
 from jaxarm.runner import rundir, video
 
@@ -51,14 +42,8 @@ def plant_model(env, params, model_name: str) -> mujoco.MjModel:
     Panda at most at its own timestep."""
     if model_name == "jaxarm":
         model = copy.copy(env.mj_model)
-    elif isinstance(env, PandaSort):
-        # The tosser's scene is the only one built with the firm grip, and its timestep says so.
-        firm_grip = env.mj_model.opt.timestep == sort_model.FIRM_GRIP_TIMESTEP
-        model = copy.copy(
-            sort_model.build_model(env.objects_count, env.layout, firm_grip=firm_grip, robot_xml=MENAGERIE_PANDA_XML)
-        )
     else:
-        model = copy.copy(peg_model.build_model(float(params.clearance), robot_xml=MENAGERIE_PANDA_XML))
+        model = copy.copy(deployable.entry(env).scene(env, params, MENAGERIE_PANDA_XML))
     if model_name == "menagerie":
         # At the scenes' 0.01 s its wrist servos chatter: a numerical artefact, no property of the robot, that cut
         # ppo_sorter_dr's placements from 98.5% (at 0.002 s) to 33.5% (200 episodes each).
@@ -98,140 +83,13 @@ class Recorder:
             self._renderer.close()
 
 
-def dress_sort_scene(model: mujoco.MjModel, env: PandaSort, params, shape, size, colour) -> sort_model.ModelIds:
-    """Writes an episode's objects (shapes [N], sizes [N], colours [N, 3]) and the params' masses and friction into
-    the robot's scene `model` (in place), as the env's `episode_model` does; returns the scene's ids, resolved in
-    it (another Panda model may number its bodies differently)."""
-    ids = sort_model.resolve_ids(model, env.objects_count)
-    dress_objects(model, ids, shape, size, colour)
-    geoms = ids.object_geom.ravel()
-    model.geom_rbound[geoms] = np.linalg.norm(model.geom_size[geoms], axis=-1)
-    spheres = ids.object_geom[:, 2]
-    model.geom_rbound[spheres] = model.geom_size[spheres, 0]
-    mass, inertia = (np.asarray(array) for array in object_mass_inertia(shape, size, params.density))
-    model.body_mass[ids.object_body] = mass * float(params.mass_scale)
-    model.body_inertia[ids.object_body] = inertia * float(params.mass_scale)
-    model.pair_friction[ids.finger_pair, :2] = float(params.finger_friction)
-    model.pair_friction[ids.object_pair, :2] = float(params.object_friction)
-    return ids
-
-
-def sort_episode(robot: MujocoRobot, loop: DeploymentLoop, env: PandaSort, params, sim, recorder) -> dict:
-    """One sorter episode from `sim` (the env's reset); its success, return, steps and objects placed."""
-    model, data = robot.model, robot.data
-    ids = dress_sort_scene(model, env, params, sim.shape, sim.size, sim.colour)
-    # The objects' new masses change the constants MuJoCo derives from them (their inverse weights).
-    mujoco.mj_setConst(model, data)
-    mujoco.mj_resetData(model, data)
-    data.qpos[:] = sim.qpos
-    robot.command(sim.ctrl)
-    mujoco.mj_forward(model, data)
-    bins, reward = panda_sort.bins(env.layout), panda_sort.sort_reward(env, params)
-    shape, size = sim.shape, sim.size.astype(np.float64)
-    tcp_site = ids.robot.tcp_site
-
-    def world(outcome, exit_xy, target) -> scoring.SortState:
-        return scoring.SortState(
-            position=data.qpos[pose_index(ids)[:, :3]].copy(),
-            shape=shape,
-            size=size,
-            outcome=outcome,
-            exit_xy=exit_xy,
-            target=target,
-            tcp=data.site_xpos[tcp_site].copy(),
-            finger_q=data.qpos[ids.robot.finger_qpos].copy(),
-            finger_ctrl=loop.ctrl[7:].copy(),
-        )
-
-    loop.begin(sim.ctrl)
-    state = world(sim.outcome.copy(), np.zeros((len(shape), 2)), int(sim.target))
-    potential = scoring.shaping_potential(state, bins, reward)
-    total, steps = 0.0, 0
-    recorder.capture(data)
-    while steps < int(params.max_episode_steps):
-        steps += 1
-        estimate = ObjectEstimate(data.qpos[pose_index(ids)].copy(), data.qvel[velocity_index(ids)].copy(), shape, size)
-        robot.command(loop.tick(robot.reading(), estimate))
-        robot.step()
-        recorder.capture(data)
-        now = world(state.outcome, state.exit_xy, state.target)
-        outcome = scoring.next_outcome(state.outcome, shape, now.position, bins)
-        leaving = (state.outcome == scoring.IN_PLAY) & (outcome != scoring.IN_PLAY)
-        exit_xy = np.where(leaving[:, None], now.position[:, :2], state.exit_xy)
-        target = scoring.next_target(outcome, state.target, now.position, now.tcp)
-        now = world(outcome, exit_xy, target)
-        next_potential = scoring.shaping_potential(now, bins, reward)
-        total += scoring.sort_reward(state.outcome, outcome, float(np.sum(next_potential - potential)), reward)
-        state, potential = now, next_potential
-        if not np.any(outcome == scoring.IN_PLAY):
-            break
-    placed = np.mean(state.outcome == scoring.IN_CORRECT_BIN)
-    return {"success": bool(placed == 1.0), "return": total, "steps": steps, "placed": float(placed)}
-
-
-def peg_episode(robot: MujocoRobot, loop: DeploymentLoop, env: PegInsert, params, sim, recorder) -> dict:
-    """One peg episode from `sim` (the env's reset); its success (inserted at any step), return and steps."""
-    model, data = robot.model, robot.data
-    ids = peg_model.resolve_ids(model)
-    model.body_pos[ids.block_body] = [*sim.hole, 0.0]
-    mujoco.mj_resetData(model, data)
-    data.qpos[:] = sim.qpos
-    robot.command(sim.ctrl)
-    mujoco.mj_forward(model, data)
-    reward = peg_insert.peg_reward(params)
-    radius, half_length = model.geom_size[ids.peg_geom, :2]
-    hole_bottom = np.array([*sim.hole, peg_model.HOLE_FLOOR])
-
-    def distance() -> float:
-        return float(np.linalg.norm(data.site_xpos[ids.peg_tip] - hole_bottom))
-
-    touched = [False]
-
-    def check_table(data: mujoco.MjData) -> None:
-        touched[0] |= scoring.capsule_below_plane(
-            data.geom_xpos[ids.peg_geom],
-            data.geom_xmat[ids.peg_geom].reshape(3, 3),
-            radius,
-            half_length,
-            data.geom_xpos[ids.table_geom],
-            data.geom_xmat[ids.table_geom].reshape(3, 3),
-        )
-
-    loop.begin(sim.ctrl)
-    initial = previous = distance()
-    total, steps, success = 0.0, 0, False
-    recorder.capture(data)
-    while steps < int(params.max_episode_steps):
-        steps += 1
-        robot.command(loop.tick(robot.reading(), HoleEstimate(sim.hole.astype(np.float64))))
-        robot.step(check_table)
-        recorder.capture(data)
-        now = distance()
-        total += scoring.peg_reward(previous, now, initial, reward)
-        success |= now < reward.insert_distance
-        previous = now
-        if touched[0] or now > reward.max_distance:
-            break
-    return {"success": bool(success), "return": total, "steps": steps}
-
-
-def set_walls(model: mujoco.MjModel, params) -> None:
-    """The peg block's walls at the params' clearance, as the env places them."""
-    ids = peg_model.resolve_ids(model)
-    centres, halves = (np.asarray(array) for array in peg_model.hole_walls(np.float32(params.clearance)))
-    model.geom_pos[ids.wall_geoms] = centres
-    model.geom_size[ids.wall_geoms] = halves
-
-
 def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int, clip: bool, record: bool) -> dict:
     """Runs `episodes` episodes of `policy` (flat observation -> action, numpy) in the eval `env`'s scene with
     `model_name`'s Panda, from the env's resets drawn from `seed`; the summary, and the first episode's frames
     under "frames" when `record`."""
     controller = deployable.controller(env, params)
-    run_episode = sort_episode if isinstance(env, PandaSort) else peg_episode
+    run_episode = deployable.entry(env).episode
     model = plant_model(env, params, model_name)
-    if isinstance(env, PegInsert):
-        set_walls(model, params)
     robot = MujocoRobot(model, CONTROL_DT)
     loop = DeploymentLoop(policy, controller, CONTROL_DT, clip=clip)
     sims = episode_starts(env, params, episodes, seed)
@@ -240,7 +98,7 @@ def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int,
     frames: list[np.ndarray] = []
     for index in range(episodes):
         recorder = Recorder(model if record and index == 0 else None)
-        results.append(run_episode(robot, loop, env, params, one(sims, index), recorder))
+        results.append(run_episode(robot, loop, env, params, one(sims, index), recorder.capture))
         recorder.close()
         frames = frames or recorder.frames
     successes = sum(result["success"] for result in results)
@@ -264,7 +122,7 @@ def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int,
         "solver_iterations": int(model.opt.iterations),
         "wall_seconds": time.perf_counter() - began,
     }
-    if isinstance(env, PandaSort):
+    if "placed" in results[0]:
         summary["placed_fraction"] = float(np.mean([result["placed"] for result in results]))
     return summary | {"frames": frames} if record else summary
 

@@ -3,9 +3,9 @@ env and its params.
 
 This package sits above both `jaxarm.envs` and `jaxarm.deploy` and imports JAX through the envs; `jaxarm.deploy`
 imports neither, so a robot's computer runs it without JAX. `panda_sort.py` and `peg_insert.py` are the tasks' glue,
-`registry.py` says which envs the loop runs.
+`registry.py` lists them (`DEPLOYABLES`), one entry each (`base.Deployable`: controller, scene, episode).
 """
 
-from jaxarm.deployable.registry import controller, runs
+from jaxarm.deployable.registry import DEPLOYABLES, controller, entry, runs
 
-__all__ = ["controller", "runs"]
+__all__ = ["DEPLOYABLES", "controller", "entry", "runs"]

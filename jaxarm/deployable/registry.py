@@ -1,30 +1,40 @@
-"""Which envs the deployment loop runs, and their controllers."""
+"""The tasks the deployment loop runs, one entry each: a new deployable task is its module and one line in
+`DEPLOYABLES`."""
 
-from jaxarm.deploy import peg, sort
-from jaxarm.deploy.kinematics import ArmKinematics
 from jaxarm.deploy.loop import Controller
 from jaxarm.deployable import panda_sort, peg_insert
-from jaxarm.envs.panda_sort import env as sort_env
-from jaxarm.envs.peg_insert import env as peg_env
+from jaxarm.deployable.base import Deployable
+
+DEPLOYABLES: tuple[Deployable, ...] = (panda_sort.DEPLOYABLE, peg_insert.DEPLOYABLE)
+
+
+def find(env) -> Deployable | None:
+    """The entry of `env` (or the env it wraps) if it is one of `DEPLOYABLES`' envs with state observations."""
+    env = getattr(env, "unwrapped", env)
+    if getattr(env, "obs_mode", None) != "state":
+        return None
+    return next((listed for listed in DEPLOYABLES if isinstance(env, listed.env_class)), None)
+
+
+def entry(env) -> Deployable:
+    """`find(env)`; ValueError naming the envs the loop runs where it runs no task of `env`."""
+    found = find(env)
+    if found is None:
+        env = getattr(env, "unwrapped", env)
+        names = ", ".join(listed.env_class.__name__ for listed in DEPLOYABLES)
+        raise ValueError(
+            f"the deployment loop runs {names} with state observations, not {type(env).__name__} "
+            f"with {getattr(env, 'obs_mode', 'its')} observations"
+        )
+    return found
 
 
 def runs(env) -> bool:
-    """Whether the deployment loop runs `env` (or the env it wraps): a `PandaSort` or `PegInsert` with state
-    observations."""
-    env = getattr(env, "unwrapped", env)
-    return isinstance(env, sort_env.PandaSort | peg_env.PegInsert) and env.obs_mode == "state"
+    """Whether the deployment loop runs `env` (or the env it wraps)."""
+    return find(env) is not None
 
 
 def controller(env, params) -> Controller:
     """The numpy controller of `env` (one the loop `runs`) with `params`, posing the arm in the env's own model.
     ValueError for any other env."""
-    env = getattr(env, "unwrapped", env)
-    if not runs(env):
-        raise ValueError(
-            f"the deployment loop runs the sorter and the peg with state observations, not {type(env).__name__} "
-            f"with {getattr(env, 'obs_mode', 'its')} observations"
-        )
-    kinematics = ArmKinematics(env.mj_model)
-    if isinstance(env, sort_env.PandaSort):
-        return sort.SortController(panda_sort.sort_task(env, params), kinematics)
-    return peg.PegController(peg_insert.peg_task(env, params), kinematics)
+    return entry(env).controller(getattr(env, "unwrapped", env), params)

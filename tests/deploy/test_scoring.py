@@ -14,7 +14,7 @@ from tests.deploy.test_controller import sorter_case
 @pytest.mark.parametrize("tosser", [False, True])
 def test_objects_score_as_in_the_env(tosser):
     layout = make_layout(tosser=tosser)
-    bins = panda_sort.bins(layout)
+    bins = panda_sort.scoring_bins(layout)
     rng = np.random.default_rng(0)
     # Around and inside every bin, above and below its rim, on the table and below it.
     centres = np.repeat(np.array(layout.bin_centers), 40, axis=0)

@@ -15,10 +15,12 @@ import pytest
 from experiments import configs, transfer
 from experiments.benchmarks.deploy import random_policy
 from experiments.configs.td3 import td3_peg
-from jaxarm import headless
+from jaxarm import deployable, headless
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.envs.panda.robot import MENAGERIE_TIMESTEP, resolve_panda_ids, tcp_pose_at
+from jaxarm.deployable import panda_sort
+from jaxarm.envs.panda.robot import MENAGERIE_PANDA_XML, MENAGERIE_TIMESTEP, resolve_panda_ids, tcp_pose_at
 from jaxarm.envs.panda_sort import PandaSort
+from jaxarm.envs.panda_sort import model as sort_model
 from jaxarm.envs.peg_insert.env import PegInsert
 from jaxarm.envs.peg_insert.params import RUNNING_TARGET_MAX_LEAD
 from jaxarm.export import origin
@@ -88,7 +90,7 @@ def test_each_pandas_scene_gets_the_episodes_objects_on_its_own_bodies():
     for name in transfer.MODELS:
         model = transfer.plant_model(env, params, name)
         fingers = model.body("left_finger").mass.copy()
-        ids = transfer.dress_sort_scene(model, env, params, shape, size, np.zeros((2, 3)))
+        ids = panda_sort.dress_scene(model, env, params, shape, size, np.zeros((2, 3)))
         assert [model.body(int(body)).name for body in ids.object_body] == ["object0", "object1"]
         masses[name] = model.body_mass[ids.object_body]
         np.testing.assert_array_equal(model.body("left_finger").mass, fingers)
@@ -97,6 +99,14 @@ def test_each_pandas_scene_gets_the_episodes_objects_on_its_own_bodies():
     expected = float(params.density) * np.array([8 * 0.02**3, 4 / 3 * np.pi * 0.03**3])
     np.testing.assert_allclose(masses["jaxarm"], expected, rtol=1e-6)
     np.testing.assert_allclose(masses["menagerie"], expected, rtol=1e-6)
+
+
+def test_the_tossers_scene_with_another_panda_keeps_its_firm_grip():
+    for tosser in (False, True):
+        env = PandaSort(tosser=tosser)
+        scene = deployable.entry(env).scene(env, env.default_params(), MENAGERIE_PANDA_XML)
+        assert (scene.opt.timestep == sort_model.FIRM_GRIP_TIMESTEP) == tosser
+        assert scene.opt.timestep == env.mj_model.opt.timestep
 
 
 def scripted_insertion(obs: np.ndarray) -> np.ndarray:

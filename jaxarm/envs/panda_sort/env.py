@@ -145,6 +145,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self.control_mode = control_mode
         self.target_first = target_first
         self.running_target = running_target
+        self.tosser = tosser
         self.tool_obs_size = TOOL_OBS_SIZE + (SERVO_LEAD_OBS_SIZE if running_target else 0)
         self.layout = make_layout(blocker=blocker, tosser=tosser)
         mj_model = build_model(objects_count, self.layout, dynamics, firm_grip=tosser)
