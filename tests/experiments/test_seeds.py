@@ -14,16 +14,7 @@ import pytest
 
 from experiments import seeds
 from jaxarm.runner import rundir
-
-SMALL = [
-    "num_envs=64",
-    "rollout_length=16",
-    "num_minibatches=2",
-    "total_env_steps=24576",
-    "updates_per_chunk=4",
-    "checkpoint_every_updates=4",
-    "eval_episodes=20",
-]
+from tests.experiments.test_run import SMALL  # the same compiled chunk as there
 
 
 @pytest.mark.parametrize(
