@@ -15,6 +15,13 @@ one resumes from its checkpoint. `--stop-after-minutes` passes to each run, for 
 time; a seed whose runs were stopped counts its commands' wall clocks together.
 """
 
+import sys
+
+from experiments import start_up
+
+if __name__ == "__main__":
+    start_up.exit_on_ctrl_c()  # first, as in experiments.run: nothing is written before main()
+
 import argparse
 import dataclasses
 import json
@@ -22,7 +29,6 @@ import os
 import pathlib
 import signal
 import subprocess
-import sys
 import time
 import warnings
 from collections.abc import Sequence
@@ -320,7 +326,9 @@ def interrupt(signum, frame) -> None:
 
 
 def main(argv=None) -> int:
-    # A cluster's time limit or `timeout` sends SIGTERM: the study stops as on Ctrl-C.
+    # Start-up is over: Ctrl-C raises KeyboardInterrupt again. A cluster's time limit or `timeout` sends SIGTERM:
+    # the study stops as on Ctrl-C.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     previous = signal.signal(signal.SIGTERM, interrupt)
     try:
         return study(parse_args(sys.argv[1:] if argv is None else argv))
