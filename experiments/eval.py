@@ -120,7 +120,7 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
 
     from jaxarm import ranges
     from jaxarm.agents.common import checkpoint
-    from jaxarm.runner import learners, rundir, video
+    from jaxarm.runner import learners, progress, rundir, video
     from jaxarm.runner.cache import enable_compilation_cache
 
     phases = {"imports": time.perf_counter() - began}
@@ -134,6 +134,7 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
         config, _ = rundir.read_config(run_dir)  # validating the config builds the env, which the trainer reuses
         trainer = learners.make_trainer(config, run_dir)
         phases["env"] = time.perf_counter() - clock
+        progress.explain_slow_compiles(config.make_env(randomized=False)[0])  # the env the trainer built
         with rundir.locked(run_dir):
             clock = time.perf_counter()
             state = learners.restore_state(run_dir, trainer, config, best=args.best, acting=True)

@@ -18,7 +18,7 @@ from experiments import eval as eval_cli
 from experiments.configs.td3 import td3_peg
 from jaxarm import headless
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import cache, learners, rundir, sinks, video
+from jaxarm.runner import cache, learners, progress, rundir, sinks, video
 
 INSTALL_PAGE = (pathlib.Path(__file__).resolve().parents[2] / "docs" / "install.md").read_text()
 
@@ -320,6 +320,19 @@ def test_eval_video_without_gl_fails_at_once_with_the_install_pages_hint(tmp_pat
     install_words = ("MUJOCO_GL=egl", "libegl1 libegl-mesa0 libgl1-mesa-dri")
     assert all(part in INSTALL_PAGE and part in headless.GL_HINT for part in install_words)
     assert time.perf_counter() - start < 10
+
+
+def test_eval_of_an_mjx_run_on_the_cpu_explains_xlas_slow_compile_banners_first(tmp_path, monkeypatch, capsys):
+    def stop(*args, **kwargs):
+        raise ValueError("stopped where the checkpoint would load")
+
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    rundir.write_config(run_dir, apply_overrides(td3_peg(), ["num_envs=2"]), "td3_peg")
+    monkeypatch.setattr(progress, "_slow_compiles_explained", False)
+    monkeypatch.setattr(learners, "restore_state", stop)
+    assert eval_cli.main([str(run_dir)]) == 2
+    assert capsys.readouterr().err == f"{progress.SLOW_COMPILE_NOTE}\nerror: stopped where the checkpoint would load\n"
 
 
 def test_eval_refuses_more_episodes_than_it_can_step_at_once(tmp_path, capsys):
