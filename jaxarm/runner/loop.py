@@ -133,6 +133,8 @@ def _train_learner(
         )
     evaluators = Evaluators.of(trainer, config)
     mesh = data_mesh(options.devices)
+    if processes.is_primary():
+        progress.explain_gspmd(mesh.devices.size)
     # Under the mesh, VmapEnv steps each device's envs on that device (jaxarm.envs.wrappers.over_env_batch). The
     # pool compiles the first chunk while the start state is made, and the evaluations while training runs;
     # leaving it waits for that.

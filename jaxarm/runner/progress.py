@@ -48,6 +48,24 @@ def explain_slow_compiles(env) -> None:
     print(SLOW_COMPILE_NOTE, file=sys.stderr, flush=True)
 
 
+GSPMD_NOTE = (
+    "note: XLA warns 'GSPMD sharding propagation is going to be deprecated' as it compiles a run over several "
+    "devices: jaxarm partitions such runs with GSPMD, because Shardy crashed XLA:GPU compiling the sorter's update "
+    "(jaxarm/agents/common/sharding.py); expected here, not a fault."
+)
+_gspmd_explained = False
+
+
+def explain_gspmd(devices: int) -> None:
+    """Prints GSPMD_NOTE on stderr, once per process, before a run over `devices` devices compiles, where it
+    applies (more than one: `sharding.data_mesh` then chooses GSPMD). XLA's warning has no switch of its own."""
+    global _gspmd_explained
+    if _gspmd_explained or devices < 2:
+        return
+    _gspmd_explained = True
+    print(GSPMD_NOTE, file=sys.stderr, flush=True)
+
+
 def _clock(seconds: float) -> str:
     return str(datetime.timedelta(seconds=round(seconds)))
 

@@ -335,6 +335,15 @@ def test_eval_of_an_mjx_run_on_the_cpu_explains_xlas_slow_compile_banners_first(
     assert capsys.readouterr().err == f"{progress.SLOW_COMPILE_NOTE}\nerror: stopped where the checkpoint would load\n"
 
 
+def test_a_run_over_several_devices_explains_xlas_gspmd_warnings_once(monkeypatch, capsys):
+    monkeypatch.setattr(progress, "_gspmd_explained", False)
+    progress.explain_gspmd(1)
+    assert capsys.readouterr().err == ""  # one device: nothing is partitioned, XLA does not warn
+    progress.explain_gspmd(2)
+    progress.explain_gspmd(4)
+    assert capsys.readouterr().err == f"{progress.GSPMD_NOTE}\n"
+
+
 def test_eval_refuses_more_episodes_than_it_can_step_at_once(tmp_path, capsys):
     rundir.write_config(tmp_path, apply_overrides(td3_peg(), ["num_envs=2"]), "td3_peg")
     assert eval_cli.main([str(tmp_path), "--episodes", "100000000"]) == 2
