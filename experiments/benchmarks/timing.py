@@ -14,8 +14,8 @@ from jaxarm import envs
 from jaxarm.agents import registry as agents_registry
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
+from jaxarm.agents.common.teachers import learner_as_teacher
 from jaxarm.agents.common.trainer import run_updates
-from jaxarm.agents.ppo.distill import learner_as_teacher
 from jaxarm.runner import learners, rundir
 from jaxarm.runner.teacher import teacher_config as preset_teacher_config
 

@@ -4,8 +4,8 @@ import dataclasses
 
 from experiments.configs.registry import preset
 from jaxarm.agents.common.config import with_pair, with_pairs
+from jaxarm.agents.common.teachers import PRESET_TEACHER
 from jaxarm.agents.ppo import PPOConfig
-from jaxarm.agents.ppo.distill import PRESET_TEACHER
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
 
 # Measured on the 2-core CPU (deterministic success on 1,000 fresh episodes, random reachable goals):

@@ -18,13 +18,14 @@ from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.evaluate import evaluate
-from jaxarm.agents.ppo.distill import learner_as_teacher
+from jaxarm.agents.common.teachers import learner_as_teacher
 from jaxarm.runner.rundir import read_config, teacher_run
 
 
 def make_trainer(config: RunConfig, run_dir: pathlib.Path | None = None):
     """The trainer of `config`'s learner, with its teacher's policy loaded where it has one (distillation,
-    `jaxarm.agents.ppo.distill`): from the run `config.teacher` names, or, named by preset, from `run_dir/teacher`."""
+    `jaxarm.agents.common.teachers`): from the run `config.teacher` names, or, named by preset, from
+    `run_dir/teacher`."""
     teacher = teacher_run(config, run_dir)
     if teacher is None:
         return registry.make_trainer(config)

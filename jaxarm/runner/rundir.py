@@ -44,7 +44,7 @@ import numpy as np
 from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
-from jaxarm.agents.ppo.distill import teacher_preset_name
+from jaxarm.agents.common.teachers import teacher_preset_name
 from jaxarm.runner import provenance
 
 PROVENANCE_FILE = "provenance.json"

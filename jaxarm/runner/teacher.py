@@ -10,7 +10,7 @@ from collections.abc import Callable
 import jax
 
 from jaxarm.agents.common.config import RunConfig, apply_overrides
-from jaxarm.agents.ppo.distill import teacher_input
+from jaxarm.agents.common.teachers import teacher_input
 from jaxarm.runner import processes, rundir
 from jaxarm.runner.options import Options
 
@@ -73,7 +73,7 @@ def train_teacher(
 def teacher_config(config: RunConfig, presets: Callable[[str], RunConfig] | None) -> RunConfig:
     """The config of the teacher `config` names by preset, with `teacher_overrides`; ValueError in one line for
     an unknown preset, a bad override, a teacher with a preset teacher of its own, or one that does not observe
-    what this run's env gives a teacher (`jaxarm.agents.ppo.distill.teacher_input`)."""
+    what this run's env gives a teacher (`jaxarm.agents.common.teachers.teacher_input`)."""
     name = rundir.teacher_preset(config)
     if presets is None:
         raise ValueError(

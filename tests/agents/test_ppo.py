@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from jaxarm.agents.common.evaluate import evaluate
+from jaxarm.agents.common.teachers import teacher_input
 from jaxarm.agents.common.trainer import make_chunk_runner, make_train
 from jaxarm.agents.ppo import PPOConfig, make_networks, make_trainer
-from jaxarm.agents.ppo.distill import teacher_input
 from jaxarm.agents.ppo.train import Samples, shuffled_minibatches
 from jaxarm.envs.observation import PRIVILEGED, actor_observation
 from tests.agents.probe_envs import HOST_CHECKS, ConstantRewardEnv, HostCheckedEnv, ImageTargetEnv, TargetActionEnv

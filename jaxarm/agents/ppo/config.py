@@ -5,7 +5,7 @@ import dataclasses
 from jaxarm.agents.common.config import RunConfig, dynamic, static
 from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
-from jaxarm.agents.ppo.distill import teacher_preset_name
+from jaxarm.agents.common.teachers import teacher_preset_name
 from jaxarm.ranges import COUNT, DISCOUNT, LEARNING_RATE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, Range
 
 

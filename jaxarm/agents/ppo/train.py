@@ -9,8 +9,8 @@ name (`python -m experiments.bench profile` sums time by them).
 
 With `asymmetric`, the env observes its privileged state beside the policy's input in the same step; rollouts,
 GAE and the value loss carry it for the critic (bootstrapping from the final observation's privileged part),
-while the policy, `act` and exports read only the rest. With a `teacher` (distill.py), each sample is labelled
-with the teacher's action and the policy regresses onto it.
+while the policy, `act` and exports read only the rest. With a `teacher` (`jaxarm.agents.common.teachers`), each
+sample is labelled with the teacher's action and the policy regresses onto it.
 """
 
 import functools
@@ -25,10 +25,10 @@ from jaxarm.agents.common import normalizer as observation_normalizer
 from jaxarm.agents.common.config import HParams
 from jaxarm.agents.common.networks import numpy_mlp_policy
 from jaxarm.agents.common.permutation import random_permutation
+from jaxarm.agents.common.teachers import Teacher
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, remaining_fraction, summarise_episodes
 from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig
-from jaxarm.agents.ppo.distill import Teacher
 from jaxarm.agents.ppo.networks import NetworkParams, PPONetworks, make_networks
 from jaxarm.envs import AutoReset, EnvSpec, EnvState, Observation, VmapEnv, compiler_options, deferred_step_checks
 from jaxarm.envs.observation import PRIVILEGED
