@@ -22,9 +22,9 @@ import math
 import pathlib
 
 from experiments import configs, distributed
+from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
-from jaxarm.agents.ppo import PPOConfig
 from jaxarm.envs.panda.mjx_impl import warp_available
 from jaxarm.runner import loop, processes, rundir, show
 from jaxarm.runner.cache import enable_compilation_cache
@@ -112,10 +112,10 @@ def planned_config(args: argparse.Namespace) -> RunConfig:
 
 
 def spreads_over_gpus(config: RunConfig) -> bool:
-    """Whether a run of `config` starts one process per GPU by itself: one on MJX Warp, of the learner measured so
-    (PPO without a teacher, BENCHMARKS.md#devices); TD3 and distillation have not run as several processes, so
-    they take several only where `--local-processes` asks."""
-    measured = isinstance(config, PPOConfig) and not config.teacher
+    """Whether a run of `config` starts one process per GPU by itself: one on MJX Warp, of a learner measured so
+    (`registry.Learner.one_process_per_gpu`: PPO), without a teacher (BENCHMARKS.md#devices); TD3 and distillation
+    have not run as several processes, so they take several only where `--local-processes` asks."""
+    measured = registry.learner_for(config).one_process_per_gpu and not registry.teacher_of(config)
     return measured and distributed.steps_on_warp(dict(config.env_kwargs), warp_available())
 
 

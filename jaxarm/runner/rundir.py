@@ -320,13 +320,13 @@ def read_config(
 
 def teacher_preset(config: RunConfig) -> str:
     """The preset `config`'s teacher names (`teacher=preset:NAME`), or "" (a run directory, or no teacher)."""
-    return teacher_preset_name(getattr(config, "teacher", "")) or ""
+    return teacher_preset_name(registry.teacher_of(config)) or ""
 
 
 def teacher_run(config: RunConfig, run_dir: pathlib.Path | None) -> pathlib.Path | None:
     """The run directory of `config`'s teacher (None for none): the one it names, or for a teacher named by preset
     `run_dir/teacher` (RunDirError without `run_dir`: such a student is read from its run directory)."""
-    teacher = getattr(config, "teacher", "")
+    teacher = registry.teacher_of(config)
     if not teacher:
         return None
     if not teacher_preset(config):

@@ -9,6 +9,7 @@ from collections.abc import Callable
 
 import jax
 
+from jaxarm.agents import registry
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.teachers import teacher_input
 from jaxarm.runner import processes, rundir
@@ -80,7 +81,7 @@ def teacher_config(config: RunConfig, presets: Callable[[str], RunConfig] | None
             f"teacher=preset:{name}: give Options(presets=...) a lookup of presets (experiments.configs.get)"
         )
     try:
-        teacher = apply_overrides(presets(name), getattr(config, "teacher_overrides", ()))
+        teacher = apply_overrides(presets(name), registry.teacher_overrides_of(config))
     except ValueError as error:
         raise ValueError(f"teacher=preset:{name}: {error}") from None
     if rundir.teacher_preset(teacher):

@@ -37,6 +37,15 @@ def test_an_unknown_learner_names_the_closest():
         registry.get("td4")
 
 
+def test_a_teacher_is_read_through_the_registry_where_the_learner_can_be_taught():
+    student = PPOConfig(teacher="preset:ppo_arm2d", teacher_overrides=("num_envs=4",))
+    assert registry.teacher_of(student) == "preset:ppo_arm2d"
+    assert registry.teacher_overrides_of(student) == ("num_envs=4",)
+    assert registry.teacher_of(PPOConfig()) == "" and registry.teacher_overrides_of(PPOConfig()) == ()
+    assert registry.get("td3").teaching is None
+    assert registry.teacher_of(TD3Config()) == "" and registry.teacher_overrides_of(TD3Config()) == ()
+
+
 def test_a_warm_start_needs_a_learner_that_has_one_and_a_run_of_the_same(tmp_path):
     td3_run = tmp_path / "td3_run"
     rundir.write_config(td3_run, TD3Config(), "td3_arm2d")

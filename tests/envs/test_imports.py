@@ -1,4 +1,5 @@
-"""No import cycles between jaxarm's modules, read from the source (ast), imports inside functions included.
+"""No import cycles between jaxarm's modules, and no runner module importing a learner, read from the source
+(ast), imports inside functions included.
 
 A module imported only inside a function (the usual way to hide a cycle) still counts. A package's
 `__init__` importing its own modules is not a cycle unless a module imports the package back explicitly.
@@ -103,3 +104,31 @@ def test_the_graph_sees_imports_of_modules_from_packages():
 
 def test_no_module_of_jaxarm_imports_itself_through_others():
     assert import_cycles(jaxarm_import_graph()) == []
+
+
+LEARNER_PACKAGES = ("jaxarm.agents.ppo", "jaxarm.agents.td3")
+"""The learners' own modules, which the runner reaches only through the learner registry (jaxarm.agents.registry)."""
+
+
+def learner_imports(graph: dict[str, set[str]], importers: str = "jaxarm.runner") -> set[tuple[str, str]]:
+    """(module, learner module) for each module in the package `importers` that imports a learner's module."""
+    return {
+        (name, imported)
+        for name, imports in graph.items()
+        if name == importers or name.startswith(f"{importers}.")
+        for imported in imports
+        if any(imported == package or imported.startswith(f"{package}.") for package in LEARNER_PACKAGES)
+    }
+
+
+def test_the_learner_import_rule_finds_a_runner_module_importing_a_learner():
+    graph = {
+        "jaxarm.runner.loop": {"jaxarm.agents.ppo.distill", "jaxarm.agents.registry"},
+        "jaxarm.agents.registry": {"jaxarm.agents.ppo"},
+    }
+    assert learner_imports(graph) == {("jaxarm.runner.loop", "jaxarm.agents.ppo.distill")}
+
+
+def test_the_runner_imports_no_learner_module():
+    # A capability of one learner (a warm start, being taught) is an entry in the registry, not an import here.
+    assert learner_imports(jaxarm_import_graph()) == set()

@@ -1,7 +1,8 @@
 """Teachers: a finished run's deterministic policy as the labeller of a learner that is taught (distillation).
 
-Any learner can teach (its `Trainer.act`); PPO can be taught: its student drives its own rollouts (DAgger: it
-is labelled where it goes, not where the teacher would have gone), and every observation of a rollout is labelled
+Any learner can teach (its `Trainer.act`); one that can be taught says where its config names the teacher in the
+learner registry (`jaxarm.agents.registry.Teaching`). PPO's student drives its own rollouts (DAgger: it is
+labelled where it goes, not where the teacher would have gone), and every observation of a rollout is labelled
 with the teacher's action inside the same compiled update (`PPOConfig.teacher`, `imitation_coef`,
 `imitation_only`). A teacher reads the observation's privileged part where it has one (a state policy teaching a
 camera policy), else the observation itself. A teacher run is loaded by the runner
