@@ -19,7 +19,7 @@ import sys
 
 import numpy as np
 
-from jaxarm.runner import plots, rundir
+from jaxarm.runner import metrics_log, plots, rundir
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,7 +58,7 @@ class RunCurves:
 def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
     """Reads a run directory; ValueError if it holds no finished episodes."""
     config, _ = rundir.read_config(run_dir)
-    metrics = rundir.read_metrics(run_dir)
+    metrics = metrics_log.read_metrics(run_dir)
     ended = update_times(np.array([row["wall_time"] for row in metrics], float))
     kept = [index for index, row in enumerate(metrics) if row.get("episodes/episodes", 0) > 0]
     rows = [metrics[index] for index in kept]

@@ -1,11 +1,12 @@
 """The runner as a library: train into a run directory with checkpoints, metrics, progress, NaN stop and
-evaluation (`train`, `resume`), and read runs back (`load_run`, `rundir.read_metrics`).
+evaluation (`train`, `resume`), and read runs back (`load_run`, `read_metrics`).
 
 `python -m experiments.run` (the CLI), `experiments.eval` and `experiments.sweep` are thin layers over this.
 """
 
 from jaxarm.runner.loop import Options, TrainingDiverged, TrainingInterrupted, load_run, resume, train
-from jaxarm.runner.rundir import RunDirError, read_config, read_metrics
+from jaxarm.runner.metrics_log import read_metrics
+from jaxarm.runner.rundir import RunDirError, read_config
 from jaxarm.runner.sinks import WandbOptions
 
 __all__ = [

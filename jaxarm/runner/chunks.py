@@ -16,7 +16,7 @@ import numpy as np
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.trainer import Trainer
-from jaxarm.runner import processes, rundir
+from jaxarm.runner import metrics_log, processes, rundir
 from jaxarm.runner.options import Options
 from jaxarm.runner.programs import ChunkRunners, Evaluators, eval_key
 from jaxarm.runner.runlog import RunLog, metric_rows
@@ -73,7 +73,7 @@ def train_chunks(
             runner = runners(count)
             chunk_start = time.perf_counter()
             state, metrics = runner(state, hparams)
-            flat = rundir.flatten_metrics(jax.device_get(metrics))
+            flat = metrics_log.flatten_metrics(jax.device_get(metrics))
             chunk_time = time.perf_counter() - chunk_start
             evaluators.compile_ahead(compiling, state, key)
             check_finite(flat, state, done_updates, count, checkpoints)

@@ -33,7 +33,7 @@ from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over
 from jaxarm.agents.common.trainer import Trainer
-from jaxarm.runner import learners, plots, processes, progress, rundir, teacher
+from jaxarm.runner import learners, metrics_log, plots, processes, progress, rundir, teacher
 from jaxarm.runner.chunks import Start, TrainingDiverged, TrainingInterrupted, train_chunks
 from jaxarm.runner.options import Options
 from jaxarm.runner.programs import ChunkRunners, Evaluators, eval_key, state_like
@@ -78,7 +78,7 @@ def resume(run_dir: pathlib.Path, overrides: Sequence[str] = (), options=Options
             # Nothing asked: evaluating again would only rewrite eval.json (experiments.eval writes its own file).
             # A row a killed process half wrote past the end is still dropped, as every resume drops it.
             if processes.is_primary():
-                rundir.truncate_metrics(run_dir, config.num_updates)
+                metrics_log.truncate_metrics(run_dir, config.num_updates)
                 print(
                     f"{run_dir} has finished its {config.num_updates:,} updates; nothing done. To train further, "
                     f"give a larger total_env_steps=N; to evaluate again, python -m experiments.eval {run_dir}",
@@ -200,10 +200,12 @@ def _start(
             rundir.append_provenance(run_dir, "resume")
             if overrides:
                 rundir.record_resume(run_dir, config, preset, overrides, done_updates)
-            gap = rundir.missing_metrics(run_dir, rundir.truncate_metrics(run_dir, done_updates), done_updates)
+            gap = metrics_log.missing_metrics(
+                run_dir, metrics_log.truncate_metrics(run_dir, done_updates), done_updates
+            )
             if gap:
                 print(f"warning: {gap}", file=sys.stderr)
-        wall_offset = max([row["wall_time"] for row in rundir.read_metrics(run_dir)], default=0.0)
+        wall_offset = max([row["wall_time"] for row in metrics_log.read_metrics(run_dir)], default=0.0)
         best_path = run_dir / "best.json"
         best = json.loads(best_path.read_text()) if best_path.exists() else None
         return Start(state, done_updates, wall_offset, best)
@@ -239,7 +241,7 @@ def _final_evaluation(
     result["finished"] = done_updates == trainer.num_updates
     if processes.is_primary():
         rundir.write_json(run_dir / "eval.json", result)
-        plots.learning_curve(rundir.read_metrics(run_dir), run_dir / "curve.png", title=preset)
+        plots.learning_curve(metrics_log.read_metrics(run_dir), run_dir / "curve.png", title=preset)
     return result
 
 

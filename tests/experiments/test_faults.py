@@ -23,7 +23,7 @@ from experiments import compare, configs, export, run, sweep
 from experiments import eval as eval_cli
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import loop, rundir, sinks
+from jaxarm.runner import loop, metrics_log, rundir, sinks
 from tests.experiments.test_run import SMALL
 from tests.experiments.test_rundir import assert_same_learner, run_cli, snapshot
 
@@ -89,7 +89,7 @@ def test_a_full_disk_at_a_later_checkpoint_is_one_line_and_the_run_resumes(refer
     monkeypatch.undo()
     assert run.main(["--resume", str(run_dir)]) == 0, "space freed: the run goes on from checkpoint 4"
     assert checkpoint.half_written(run_dir / "checkpoints") == []
-    assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 25))
+    assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == list(range(1, 25))
     assert_same_learner(run_dir, reference)
 
 
@@ -321,7 +321,7 @@ def test_an_edit_that_cannot_be_checked_is_said_in_one_line(reference, tmp_path,
 def test_metrics_cut_short_or_deleted_are_named_on_resume_and_the_rows_left_are_kept(reference, tmp_path, capsys, kept):
     cut = tmp_path / "cut"
     shutil.copytree(reference, cut)
-    rows = rundir.read_metrics(cut)
+    rows = metrics_log.read_metrics(cut)
     if kept is None:
         (cut / "metrics.jsonl").unlink()
     else:
@@ -332,7 +332,7 @@ def test_metrics_cut_short_or_deleted_are_named_on_resume_and_the_rows_left_are_
     missing = 24 - (kept or 0)
     assert line.startswith(f"warning: {cut / 'metrics.jsonl'} lacks the rows of updates {25 - missing}-24 ")
     assert f"({missing} of the 24 the checkpoint has done: cut short, deleted or edited); resuming" in line
-    assert rundir.read_metrics(cut) == rows[: kept or 0], "the rows left are kept as they were"
+    assert metrics_log.read_metrics(cut) == rows[: kept or 0], "the rows left are kept as they were"
 
 
 def test_a_budget_below_the_work_done_is_refused(reference):
@@ -391,7 +391,7 @@ def test_tensorboard_shows_each_step_once_after_a_kill_and_resume(tmp_path):
     assert len(tensorboard_steps(run_dir / "tensorboard", "episodes/return_mean")) == 12
     assert run.main(["--resume", str(run_dir)]) == 0
     steps = tensorboard_steps(run_dir / "tensorboard", "episodes/return_mean")
-    assert steps == [row["env_steps"] for row in rundir.read_metrics(run_dir)] and len(steps) == 24
+    assert steps == [row["env_steps"] for row in metrics_log.read_metrics(run_dir)] and len(steps) == 24
 
 
 def test_a_second_ctrl_c_ends_the_process_at_once_with_130():

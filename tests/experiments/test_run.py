@@ -20,7 +20,7 @@ from experiments import run
 from jaxarm import envs
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.ppo.warm_start import warm_start
-from jaxarm.runner import learners, loop, robustness, rundir, runlog
+from jaxarm.runner import learners, loop, metrics_log, robustness, rundir, runlog
 
 SMALL = [
     "num_envs=64",
@@ -52,7 +52,7 @@ def finished_run(tmp_path_factory):
 def test_a_run_writes_config_metrics_checkpoints_curve_and_eval(finished_run):
     config = json.loads((finished_run / "config.json").read_text())
     assert config["preset"] == "ppo_arm2d_fixed" and config["num_envs"] == 64
-    rows = rundir.read_metrics(finished_run)
+    rows = metrics_log.read_metrics(finished_run)
     assert [row["updates"] for row in rows] == list(range(1, 25))
     assert {
         "env_steps",
@@ -150,7 +150,7 @@ def test_resume_after_sigkill_matches_an_uninterrupted_run(finished_run, tmp_pat
     killed_at = checkpoint.latest_step(run_dir / "checkpoints")
     assert killed_at is not None and killed_at < 24, "the run finished before it could be killed"
     assert run.main(["--resume", str(run_dir)]) == 0
-    assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 25))
+    assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == list(range(1, 25))
     for resumed, uninterrupted in zip(
         jax.tree.leaves(final_params(run_dir)), jax.tree.leaves(final_params(finished_run)), strict=True
     ):
@@ -342,7 +342,7 @@ def test_a_ten_billion_step_budget_runs_resumes_and_counts_past_int32(tmp_path):
     config, _ = rundir.read_config(run_dir)
     assert config.total_env_steps == 10_000_000_000
     assert config.num_updates * config.env_steps_per_update >= 10_000_000_000
-    assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 9))
+    assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == list(range(1, 9))
     # The host counts env steps in Python ints: rows of a run far past int32 carry exact counts.
     far = next(runlog.metric_rows({"loss": np.zeros(1)}, 3_000_000, 1024, 0.0, 1.0))
     assert far["env_steps"] == 3_000_001 * 1024

@@ -17,7 +17,7 @@ import pytest
 from experiments import configs, run
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import learners, loop, programs, provenance, rundir
+from jaxarm.runner import learners, loop, metrics_log, programs, provenance, rundir
 from tests.experiments.test_run import SMALL  # the same compiled chunk as there
 
 
@@ -118,7 +118,7 @@ def test_resume_of_a_run_that_died_before_its_first_checkpoint_starts_it(referen
     shutil.copy(reference / "config.json", run_dir / "config.json")
     (run_dir / "metrics.jsonl").write_text('{"updates": 1, "wall_ti')  # killed while writing its first row
     assert run.main(["--resume", str(run_dir)]) == 0
-    assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 25))
+    assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == list(range(1, 25))
     assert_same_learner(run_dir, reference)
 
 
@@ -128,13 +128,13 @@ def test_damaged_files_are_named_with_what_to_do(reference, tmp_path, capsys):
     with (half_written / "metrics.jsonl").open("a") as log:
         log.write('{"updates": 25, "wall_t')
     assert run.main(["--resume", str(half_written)]) == 0, "a half-written last row is dropped on resume"
-    assert [row["updates"] for row in rundir.read_metrics(half_written)] == list(range(1, 25))
+    assert [row["updates"] for row in metrics_log.read_metrics(half_written)] == list(range(1, 25))
     assert "has finished its 24 updates" in capsys.readouterr().err
 
     lines = (reference / "metrics.jsonl").read_text().splitlines()
     (half_written / "metrics.jsonl").write_text("\n".join([*lines[:2], "garbage", *lines[2:]]) + "\n")
     with pytest.raises(rundir.RunDirError, match=r"metrics.jsonl line 3 is not a JSON row .*delete that line"):
-        rundir.read_metrics(half_written)
+        metrics_log.read_metrics(half_written)
 
     (half_written / "config.json").write_text('{"preset": ')
     assert run.main(["--resume", str(half_written)]) == 2
@@ -168,7 +168,7 @@ def test_ctrl_c_checkpoints_at_the_chunk_end_and_resume_is_bit_identical(referen
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler, "the handler is removed again"
     monkeypatch.undo()
     assert run.main(["--resume", str(run_dir)]) == 0
-    assert [row["updates"] for row in rundir.read_metrics(run_dir)] == list(range(1, 25))
+    assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == list(range(1, 25))
     assert_same_learner(run_dir, reference)
 
 
@@ -203,7 +203,7 @@ def test_resume_extends_the_budget_as_if_it_had_been_set_at_the_start(tmp_path, 
     assert run_cli(*constant, str(tmp_path / "short")) == 0
     assert run.main(["--resume", str(tmp_path / "short"), "total_env_steps=32768", "eval_episodes=10"]) == 0
     assert run_cli("total_env_steps=32768", "eval_episodes=10", *constant, str(tmp_path / "long")) == 0
-    assert [row["updates"] for row in rundir.read_metrics(tmp_path / "short")] == list(range(1, 33))
+    assert [row["updates"] for row in metrics_log.read_metrics(tmp_path / "short")] == list(range(1, 33))
     assert_same_learner(tmp_path / "short", tmp_path / "long")
     config, _ = rundir.read_config(tmp_path / "short")
     assert config.total_env_steps == 32768
@@ -271,7 +271,7 @@ def test_evaluation_during_training_logs_rows_keeps_the_best_and_draws_them(tmp_
     run_dir = tmp_path / "evaluated"
     assert run_cli("eval_every_updates=8", "--out", str(run_dir)) == 0
     assert len(made) == 1, "one evaluation program for the evaluations during training and the final one"
-    rows = rundir.read_metrics(run_dir)
+    rows = metrics_log.read_metrics(run_dir)
     assert [row["updates"] for row in rows if "eval/success_rate" in row] == [8, 16, 24]
     best = json.loads((run_dir / "best.json").read_text())
     evaluated = [row for row in rows if "eval/success_rate" in row]
@@ -335,7 +335,7 @@ def test_damaged_side_files_are_named_in_one_line_and_kept(tmp_path):
     ]:
         metrics.write_bytes(content)
         with pytest.raises(rundir.RunDirError) as raised:
-            rundir.read_metrics(tmp_path)
+            metrics_log.read_metrics(tmp_path)
         assert str(raised.value).startswith(f"{metrics} {problem}") and "\n" not in str(raised.value)
     provenance_path = tmp_path / rundir.PROVENANCE_FILE
     for content, problem in [
@@ -384,8 +384,8 @@ def test_transfers_of_other_checkpoints_or_clipping_never_replace_each_other(tmp
 
 def test_missing_metric_rows_are_named_by_their_spans(tmp_path):
     rows = [{"updates": update} for update in (1, 2, 5, 6, 9, 11, 13)]
-    assert rundir.missing_metrics(tmp_path, rows[:2], 2) is None
-    message = rundir.missing_metrics(tmp_path, rows, 14)
+    assert metrics_log.missing_metrics(tmp_path, rows[:2], 2) is None
+    message = metrics_log.missing_metrics(tmp_path, rows, 14)
     assert message is not None and message.startswith(
         f"{tmp_path / 'metrics.jsonl'} lacks the rows of updates 3-4, 7-8, 10, ... (7 of the 14 the checkpoint"
     )

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from experiments import seeds
-from jaxarm.runner import rundir
+from jaxarm.runner import metrics_log, rundir
 from tests.experiments.test_run import SMALL  # the same compiled chunk as there
 
 
@@ -66,7 +66,7 @@ def computed(run_dir: pathlib.Path) -> tuple[list[dict], dict]:
     """A run's metrics rows and final evaluation less their clocks: what it computed."""
     rows = [
         {k: v for k, v in row.items() if k not in {"wall_time", "steps_per_second"}}
-        for row in rundir.read_metrics(run_dir)
+        for row in metrics_log.read_metrics(run_dir)
     ]
     evaluation = json.loads((run_dir / "eval.json").read_text())
     return rows, {k: v for k, v in evaluation.items() if k != "train_wall_time"}

@@ -12,7 +12,7 @@ import pytest
 from experiments import configs, run
 from experiments.benchmarks.timing import compile_updates
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import learners, loop, rundir, teacher
+from jaxarm.runner import learners, loop, metrics_log, rundir, teacher
 
 TINY = ["num_envs=16", "rollout_length=4", "num_minibatches=2", "updates_per_chunk=2", "eval_episodes=4"]
 """Both stages at a size that compiles and trains in seconds on a CPU."""
@@ -30,7 +30,7 @@ def camera_student(*overrides: str):
 
 
 def updates_logged(run_dir) -> list[int]:
-    return [row["updates"] for row in rundir.read_metrics(run_dir)]
+    return [row["updates"] for row in metrics_log.read_metrics(run_dir)]
 
 
 def test_a_preset_teacher_trains_first_and_each_stop_resumes_its_own_stage(tmp_path, monkeypatch):
@@ -71,7 +71,7 @@ def test_a_preset_teacher_trains_first_and_each_stop_resumes_its_own_stage(tmp_p
     result, config = loop.resume(run_dir)
     assert result["finished"] and updates_logged(run_dir) == [1, 2, 3, 4]
     assert json.loads((run_dir / "eval.json").read_text()) == result and result["episodes"] == 4
-    assert all(row["loss/imitation"] > 0 for row in rundir.read_metrics(run_dir))
+    assert all(row["loss/imitation"] > 0 for row in metrics_log.read_metrics(run_dir))
     assert {path: path.stat().st_mtime_ns for path in teacher_files} == teacher_files, "the finished teacher is reused"
     assert loop.load_run(run_dir)[0] == config
     assert loop.resume(run_dir)[0] == result, "a finished run is left as it is"
