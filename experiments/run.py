@@ -26,7 +26,7 @@ from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.envs.panda.mjx_impl import warp_available
-from jaxarm.runner import loop, processes, rundir, show
+from jaxarm.runner import loop, processes, resumes, rundir, show
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.sinks import WandbOptions
 
@@ -61,7 +61,7 @@ def parse_args(argv):
         "--resume",
         metavar="RUN_DIR",
         help="continue the run in this directory from its latest checkpoint; overrides may change "
-        + ", ".join(rundir.RESUMABLE_KEYS)
+        + ", ".join(resumes.RESUMABLE_KEYS)
         + " and eval_env_params.NAME",
     )
     parser.add_argument(
@@ -150,7 +150,7 @@ def shown_config(args: argparse.Namespace) -> tuple[RunConfig, str]:
     """(config, preset) that `--show` describes: `--resume`'s with its overrides, or the preset with its own."""
     if args.resume:
         config, preset = rundir.read_config(pathlib.Path(args.resume))
-        return rundir.apply_resume_overrides(config, args.overrides), preset
+        return resumes.apply_resume_overrides(config, args.overrides), preset
     return apply_overrides(configs.get(args.config), args.overrides), args.config
 
 

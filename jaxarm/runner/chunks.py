@@ -16,7 +16,7 @@ import numpy as np
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.trainer import Trainer
-from jaxarm.runner import metrics_log, processes, rundir
+from jaxarm.runner import metrics_log, processes, resumes, rundir
 from jaxarm.runner.options import Options
 from jaxarm.runner.programs import ChunkRunners, Evaluators, eval_key
 from jaxarm.runner.runlog import RunLog, metric_rows
@@ -102,7 +102,7 @@ def train_chunks(
             ):
                 save(checkpoints, done_updates, state, run_dir)
                 if primary:
-                    rundir.record_checkpoint_config(run_dir)
+                    resumes.record_checkpoint_config(run_dir)
                 last_saved = done_updates
             if options.on_chunk:
                 options.on_chunk(done_updates)

@@ -33,7 +33,7 @@ from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over
 from jaxarm.agents.common.trainer import Trainer
-from jaxarm.runner import learners, metrics_log, plots, processes, progress, rundir, teacher
+from jaxarm.runner import learners, metrics_log, plots, processes, progress, resumes, rundir, teacher
 from jaxarm.runner.chunks import Start, TrainingDiverged, TrainingInterrupted, train_chunks
 from jaxarm.runner.options import Options
 from jaxarm.runner.programs import ChunkRunners, Evaluators, eval_key, state_like
@@ -63,13 +63,13 @@ def train(
 
 def resume(run_dir: pathlib.Path, overrides: Sequence[str] = (), options=Options()) -> tuple[dict, RunConfig]:
     """Continues the run in `run_dir` from its latest checkpoint with the `key=value` overrides a resumed run may
-    take (rundir.RESUMABLE_KEYS; recorded in config.json and resumes.jsonl). Returns (evaluation, config). A run
+    take (resumes.RESUMABLE_KEYS; recorded in config.json and resumes.jsonl). Returns (evaluation, config). A run
     that has finished, resumed without overrides, is left as it is: its eval.json is returned."""
     run_dir = pathlib.Path(run_dir)
     # Checked before the lock writes anything: a directory that is no run, or overrides it may not take.
     config, preset = rundir.read_config(run_dir)
-    unchecked = rundir.check_config_unedited(run_dir, config)
-    config = rundir.apply_resume_overrides(config, list(overrides))
+    unchecked = resumes.check_config_unedited(run_dir, config)
+    config = resumes.apply_resume_overrides(config, list(overrides))
     with _locked_by_primary(run_dir):
         if unchecked and processes.is_primary():
             print(f"warning: {unchecked}", file=sys.stderr)
@@ -195,11 +195,11 @@ def _start(
     if resume:
         state = learners.restore_state(run_dir, trainer, config, shardings=shardings)
         done_updates = int(state.updates)
-        rundir.check_budget(config, done_updates)
+        resumes.check_budget(config, done_updates)
         if primary:
             rundir.append_provenance(run_dir, "resume")
             if overrides:
-                rundir.record_resume(run_dir, config, preset, overrides, done_updates)
+                resumes.record_resume(run_dir, config, preset, overrides, done_updates)
             gap = metrics_log.missing_metrics(
                 run_dir, metrics_log.truncate_metrics(run_dir, done_updates), done_updates
             )
