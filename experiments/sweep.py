@@ -47,7 +47,7 @@ from jaxarm.agents.common.config import PAIR_FIELDS, RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.sharding import ENV_AXIS, gathered, members_mesh, over_members
 from jaxarm.agents.common.trainer import Trainer, run_updates
-from jaxarm.runner import learners, plots, processes, rundir, signals
+from jaxarm.runner import learners, plots, processes, provenance, rundir, signals
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.stats import confidence_halfwidth
 
@@ -410,9 +410,9 @@ def run_sweep(args: argparse.Namespace, out: pathlib.Path, asked: dict, base: Ru
             return
         with rundir.locked(out, check=check_stopped_sweep if args.resume else rundir.check_empty):
             if args.resume:
-                rundir.append_provenance(out, "sweep resumed")
+                provenance.append_provenance(out, "sweep resumed")
             else:
-                rundir.append_provenance(out, "sweep")
+                provenance.append_provenance(out, "sweep")
                 asked = {"config": config_name, "seeds": seeds, "assignments": assignments}
                 rundir.write_json(out / SWEEP_FILE, asked)
             sweep(base, grid, seeds, out, title, stop_after_s, stopping=lambda: stop.requested)

@@ -33,7 +33,7 @@ from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over
 from jaxarm.agents.common.trainer import Trainer
-from jaxarm.runner import learners, metrics_log, plots, processes, progress, resumes, rundir, teacher
+from jaxarm.runner import learners, metrics_log, plots, processes, progress, provenance, resumes, rundir, teacher
 from jaxarm.runner.chunks import Start, TrainingDiverged, TrainingInterrupted, train_chunks
 from jaxarm.runner.options import Options
 from jaxarm.runner.programs import ChunkRunners, Evaluators, eval_key, state_like
@@ -197,7 +197,7 @@ def _start(
         done_updates = int(state.updates)
         resumes.check_budget(config, done_updates)
         if primary:
-            rundir.append_provenance(run_dir, "resume")
+            provenance.append_provenance(run_dir, "resume")
             if overrides:
                 resumes.record_resume(run_dir, config, preset, overrides, done_updates)
             gap = metrics_log.missing_metrics(
@@ -215,7 +215,7 @@ def _start(
     if primary:
         # Written once the start state exists: a warm start that fails leaves no half-made run directory.
         rundir.write_config(run_dir, config, preset)
-        rundir.append_provenance(run_dir, "start")
+        provenance.append_provenance(run_dir, "start")
     return Start(state, 0, 0.0, None)
 
 

@@ -1,12 +1,13 @@
 """Where a run came from: the code's git commit, package versions, devices, command line, host and time.
 
-`record(event)` builds one record of this process; `rundir.append_provenance` adds it to a directory's
-provenance.json: training when a run starts and at each resume that trains, a sweep when it starts. A record
-changes nothing that is computed; it lets a result be traced to the code and the software that produced it.
+`record(event)` builds one record of this process; `append_provenance` adds it to a directory's provenance.json
+(`rundir.PROVENANCE_FILE`): training when a run starts and at each resume that trains, a sweep when it starts. A
+record changes nothing that is computed; it lets a result be traced to the code and the software that produced it.
 """
 
 import datetime
 import importlib.metadata
+import json
 import pathlib
 import platform
 import socket
@@ -14,6 +15,8 @@ import subprocess
 import sys
 
 import jax
+
+from jaxarm.runner.rundir import PROVENANCE_FILE, RunDirError, write_json
 
 PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint", "numpy", "warp-lang")
 """Distributions whose versions a record holds (None for one not installed, as warp-lang often is)."""
@@ -66,3 +69,32 @@ def record(event: str) -> dict:
         "packages": package_versions(),
         "devices": [f"{device.platform}:{device.id} {device.device_kind}" for device in jax.devices()],
     }
+
+
+def read_provenance(path: pathlib.Path) -> list:
+    """The records of the provenance.json at `path`; RunDirError naming it where it is damaged or edited, which is
+    never written over (it holds the run's history)."""
+    try:
+        records = json.loads(path.read_text())["records"]
+        if not isinstance(records, list):
+            raise TypeError("records is not a list")
+    except (ValueError, KeyError, TypeError) as error:  # ValueError: JSONDecodeError, UnicodeDecodeError
+        raise RunDirError(
+            f"{path} is corrupt or from another version ({type(error).__name__}: {error}); fix or restore that file"
+        ) from None
+    return records
+
+
+def append_provenance(directory: pathlib.Path, event: str) -> dict:
+    """Adds `record(event)` to `directory`'s provenance.json and returns it; RunDirError naming the file
+    where it is damaged."""
+    path = directory / PROVENANCE_FILE
+    records = read_provenance(path) if path.exists() else []
+    entry = record(event)
+    write_json(path, {"records": [*records, entry]})
+    return entry
+
+
+def first_provenance(directory: pathlib.Path) -> dict:
+    """The first record of `directory`'s provenance.json: where, when and how training first started there."""
+    return read_provenance(directory / PROVENANCE_FILE)[0]

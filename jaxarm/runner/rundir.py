@@ -43,7 +43,6 @@ from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.teachers import teacher_preset_name
-from jaxarm.runner import provenance
 
 PROVENANCE_FILE = "provenance.json"
 RUN_FILES = (
@@ -315,35 +314,6 @@ def finished_evaluation(run_dir: pathlib.Path, config: RunConfig) -> dict | None
     except json.JSONDecodeError:
         return None
     return result if result.get("finished") else None
-
-
-def read_provenance(path: pathlib.Path) -> list:
-    """The records of the provenance.json at `path`; RunDirError naming it where it is damaged or edited, which is
-    never written over (it holds the run's history)."""
-    try:
-        records = json.loads(path.read_text())["records"]
-        if not isinstance(records, list):
-            raise TypeError("records is not a list")
-    except (ValueError, KeyError, TypeError) as error:  # ValueError: JSONDecodeError, UnicodeDecodeError
-        raise RunDirError(
-            f"{path} is corrupt or from another version ({type(error).__name__}: {error}); fix or restore that file"
-        ) from None
-    return records
-
-
-def append_provenance(directory: pathlib.Path, event: str) -> dict:
-    """Adds `provenance.record(event)` to `directory`'s provenance.json and returns it; RunDirError naming the file
-    where it is damaged."""
-    path = directory / PROVENANCE_FILE
-    records = read_provenance(path) if path.exists() else []
-    entry = provenance.record(event)
-    write_json(path, {"records": [*records, entry]})
-    return entry
-
-
-def first_provenance(directory: pathlib.Path) -> dict:
-    """The first record of `directory`'s provenance.json: where, when and how training first started there."""
-    return read_provenance(directory / PROVENANCE_FILE)[0]
 
 
 def write_json(path: pathlib.Path, data: dict) -> None:

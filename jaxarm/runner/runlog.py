@@ -10,7 +10,7 @@ from collections.abc import Iterator, Sequence
 import numpy as np
 
 from jaxarm.agents.common.trainer import Trainer
-from jaxarm.runner import progress, rundir
+from jaxarm.runner import progress, provenance
 from jaxarm.runner.sinks import Sink, TensorBoardSink, WandbOptions, WandbSink, wandb_run_id
 
 
@@ -50,7 +50,7 @@ class RunLog:
         self.sinks: list[Sink] = [TensorBoardSink(run_dir / "tensorboard", purge_step=purge_step)]
         if wandb:
             config = json.loads((run_dir / "config.json").read_text())
-            run_id = wandb_run_id(run_dir.name, rundir.first_provenance(run_dir))
+            run_id = wandb_run_id(run_dir.name, provenance.first_provenance(run_dir))
             self.sinks.append(WandbSink(wandb, run_dir, config, run_id))
         stack.enter_context(closing(self.sinks))
         self.bar = stack.enter_context(progress.Progress(trainer.num_updates * trainer.env_steps_per_update))

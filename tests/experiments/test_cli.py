@@ -18,7 +18,7 @@ from experiments import eval as eval_cli
 from experiments.configs.td3 import td3_peg
 from jaxarm import headless
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import cache, learners, progress, rundir, sinks, video
+from jaxarm.runner import cache, learners, progress, provenance, rundir, sinks, video
 
 INSTALL_PAGE = (pathlib.Path(__file__).resolve().parents[2] / "docs" / "install.md").read_text()
 
@@ -198,7 +198,7 @@ def test_wandb_is_imported_only_when_asked_and_honours_offline(fake_wandb, tmp_p
     )
     init = fake_wandb["init"]
     assert init["project"] == "arms" and init["mode"] == "offline" and init["name"] == "tracked"
-    assert init["id"] == sinks.wandb_run_id("tracked", rundir.first_provenance(out))
+    assert init["id"] == sinks.wandb_run_id("tracked", provenance.first_provenance(out))
     assert init["config"]["num_envs"] == 64 and init["dir"] == str(out)
     rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
     assert [step for _, step in fake_wandb["logged"]] == [row["env_steps"] for row in rows]
@@ -214,10 +214,10 @@ def test_runs_of_one_name_get_their_own_wandb_id_and_a_resumed_run_keeps_it(tmp_
         sinks.wandb_run_id("mine", start | {"command": ["run", "--out", "b/mine"]}),
     }
     assert len(ids) == 4 and all(run_id.startswith("mine-") for run_id in ids)
-    rundir.append_provenance(tmp_path, "start")
-    started = sinks.wandb_run_id("mine", rundir.first_provenance(tmp_path))
-    rundir.append_provenance(tmp_path, "resume")
-    assert sinks.wandb_run_id("mine", rundir.first_provenance(tmp_path)) == started
+    provenance.append_provenance(tmp_path, "start")
+    started = sinks.wandb_run_id("mine", provenance.first_provenance(tmp_path))
+    provenance.append_provenance(tmp_path, "resume")
+    assert sinks.wandb_run_id("mine", provenance.first_provenance(tmp_path)) == started
 
 
 def test_wandb_missing_is_a_one_line_error(monkeypatch, tmp_path, capsys):

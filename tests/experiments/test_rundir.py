@@ -346,7 +346,7 @@ def test_damaged_side_files_are_named_in_one_line_and_kept(tmp_path):
     ]:
         provenance_path.write_text(content)
         with pytest.raises(rundir.RunDirError) as raised:
-            rundir.append_provenance(tmp_path, "resume")
+            provenance.append_provenance(tmp_path, "resume")
         assert str(raised.value).startswith(f"{provenance_path} is corrupt or from another version ({problem}")
         assert provenance_path.read_text() == content, "a damaged history is never written over"
 
