@@ -16,8 +16,9 @@ from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over, state_shardings
 from jaxarm.agents.common.teachers import learner_as_teacher
 from jaxarm.agents.common.trainer import run_updates
-from jaxarm.runner import learners, rundir
+from jaxarm.runner import learners
 from jaxarm.runner.teacher import teacher_config as preset_teacher_config
+from jaxarm.runner.teacher import teacher_preset
 
 
 def time_jitted(run, state, repeats: int) -> tuple[float, float]:
@@ -47,7 +48,7 @@ ACTION_POOL_SIZE = 16
 def benchmark_trainer(config: RunConfig):
     """`config`'s trainer; a teacher named by preset (`teacher=preset:NAME`) is that preset's policy untrained, so
     that a distilled student's program compiles and runs as in its run, with no teacher trained first."""
-    if not rundir.teacher_preset(config):
+    if not teacher_preset(config):
         return learners.make_trainer(config)
     teacher_config = preset_teacher_config(config, configs.get)
     teacher = agents_registry.make_trainer(teacher_config)

@@ -19,7 +19,8 @@ from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.teachers import learner_as_teacher
-from jaxarm.runner.rundir import read_config, teacher_run
+from jaxarm.runner.rundir import read_config
+from jaxarm.runner.teacher import teacher_run
 
 
 def make_trainer(config: RunConfig, run_dir: pathlib.Path | None = None):

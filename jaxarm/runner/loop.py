@@ -104,7 +104,7 @@ def _train_locked(
     """`train`, with the lock held: the run's learner (`_train_learner`), after the teacher stage where the
     config names a teacher by preset (the teacher's evaluation is returned where a time limit stopped that
     stage)."""
-    if rundir.teacher_preset(config):
+    if teacher.teacher_preset(config):
         clock = time.perf_counter()
         stopped = teacher.train_teacher(config, preset, run_dir, resuming, options, train=train, resume=resume)
         if stopped is not None:

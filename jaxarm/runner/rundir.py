@@ -42,7 +42,6 @@ from typing import TypeVar
 from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
-from jaxarm.agents.common.teachers import teacher_preset_name
 
 PROVENANCE_FILE = "provenance.json"
 RUN_FILES = (
@@ -280,26 +279,6 @@ def read_config(
     if validate:
         config.validate()
     return config, preset
-
-
-def teacher_preset(config: RunConfig) -> str:
-    """The preset `config`'s teacher names (`teacher=preset:NAME`), or "" (a run directory, or no teacher)."""
-    return teacher_preset_name(registry.teacher_of(config)) or ""
-
-
-def teacher_run(config: RunConfig, run_dir: pathlib.Path | None) -> pathlib.Path | None:
-    """The run directory of `config`'s teacher (None for none): the one it names, or for a teacher named by preset
-    `run_dir/teacher` (RunDirError without `run_dir`: such a student is read from its run directory)."""
-    teacher = registry.teacher_of(config)
-    if not teacher:
-        return None
-    if not teacher_preset(config):
-        return pathlib.Path(teacher)
-    if run_dir is None:
-        raise RunDirError(
-            f"teacher={teacher} is trained into the student's run directory: build the trainer of a run from it"
-        )
-    return pathlib.Path(run_dir) / TEACHER_DIR
 
 
 def finished_evaluation(run_dir: pathlib.Path, config: RunConfig) -> dict | None:

@@ -1,6 +1,7 @@
-"""The teacher stage of a run whose teacher is named by preset (`teacher=preset:NAME`): the teacher is trained (or
-resumed) into `<run dir>/teacher` before the student, by the run loop (loop.py), which calls this stage only for
-such a run. Nothing here builds the student's learner or runs its chunks.
+"""A run's teacher as the runner finds it (through the learner registry: `registry.teacher_of`), and the teacher
+stage of a run whose teacher is named by preset (`teacher=preset:NAME`): the teacher is trained (or resumed) into
+`<run dir>/teacher` before the student, by the run loop (loop.py), which calls this stage only for such a run.
+Nothing here builds the student's learner or runs its chunks.
 """
 
 import pathlib
@@ -11,9 +12,29 @@ import jax
 
 from jaxarm.agents import registry
 from jaxarm.agents.common.config import RunConfig, apply_overrides
-from jaxarm.agents.common.teachers import teacher_input
+from jaxarm.agents.common.teachers import teacher_input, teacher_preset_name
 from jaxarm.runner import processes, rundir
 from jaxarm.runner.options import Options
+
+
+def teacher_preset(config: RunConfig) -> str:
+    """The preset `config`'s teacher names (`teacher=preset:NAME`), or "" (a run directory, or no teacher)."""
+    return teacher_preset_name(registry.teacher_of(config)) or ""
+
+
+def teacher_run(config: RunConfig, run_dir: pathlib.Path | None) -> pathlib.Path | None:
+    """The run directory of `config`'s teacher (None for none): the one it names, or for a teacher named by preset
+    `run_dir/teacher` (RunDirError without `run_dir`: such a student is read from its run directory)."""
+    teacher = registry.teacher_of(config)
+    if not teacher:
+        return None
+    if not teacher_preset(config):
+        return pathlib.Path(teacher)
+    if run_dir is None:
+        raise rundir.RunDirError(
+            f"teacher={teacher} is trained into the student's run directory: build the trainer of a run from it"
+        )
+    return pathlib.Path(run_dir) / rundir.TEACHER_DIR
 
 
 def train_teacher(
@@ -32,7 +53,7 @@ def train_teacher(
     Bad names and mismatches raise ValueError before anything is written. `train` and `resume` are the run
     loop's (`jaxarm.runner.loop`), given by it: the teacher is a run of its own, in its own directory and lock,
     and the loop, which calls this stage, is not imported here."""
-    name = rundir.teacher_preset(config)
+    name = teacher_preset(config)
     teacher_dir = run_dir / rundir.TEACHER_DIR
     if (teacher_dir / "config.json").exists():
         teacher, trained_preset = rundir.read_config(teacher_dir)
@@ -75,7 +96,7 @@ def teacher_config(config: RunConfig, presets: Callable[[str], RunConfig] | None
     """The config of the teacher `config` names by preset, with `teacher_overrides`; ValueError in one line for
     an unknown preset, a bad override, a teacher with a preset teacher of its own, or one that does not observe
     what this run's env gives a teacher (`jaxarm.agents.common.teachers.teacher_input`)."""
-    name = rundir.teacher_preset(config)
+    name = teacher_preset(config)
     if presets is None:
         raise ValueError(
             f"teacher=preset:{name}: give Options(presets=...) a lookup of presets (experiments.configs.get)"
@@ -84,7 +105,7 @@ def teacher_config(config: RunConfig, presets: Callable[[str], RunConfig] | None
         teacher = apply_overrides(presets(name), registry.teacher_overrides_of(config))
     except ValueError as error:
         raise ValueError(f"teacher=preset:{name}: {error}") from None
-    if rundir.teacher_preset(teacher):
+    if teacher_preset(teacher):
         raise ValueError(
             f"teacher=preset:{name} has a teacher preset of its own; train that run first and give teacher=RUN_DIR"
         )

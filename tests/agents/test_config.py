@@ -258,7 +258,7 @@ def test_env_kwargs_take_true_and_false_as_the_config_fields_do():
 
 
 def test_every_teacher_a_preset_names_exists_and_observes_what_its_student_gives_it():
-    students = [name for name in configs.names() if rundir.teacher_preset(configs.get(name))]
+    students = [name for name in configs.names() if teacher.teacher_preset(configs.get(name))]
     assert {"ppo_sorter_pixels", "ppo_sorter_pixels_dr"} <= set(students)
     for name in students:
         teacher.teacher_config(configs.get(name), configs.get)  # raises on an unknown preset or another observation

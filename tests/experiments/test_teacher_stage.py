@@ -55,7 +55,7 @@ def test_a_preset_teacher_trains_first_and_each_stop_resumes_its_own_stage(tmp_p
     make_trainer = learners.make_trainer
 
     def stop_at_the_student(config, run_dir=None):
-        if rundir.teacher_preset(config):
+        if teacher.teacher_preset(config):
             raise loop.TrainingInterrupted("stopped between the stages")
         return make_trainer(config, run_dir)
 
