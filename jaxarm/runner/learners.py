@@ -1,8 +1,8 @@
 """A run's learner built from its config and run directory: its trainer (with a teacher's policy loaded where it
 has one), its state restored from a checkpoint or warm-started from another run, and its evaluator.
 
-The run directory's files (its config, metrics, lock, records) are rundir.py's; this module reads a run and
-writes nothing into it.
+The run directory's files (its config, metrics, lock, records) are rundir.py's and its neighbours'
+(metrics_log.py, provenance.py, resumes.py); this module reads a run and writes nothing into it.
 """
 
 import concurrent.futures

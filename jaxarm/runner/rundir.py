@@ -1,4 +1,7 @@
-"""A run directory: its config, metrics log, checkpoints and evaluation, shared by training, eval and sweep.
+"""A run directory, shared by training, eval and sweep: its layout, the checks and the lock that keep it whole,
+its config.json, its final evaluation and the names of the files eval, export and transfer write into it.
+Beside this module: metrics.jsonl is read by metrics_log.py, provenance.json written by provenance.py, what a
+resume may change checked by resumes.py, and a run's teacher found by teacher.py.
 
 Layout of `runs/<config>-<timestamp>/`:
   config.json      the resolved config (with "preset", and "agent": the learner's name in jaxarm.agents.registry)
