@@ -189,16 +189,19 @@ def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> Non
     perturbations: dict[str, list[float]] = {}
     if args.randomized_ends:  # a run that randomises nothing was refused before the imports (ends_problem)
         perturbations = robustness.range_ends(dict(config.randomize), env_params)
-    combined = [robustness.parse_combined(text) for text in args.perturb if "+" in text]
-    for text in args.perturb:
-        if "+" not in text:
-            name, values = robustness.parse_perturbation(text)
-            perturbations[name] = [*perturbations.get(name, []), *values]
-    key = jax.random.PRNGKey(args.seed)
-    start = time.perf_counter()
-    rows = robustness.evaluate_perturbations(
-        env, env_params, trainer.act, state, key, args.episodes, perturbations, combined
-    )
+    try:  # the library's words for a perturbation it refuses, under the flag that asked for it
+        combined = [robustness.parse_combined(text) for text in args.perturb if "+" in text]
+        for text in args.perturb:
+            if "+" not in text:
+                name, values = robustness.parse_perturbation(text)
+                perturbations[name] = [*perturbations.get(name, []), *values]
+        key = jax.random.PRNGKey(args.seed)
+        start = time.perf_counter()
+        rows = robustness.evaluate_perturbations(
+            env, env_params, trainer.act, state, key, args.episodes, perturbations, combined
+        )
+    except robustness.PerturbationError as error:
+        raise ValueError(f"--perturb: {error}") from None
     text = robustness.table(rows)
     print(f"{text}\n({args.episodes} episodes a row, {time.perf_counter() - start:.1f} s with compilation)")
     request = [*args.perturb, *(["--randomized-ends"] if args.randomized_ends else [])]

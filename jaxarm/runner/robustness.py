@@ -24,25 +24,32 @@ TABLE_COLUMNS = ("success_rate", "return_mean")
 """Columns every table row has; the env's final-info means (the sorter's object outcomes) follow them."""
 
 
+class PerturbationError(ValueError):
+    """A perturbation that cannot be evaluated: its text, its param or its value (the message says which)."""
+
+
 def parse_perturbation(text: str) -> tuple[str, list[float]]:
-    """'NAME=V1,V2,...' -> (NAME, [V1, V2, ...]) (numbers, integers where written so); ValueError otherwise."""
+    """'NAME=V1,V2,...' -> (NAME, [V1, V2, ...]) (numbers, integers where written so); PerturbationError otherwise."""
     name, _, values = text.partition("=")
     try:
         parsed = [ast.literal_eval(value.strip()) for value in values.split(",")]
     except (ValueError, SyntaxError):
         parsed = []
     if not name or not parsed or not all(isinstance(value, numbers.Real) for value in parsed):
-        raise ValueError(f"--perturb takes NAME=V1,V2,..., got {text!r}")
+        raise PerturbationError(f"a perturbation is NAME=V1,V2,..., got {text!r}")
     return name, parsed
 
 
 def parse_combined(text: str) -> dict[str, float]:
-    """'NAME=V+NAME=V+...' -> {NAME: V, ...}: one change of several params together; ValueError otherwise."""
+    """'NAME=V+NAME=V+...' -> {NAME: V, ...}: one change of several params together; PerturbationError
+    otherwise."""
     combined = {}
     for part in text.split("+"):
         name, values = parse_perturbation(part)
         if len(values) != 1 or name in combined:
-            raise ValueError(f"--perturb takes NAME=V+NAME=V+... (one value each, each name once), got {text!r}")
+            raise PerturbationError(
+                f"a combined perturbation is NAME=V+NAME=V+... (one value each, each name once), got {text!r}"
+            )
         combined[name] = values[0]
     return combined
 
@@ -65,16 +72,18 @@ def range_ends(randomize: Mapping[str, str], env_params) -> dict[str, list[float
 
 
 def check_perturbations(env_params, perturbations: Mapping[str, Sequence[float]]) -> None:
-    """ValueError for a name that is not an env param, a value outside its declared range, or a param that sets
-    the rollout's length (all of a run's rows share one length)."""
+    """PerturbationError for a name that is not an env param, a value outside its declared range, or a param that
+    sets the rollout's length (all of a run's rows share one length)."""
     for name, values in perturbations.items():
         if name == "max_episode_steps":
-            raise ValueError("--perturb: max_episode_steps sets the rollout's length; evaluate it with eval_env_params")
+            raise PerturbationError("max_episode_steps sets the rollout's length; evaluate it with eval_env_params")
         for value in values:
             try:
-                envs.override_params(env_params, {name: value}, prefix="--perturb ")
+                envs.override_params(env_params, {name: value})
             except KeyError as error:
-                raise ValueError(error.args[0]) from None
+                raise PerturbationError(error.args[0]) from None
+            except ValueError as error:
+                raise PerturbationError(str(error)) from None
 
 
 def evaluate_perturbations(

@@ -113,7 +113,7 @@ class WandbSink:
         try:
             wandb = importlib.import_module("wandb")
         except ImportError:
-            raise ValueError("--wandb needs the wandb package: pip install 'jaxarm[wandb]'") from None
+            raise ValueError("logging to wandb needs the wandb package: pip install 'jaxarm[wandb]'") from None
         self.run = wandb.init(
             project=options.project,
             name=run_dir.name,
