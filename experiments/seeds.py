@@ -30,14 +30,13 @@ import pathlib
 import signal
 import subprocess
 import time
-import warnings
 from collections.abc import Sequence
 
 import numpy as np
 
 from experiments import distributed
 from experiments.run import minutes
-from jaxarm.runner import rundir
+from jaxarm.runner import rundir, stats
 
 SEEDS_FILE = "seeds.json"
 """What was asked (preset, seeds, goal, overrides) and each seed's commands so far: `--resume` reads it."""
@@ -112,29 +111,13 @@ def fraction(text: str) -> float:
     return value
 
 
-def bootstrap_interval(values: np.ndarray, seed: int = 0) -> tuple[float, float]:
-    """The percentile bootstrap 95% interval of the mean of `values` [N] (scipy.stats.bootstrap, 10,000
-    resamples, a fixed seed so that a table reads the same twice); (v, v) where every value is v."""
-    from scipy import stats  # ~1 s to import, paid only where a table is made
-
-    values = np.asarray(values, float)
-    if np.ptp(values) == 0:
-        return float(values[0]), float(values[0])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # few distinct values: scipy warns about the resamples
-        interval = stats.bootstrap(
-            (values,), np.mean, confidence_level=0.95, n_resamples=10_000, method="percentile", random_state=seed
-        ).confidence_interval
-    return float(interval.low), float(interval.high)
-
-
 def summarise(protocol: Protocol, results: Sequence[SeedResult]) -> dict:
     """The study's row: each seed's placed and wall clock, the worst seed, the mean with its bootstrap interval,
     the devices and whether the worst seed met the goal (in time, where --minutes was given)."""
     placed = np.array([np.nan if result.placed is None else result.placed for result in results])
     done = all(result.finished for result in results)
     in_time = protocol.minutes is None or all(result.wall_s <= 60 * protocol.minutes for result in results)
-    low, high = bootstrap_interval(placed) if done else (np.nan, np.nan)
+    low, high = stats.bootstrap_interval(placed) if done else (np.nan, np.nan)
     return {
         "preset": protocol.config,
         "command": protocol.command,
@@ -180,6 +163,11 @@ def markdown(summary: dict) -> str:
 
 def seed_dir(out: pathlib.Path, seed: int) -> pathlib.Path:
     return out / f"seed-{seed}"
+
+
+def seed_log(out: pathlib.Path, seed: int) -> pathlib.Path:
+    """Where the output of seed-S's commands goes, beside its run directory (which holds a run's files alone)."""
+    return out / f"seed-{seed}.log"
 
 
 def seed_result(out: pathlib.Path, seed: int, walls: Sequence[float]) -> SeedResult:
@@ -265,8 +253,8 @@ def start_run(out: pathlib.Path, seed: int, command: list[str], gpu: str | None)
     """Starts `command` (`python -m experiments.run ...`) with this interpreter, on `gpu` alone where one is
     named, its output appended to OUT/seed-S.log."""
     env = dict(os.environ) if gpu is None else {**os.environ, "CUDA_VISIBLE_DEVICES": gpu}
-    print(f"seed {seed}{'' if gpu is None else f' on GPU {gpu}'}: {' '.join(command)} (log {out}/seed-{seed}.log)")
-    with (out / f"seed-{seed}.log").open("a") as log:
+    print(f"seed {seed}{'' if gpu is None else f' on GPU {gpu}'}: {' '.join(command)} (log {seed_log(out, seed)})")
+    with seed_log(out, seed).open("a") as log:
         return subprocess.Popen([sys.executable, *command[1:]], env=env, stdout=log, stderr=log, start_new_session=True)
 
 
@@ -384,7 +372,7 @@ def study(args: argparse.Namespace) -> int:
     (out / "seeds.md").write_text(markdown(summary))
     print(markdown(summary), end="")
     if not summary["finished"]:
-        unfinished = ", ".join(f"{out}/seed-{result.seed}.log" for result in results if not result.finished)
+        unfinished = ", ".join(str(seed_log(out, result.seed)) for result in results if not result.finished)
         print(
             f"some seeds did not finish (their logs say why: {unfinished}); continue them with: "
             f"python -m experiments.seeds --resume {out}"

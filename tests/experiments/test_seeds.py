@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from experiments import seeds
-from jaxarm.runner import metrics_log, rundir
+from jaxarm.runner import metrics_log, rundir, stats
 from tests.experiments.test_run import SMALL  # the same compiled chunk as there
 
 
@@ -32,11 +32,11 @@ def test_bad_seeds_are_refused_in_one_line(text, message):
 
 def test_the_interval_holds_the_mean_reads_the_same_twice_and_is_a_point_where_all_agree():
     values = np.array([0.659, 0.73, 1.0, 1.0, 1.0])
-    low, high = seeds.bootstrap_interval(values)
+    low, high = stats.bootstrap_interval(values)
     assert low < values.mean() < high
-    assert (low, high) == seeds.bootstrap_interval(values)
+    assert (low, high) == stats.bootstrap_interval(values)
     assert low >= values.min() and high <= values.max()
-    assert seeds.bootstrap_interval(np.array([1.0, 1.0, 1.0])) == (1.0, 1.0)
+    assert stats.bootstrap_interval(np.array([1.0, 1.0, 1.0])) == (1.0, 1.0)
 
 
 def result(seed: int, placed: float, wall_s: float = 60.0, finished: bool = True) -> seeds.SeedResult:
