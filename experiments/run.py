@@ -93,13 +93,18 @@ def quiet_libraries() -> None:
         logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
+def resume_command(run_dir) -> str:
+    """The command that continues the run in `run_dir`."""
+    return f"python -m experiments.run --resume {run_dir}"
+
+
 def cli_message(error: BaseException) -> str:
     """`error`'s message, with this CLI's command where the library marked the error as one a resume gets past
     (`rundir.resumable`)."""
     resume_dir = getattr(error, "resume_dir", None)
     if resume_dir is None:
         return str(error)
-    return f"{error}; continue with: python -m experiments.run --resume {resume_dir}"
+    return f"{error}; continue with: {resume_command(resume_dir)}"
 
 
 def planned_config(args: argparse.Namespace) -> RunConfig:
@@ -143,7 +148,7 @@ def start_local_processes(args: argparse.Namespace, argv: list[str], count: int)
             "--local-processes 1 for that)",
             flush=True,
         )
-    return distributed.spawn(main, argv, count, f"python -m experiments.run --resume {run_dir}")
+    return distributed.spawn(main, argv, count, resume_command(run_dir))
 
 
 def shown_config(args: argparse.Namespace) -> tuple[RunConfig, str]:
