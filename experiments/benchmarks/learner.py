@@ -8,6 +8,7 @@ measured in the same run.
 """
 
 import argparse
+import dataclasses
 import functools
 import time
 from collections.abc import Sequence
@@ -22,8 +23,8 @@ from jaxarm.agents.common import normalizer as observation_normalizer
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.ppo.networks import make_networks
-from jaxarm.agents.ppo.train import Samples, make_optimizer, sgd_epochs
-from jaxarm.envs import EnvSpec
+from jaxarm.agents.ppo.train import PPOSetup, Samples, SGDInputs, make_optimizer, sgd_epochs
+from jaxarm.envs import AutoReset, EnvSpec, VmapEnv
 
 
 def random_samples(key: jax.Array, spec: EnvSpec, rollout_length: int, num_envs: int) -> Samples:
@@ -49,19 +50,21 @@ def random_samples(key: jax.Array, spec: EnvSpec, rollout_length: int, num_envs:
 
 def sgd_seconds(config: PPOConfig, unrolls: Sequence[int], repeats: int) -> list[tuple[int, float, float]]:
     """[(unroll, best seconds of one update's SGD phase, compile seconds)] for each of `unrolls` (0: all)."""
-    env, _ = config.make_env()
+    env, env_params = config.make_env()
     spec = env.spec
     networks = make_networks(config, spec.action_size, camera=not spec.flat_observation)
+    setup = PPOSetup(config, networks, VmapEnv(AutoReset(env), config.num_envs), env_params)
     hparams = config.hparams()
     params_key, value_key, samples_key, run_key = jax.random.split(jax.random.PRNGKey(config.seed), 4)
     params = networks.init(params_key, value_key, spec)
     opt_state = make_optimizer(hparams, hparams.learning_rate).init(params)
     normalizer = observation_normalizer.init(spec)
     samples = random_samples(samples_key, spec, config.rollout_length, config.num_envs)
-    args = (params, opt_state, normalizer, samples, hparams, hparams.learning_rate, run_key)
+    inputs = SGDInputs(samples, normalizer, None, hparams, hparams.learning_rate)
+    args = (params, opt_state, inputs, run_key)
     rows = []
     for unroll in unrolls:
-        run = functools.partial(sgd_epochs, config, networks, unroll=unroll or config.num_minibatches)
+        run = functools.partial(sgd_epochs, dataclasses.replace(setup, sgd_unroll=unroll or config.num_minibatches))
         start = time.perf_counter()
         compiled = jax.jit(run).lower(*args).compile()
         compile_seconds = time.perf_counter() - start

@@ -5,7 +5,8 @@ observation normaliser, computes GAE (bootstrapping from the pre-reset observati
 termination), and runs `num_epochs` × `num_minibatches` clipped-surrogate steps. The policy and value
 functions are `PPONetworks` (networks.py); the tanh-squashed Gaussian and running statistics are brax's. The
 three phases run under the named scopes `collect`, `advantages` and `sgd`, which profiles show in every op's
-name (`python -m experiments.bench profile` sums time by them).
+name (`python -m experiments.bench profile` sums time by them). What the run fixes when it is built (config,
+networks, envs, teacher) is one `PPOSetup` record, the first argument of every phase.
 
 With `asymmetric`, the env observes its privileged state beside the policy's input in the same step; rollouts,
 GAE and the value loss carry it for the critic (bootstrapping from the final observation's privileged part),
@@ -13,7 +14,9 @@ while the policy, `act` and exports read only the rest. With a `teacher` (`jaxar
 sample is labelled with the teacher's action and the policy regresses onto it.
 """
 
+import dataclasses
 import functools
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -89,6 +92,46 @@ class Samples:
     teacher_action: jax.Array | None = None
 
 
+@dataclasses.dataclass(frozen=True)
+class PPOSetup:
+    """What a PPO run fixes when its trainer is built, and every update reads.
+
+    Attributes:
+      config: the run's sizes and choices.
+      networks: the policy and value functions (`make_networks`).
+      batch_env: the [num_envs] auto-resetting envs.
+      env_params: the envs' params (arrays, constants of the compiled update).
+      teacher: obs [B, ...] -> [B, A] the actions the policy is distilled onto; None without a teacher.
+      sgd_unroll: minibatch steps per iteration of an epoch's loop (`SGD_STEPS_UNROLLED`).
+    """
+
+    config: PPOConfig
+    networks: PPONetworks
+    batch_env: VmapEnv
+    env_params: Any
+    teacher: Teacher | None = None
+    sgd_unroll: int = SGD_STEPS_UNROLLED
+
+
+@struct.dataclass
+class SGDInputs:
+    """What one update's SGD phase reads and never changes.
+
+    Attributes:
+      samples: the rollout's training samples, [T, B, ...] per field.
+      normalizer: the observation statistics, updated with the rollout's observations.
+      critic_normalizer: the asymmetric critic's (`PPOState.critic_normalizer`), updated likewise; None otherwise.
+      hparams: the run's dynamic hyper-parameters.
+      learning_rate: [] the update's step size (`learning_rate_at`).
+    """
+
+    samples: Samples
+    normalizer: observation_normalizer.Normalizer
+    critic_normalizer: observation_normalizer.Normalizer | None
+    hparams: HParams
+    learning_rate: jax.Array
+
+
 @struct.dataclass
 class Rollout:
     """One rollout, [T, B, ...] per field. Observations are raw (not normalised; camera frames stay uint8)."""
@@ -108,20 +151,14 @@ def make_optimizer(hparams: HParams, learning_rate) -> optax.GradientTransformat
 
 
 def minibatch_loss(
-    config: PPOConfig,
-    networks: PPONetworks,
-    params,
-    normalizer,
-    batch: Samples,
-    hparams: HParams,
-    key,
-    critic_normalizer=None,
+    setup: PPOSetup, params: NetworkParams, inputs: SGDInputs, batch: Samples, key: jax.Array
 ) -> tuple[jax.Array, losses.LossTerms]:
-    """PPO's loss on one minibatch (clipped surrogate, value error, entropy bonus) and its terms
-    (`critic_normalizer`: the asymmetric critic's, `PPOState.critic_normalizer`). With teacher actions in
-    `batch`, the distillation loss is added, to the value loss alone where `config.imitation_only`."""
+    """PPO's loss on one minibatch `batch` ([N, ...] per field) of `inputs.samples` (clipped surrogate, value
+    error, entropy bonus) and its terms. With teacher actions in `batch`, the distillation loss is added, to the
+    value loss alone where `config.imitation_only`."""
+    config, networks, hparams = setup.config, setup.networks, inputs.hparams
     action_dist = networks.action_dist
-    dist_params = networks.policy_params(params, normalizer, batch.obs)
+    dist_params = networks.policy_params(params, inputs.normalizer, batch.obs)
     log_prob = action_dist.log_prob(dist_params, batch.raw_action)
     advantages = batch.advantage
     if config.normalize_advantages:
@@ -129,7 +166,8 @@ def minibatch_loss(
     policy_loss, approx_kl, clip_fraction = losses.clipped_policy_loss(
         log_prob, batch.log_prob, advantages, hparams.clip_epsilon
     )
-    value_loss = losses.value_loss(networks.value(params, normalizer, batch.obs, critic_normalizer), batch.target)
+    values = networks.value(params, inputs.normalizer, batch.obs, inputs.critic_normalizer)
+    value_loss = losses.value_loss(values, batch.target)
     entropy = jnp.mean(action_dist.entropy(dist_params, key))
     total = policy_loss + hparams.value_coef * value_loss - hparams.entropy_coef * entropy
     imitation = jnp.zeros(())
@@ -165,51 +203,37 @@ def shuffled_minibatches(config: PPOConfig, samples: Samples, key: jax.Array) ->
     return jax.tree.map(shuffle, samples)
 
 
-def sgd_epochs(
-    config: PPOConfig,
-    networks: PPONetworks,
-    params,
-    opt_state,
-    normalizer,
-    samples: Samples,
-    hparams: HParams,
-    learning_rate,
-    key,
-    unroll: int = SGD_STEPS_UNROLLED,
-    critic_normalizer=None,
-):
-    """`num_epochs` passes of `num_minibatches` clipped-surrogate steps over freshly shuffled `samples`
-    ([T, B, ...] per field; `shuffled_minibatches`), `unroll` steps per iteration of each epoch's loop
-    (`critic_normalizer`: as `minibatch_loss`'s).
+def sgd_epochs(setup: PPOSetup, params: NetworkParams, opt_state: optax.OptState, inputs: SGDInputs, key: jax.Array):
+    """`num_epochs` passes of `num_minibatches` clipped-surrogate steps over freshly shuffled `inputs.samples`
+    (`shuffled_minibatches`), `setup.sgd_unroll` steps per iteration of each epoch's loop.
 
     Returns ((params, opt_state), (loss terms, grad norms)), the last two [num_epochs, num_minibatches].
     """
-    optimizer = make_optimizer(hparams, learning_rate)
+    config = setup.config
+    optimizer = make_optimizer(inputs.hparams, inputs.learning_rate)
 
     def sgd_step(carry, minibatch_and_key):
         params, opt_state = carry
         minibatch, key = minibatch_and_key
-        grads, terms = jax.grad(minibatch_loss, argnums=2, has_aux=True)(
-            config, networks, params, normalizer, minibatch, hparams, key, critic_normalizer
-        )
+        grads, terms = jax.grad(minibatch_loss, argnums=1, has_aux=True)(setup, params, inputs, minibatch, key)
         updates, opt_state = optimizer.update(grads, opt_state, params)
         return (optax.apply_updates(params, updates), opt_state), (terms, optax.global_norm(grads))
 
     def epoch(carry, key):
         permute_key, step_key = jax.random.split(key)
-        minibatches = shuffled_minibatches(config, samples, permute_key)
+        minibatches = shuffled_minibatches(config, inputs.samples, permute_key)
         return jax.lax.scan(
-            sgd_step, carry, (minibatches, jax.random.split(step_key, config.num_minibatches)), unroll=unroll
+            sgd_step, carry, (minibatches, jax.random.split(step_key, config.num_minibatches)), unroll=setup.sgd_unroll
         )
 
     return jax.lax.scan(epoch, (params, opt_state), jax.random.split(key, config.num_epochs))
 
 
-def init_state(networks: PPONetworks, batch_env: VmapEnv, env_params, key: jax.Array, hparams: HParams) -> PPOState:
+def init_state(setup: PPOSetup, key: jax.Array, hparams: HParams) -> PPOState:
     """A fresh learner: initialised networks and Adam state, empty normalisers, [num_envs] reset envs."""
     env_key = jax.random.split(key, 4)[2]
-    acting = init_acting_state(networks, batch_env.spec, key, hparams)
-    return acting.replace(env_state=batch_env.reset(env_key, env_params))
+    acting = init_acting_state(setup.networks, setup.batch_env.spec, key, hparams)
+    return acting.replace(env_state=setup.batch_env.reset(env_key, setup.env_params))
 
 
 def init_acting_state(networks: PPONetworks, spec: EnvSpec, key: jax.Array, hparams: HParams) -> PPOState:
@@ -227,20 +251,19 @@ def init_acting_state(networks: PPONetworks, spec: EnvSpec, key: jax.Array, hpar
     )
 
 
-def collect(
-    config: PPOConfig, networks: PPONetworks, batch_env: VmapEnv, env_params, state: PPOState, key: jax.Array
-) -> tuple[EnvState, Rollout, EpisodeSummary]:
+def collect(setup: PPOSetup, state: PPOState, key: jax.Array) -> tuple[EnvState, Rollout, EpisodeSummary]:
     """Steps the envs `rollout_length` times with the stochastic policy.
 
     Returns (env state [B], the rollout [T, B, ...], a summary of the episodes that finished).
     """
+    networks, batch_env = setup.networks, setup.batch_env
     action_dist = networks.action_dist
 
     def env_step(env_state, step_key):
         dist_params = networks.policy_params(state.params, state.normalizer, env_state.obs)
         raw_action = action_dist.sample_no_postprocessing(dist_params, step_key)
         log_prob = action_dist.log_prob(dist_params, raw_action)
-        next_state = batch_env.step(env_state, action_dist.postprocess(raw_action), env_params)
+        next_state = batch_env.step(env_state, action_dist.postprocess(raw_action), setup.env_params)
         step = Rollout(
             obs=env_state.obs,
             raw_action=raw_action,
@@ -254,21 +277,15 @@ def collect(
 
     with deferred_step_checks():  # one check of the whole rollout, below, instead of one per step
         env_state, (rollout, states) = jax.lax.scan(
-            env_step, state.env_state, jax.random.split(key, config.rollout_length)
+            env_step, state.env_state, jax.random.split(key, setup.config.rollout_length)
         )
     return batch_env.checked(env_state), rollout, summarise_episodes(states)
 
 
-def advantage_samples(
-    config: PPOConfig,
-    networks: PPONetworks,
-    teacher: Teacher | None,
-    state: PPOState,
-    rollout: Rollout,
-    hparams: HParams,
-):
+def advantage_samples(setup: PPOSetup, state: PPOState, rollout: Rollout, hparams: HParams):
     """(normaliser and critic normaliser updated with the rollout's observations, [T, B] training samples with
     GAE targets, labelled with the teacher's actions where there is one)."""
+    config, networks, teacher = setup.config, setup.networks, setup.teacher
     normalizer = observation_normalizer.update(state.normalizer, config.normalize_observations, rollout.obs)
     critic_normalizer = state.critic_normalizer
     if config.asymmetric:
@@ -298,35 +315,17 @@ def learning_rate_at(config: PPOConfig, hparams: HParams, updates: jax.Array) ->
     )
 
 
-def update(
-    config: PPOConfig,
-    networks: PPONetworks,
-    batch_env: VmapEnv,
-    env_params,
-    teacher: Teacher | None,
-    state: PPOState,
-    hparams: HParams,
-) -> tuple[PPOState, PPOMetrics]:
+def update(setup: PPOSetup, state: PPOState, hparams: HParams) -> tuple[PPOState, PPOMetrics]:
     """One update (the module docstring): collect, advantages, then the SGD epochs, each under its named scope."""
     collect_key, shuffle_key, next_key = jax.random.split(state.key, 3)
     with jax.named_scope("collect"):
-        env_state, rollout, episodes = collect(config, networks, batch_env, env_params, state, collect_key)
+        env_state, rollout, episodes = collect(setup, state, collect_key)
     with jax.named_scope("advantages"):
-        normalizer, critic_normalizer, samples = advantage_samples(config, networks, teacher, state, rollout, hparams)
-    learning_rate = learning_rate_at(config, hparams, state.updates)
+        normalizer, critic_normalizer, samples = advantage_samples(setup, state, rollout, hparams)
+    learning_rate = learning_rate_at(setup.config, hparams, state.updates)
+    inputs = SGDInputs(samples, normalizer, critic_normalizer, hparams, learning_rate)
     with jax.named_scope("sgd"):
-        (params, opt_state), (terms, grad_norms) = sgd_epochs(
-            config,
-            networks,
-            state.params,
-            state.opt_state,
-            normalizer,
-            samples,
-            hparams,
-            learning_rate,
-            shuffle_key,
-            critic_normalizer=critic_normalizer,
-        )
+        (params, opt_state), (terms, grad_norms) = sgd_epochs(setup, state.params, state.opt_state, inputs, shuffle_key)
     new_state = PPOState(
         params=params,
         opt_state=opt_state,
@@ -371,7 +370,6 @@ def make_trainer(config: PPOConfig, env=None, env_params=None, teacher: Teacher 
         )
     if env is None:
         env, env_params = config.make_env()
-    batch_env = VmapEnv(AutoReset(env), config.num_envs)
     if config.asymmetric and PRIVILEGED not in (env.spec.observation_parts or {}):
         raise ValueError(
             f"asymmetric=true needs an env that observes its privileged state: {config.env} with a pixel obs_mode "
@@ -384,10 +382,11 @@ def make_trainer(config: PPOConfig, env=None, env_params=None, teacher: Teacher 
         privileged part, given or not, is never read)."""
         return networks.deterministic_action(state.params, state.normalizer, obs)
 
+    setup = PPOSetup(config, networks, VmapEnv(AutoReset(env), config.num_envs), env_params, teacher)
     return Trainer(
-        init=functools.partial(init_state, networks, batch_env, env_params),
+        init=functools.partial(init_state, setup),
         init_for_acting=functools.partial(init_acting_state, networks, env.spec),
-        update=functools.partial(update, config, networks, batch_env, env_params, teacher),
+        update=functools.partial(update, setup),
         act=act,
         num_updates=config.num_updates,
         env_steps_per_update=config.env_steps_per_update,
