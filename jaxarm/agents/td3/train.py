@@ -10,7 +10,8 @@ steps of its rollout (losses.n_step_returns). With `critic_atoms` the critics le
 (C51, losses.distributional_critic_target) and the actor their means. With `normalize_observations` the networks
 read observations standardised by running statistics of every collected step (the replay keeps them raw).
 Hyper-parameters arrive as `HParams` data, so `jax.vmap(make_train(trainer))(keys, hparams)` trains seeds ×
-hyper-parameters at once.
+hyper-parameters at once; what the run fixes when it is built (config, networks, envs) is one `TD3Setup` record,
+the first argument of every phase.
 """
 
 import dataclasses
@@ -82,6 +83,26 @@ def n_step_experience(experience: Experience, done: jax.Array, gamma: jax.Array,
         terminated=at_last(experience.terminated),
         discount=discount,
     )
+
+
+@dataclasses.dataclass(frozen=True)
+class TD3Setup:
+    """What a TD3 run fixes when its trainer is built, and every update reads.
+
+    Attributes:
+      config: the run's sizes and choices.
+      networks: the actor and critics (`make_networks`).
+      batch_env: the [num_envs] auto-resetting envs.
+      env_params: the envs' params (arrays, constants of the compiled update).
+      shift_pad: the training images' random shift in pixels (`config.random_shift_pad` for a camera's
+        observations, 0 for flat ones).
+    """
+
+    config: TD3Config
+    networks: TD3Networks
+    batch_env: VmapEnv
+    env_params: Any
+    shift_pad: int
 
 
 class TD3State(struct.PyTreeNode):
@@ -161,8 +182,9 @@ def warm_up_steps(config: TD3Config, updates: jax.Array) -> jax.Array:
     return jnp.minimum(updates, warm_up_updates) * config.env_steps_per_update
 
 
-def init_state(config: TD3Config, networks: TD3Networks, batch_env: VmapEnv, env_params, key: jax.Array) -> TD3State:
+def init_state(setup: TD3Setup, key: jax.Array) -> TD3State:
     """A fresh learner: networks and their targets initialised alike, an empty replay, [num_envs] reset envs."""
+    config, batch_env = setup.config, setup.batch_env
     spec = batch_env.spec
     env_key = jax.random.split(key, 4)[2]
     obs = spec.zero_observation()
@@ -175,8 +197,8 @@ def init_state(config: TD3Config, networks: TD3Networks, batch_env: VmapEnv, env
         terminated=jnp.zeros((), jnp.bool_),
         discount=zero,
     )
-    return init_acting_state(config, networks, spec, key).replace(
-        replay=replay.init(example, config.buffer_size), env_state=batch_env.reset(env_key, env_params)
+    return init_acting_state(config, setup.networks, spec, key).replace(
+        replay=replay.init(example, config.buffer_size), env_state=batch_env.reset(env_key, setup.env_params)
     )
 
 
@@ -206,13 +228,14 @@ def init_acting_state(config: TD3Config, networks: TD3Networks, spec: EnvSpec, k
 
 
 def collect(
-    config: TD3Config, networks: TD3Networks, batch_env: VmapEnv, env_params, state: TD3State, hparams: HParams, key
+    setup: TD3Setup, state: TD3State, hparams: HParams, key: jax.Array
 ) -> tuple[EnvState, jax.Array, Experience, EnvState]:
     """Steps the envs `rollout_length` times: uniform random actions while fewer than `learning_starts` env steps
     are collected, then the actor's plus Gaussian noise.
 
     Returns (env state [B], env steps as `warm_up_steps` counts them, experience [T*B], states [T, B]).
     """
+    config, networks, batch_env = setup.config, setup.networks, setup.batch_env
     spec = batch_env.spec
     scales = exploration_scales(config)
 
@@ -226,7 +249,7 @@ def collect(
         noisy = jnp.clip(policy + noise, -1.0, 1.0)
         random = jax.random.uniform(random_key, shape, minval=-1.0, maxval=1.0)
         action = jnp.where(env_steps < config.learning_starts, random, noisy)
-        next_state = batch_env.step(env_state, to_env_action(spec, action), env_params)
+        next_state = batch_env.step(env_state, to_env_action(spec, action), setup.env_params)
         experience = Experience(
             obs=env_state.obs,
             action=action,
@@ -250,9 +273,7 @@ def collect(
 
 
 def critic_step(
-    config: TD3Config,
-    networks: TD3Networks,
-    shift_pad: int,
+    setup: TD3Setup,
     hparams: HParams,
     state: TD3State,
     critic: tuple[Params, optax.OptState],
@@ -263,6 +284,7 @@ def critic_step(
 
     Returns ((critic params, Adam state), ([] loss, [] mean Q of the batch)).
     """
+    config, networks, shift_pad = setup.config, setup.networks, setup.shift_pad
     critic_params, opt_state = critic
     batch, noise_key = batch_and_key
     batch = dataclasses.replace(
@@ -296,14 +318,14 @@ def critic_step(
 
 def actor_step(
     networks: TD3Networks,
-    params: Params,
-    opt_state: optax.OptState,
+    actor: tuple[Params, optax.OptState],
     critic_params: Params,
     obs: Observation,
     hparams: HParams,
-) -> tuple[Params, optax.OptState, jax.Array]:
-    """One gradient step of the actor raising the first critic's Q of its actions in `obs` [N, ...] (as the
-    networks read them). Returns (actor params, Adam state, [] loss)."""
+) -> tuple[tuple[Params, optax.OptState], jax.Array]:
+    """One gradient step of the actor (params, Adam state) raising the first critic's Q of its actions in `obs`
+    [N, ...] (as the networks read them). Returns ((actor params, Adam state), [] loss)."""
+    params, opt_state = actor
     encoded = networks.encode(critic_params, obs)
 
     def loss_fn(actor_params):
@@ -312,29 +334,29 @@ def actor_step(
 
     loss, grads = jax.value_and_grad(loss_fn)(params)
     updates, opt_state = optax.adam(hparams.actor_learning_rate).update(grads, opt_state, params)
-    return optax.apply_updates(params, updates), opt_state, loss
+    return (optax.apply_updates(params, updates), opt_state), loss
 
 
 def delayed_block(
-    config: TD3Config, networks: TD3Networks, shift_pad: int, state: TD3State, key: jax.Array, hparams: HParams
+    setup: TD3Setup, state: TD3State, key: jax.Array, hparams: HParams
 ) -> tuple[TD3State, tuple[jax.Array, jax.Array, jax.Array]]:
     """`policy_delay` critic steps on fresh replay batches, then one actor step and one Polyak step of both target
     networks. Returns (state, ([] mean critic loss, [] actor loss, [] mean Q))."""
+    config = setup.config
     sample_key, noise_key = jax.random.split(key)
     batches = replay.sample(state.replay, sample_key, config.policy_delay * config.batch_size)
     batches = jax.tree.map(lambda leaf: leaf.reshape(config.policy_delay, config.batch_size, *leaf.shape[1:]), batches)
     (critic_params, critic_opt_state), (critic_losses, q_means) = jax.lax.scan(
-        functools.partial(critic_step, config, networks, shift_pad, hparams, state),
+        functools.partial(critic_step, setup, hparams, state),
         (state.critic_params, state.critic_opt_state),
         (batches, jax.random.split(noise_key, config.policy_delay)),
     )
     last_obs = jax.tree.map(lambda leaf: leaf[-1], batches.obs)
-    actor_params, actor_opt_state, loss = actor_step(
-        networks,
-        state.actor_params,
-        state.actor_opt_state,
+    (actor_params, actor_opt_state), loss = actor_step(
+        setup.networks,
+        (state.actor_params, state.actor_opt_state),
         critic_params,
-        standardized(config, state.normalizer, augmented(key, 1, last_obs, shift_pad)),
+        standardized(config, state.normalizer, augmented(key, 1, last_obs, setup.shift_pad)),
         hparams,
     )
     state = state.replace(
@@ -349,12 +371,12 @@ def delayed_block(
 
 
 def learn(
-    config: TD3Config, networks: TD3Networks, shift_pad: int, state: TD3State, key: jax.Array, hparams: HParams
+    setup: TD3Setup, state: TD3State, key: jax.Array, hparams: HParams
 ) -> tuple[TD3State, tuple[jax.Array, jax.Array, jax.Array]]:
     """`grad_steps_per_update` gradient steps in `delayed_block`s. Returns (state, the blocks' mean losses and Q)."""
-    blocks = config.grad_steps_per_update // config.policy_delay
+    blocks = setup.config.grad_steps_per_update // setup.config.policy_delay
     state, (critic_losses, actor_losses, q_means) = jax.lax.scan(
-        lambda carry, block_key: delayed_block(config, networks, shift_pad, carry, block_key, hparams),
+        lambda carry, block_key: delayed_block(setup, carry, block_key, hparams),
         state,
         jax.random.split(key, blocks),
     )
@@ -373,21 +395,12 @@ def annealed_step_sizes(config: TD3Config, hparams: HParams, updates: jax.Array)
     )
 
 
-def update(
-    config: TD3Config,
-    networks: TD3Networks,
-    batch_env: VmapEnv,
-    env_params,
-    shift_pad: int,
-    state: TD3State,
-    hparams: HParams,
-) -> tuple[TD3State, TD3Metrics]:
+def update(setup: TD3Setup, state: TD3State, hparams: HParams) -> tuple[TD3State, TD3Metrics]:
     """One update (the module docstring): collect, store, and learn once `learning_starts` env steps are in."""
+    config = setup.config
     key, collect_key, learn_key = jax.random.split(state.key, 3)
     step_sizes = annealed_step_sizes(config, hparams, state.updates)
-    env_state, env_steps, experience, states = collect(
-        config, networks, batch_env, env_params, state, hparams, collect_key
-    )
+    env_state, env_steps, experience, states = collect(setup, state, hparams, collect_key)
     normalizer = observation_normalizer.update(state.normalizer, config.normalize_observations, experience.obs)
     state = state.replace(
         normalizer=normalizer,
@@ -404,7 +417,7 @@ def update(
 
     state, (critic_loss_value, actor_loss_value, q_mean) = jax.lax.cond(
         env_steps >= config.learning_starts,
-        functools.partial(learn, config, networks, shift_pad),
+        functools.partial(learn, setup),
         skip_learning,
         state,
         learn_key,
@@ -438,20 +451,20 @@ def make_trainer(config: TD3Config, env=None, env_params=None) -> Trainer:
     config.validate()
     if env is None:
         env, env_params = config.make_env()
-    batch_env = VmapEnv(AutoReset(env), config.num_envs)
     spec = env.spec
     camera = not spec.flat_observation
     networks = make_networks(config, spec.action_size, camera)
-    shift_pad = config.random_shift_pad if camera else 0
+    batch_env = VmapEnv(AutoReset(env), config.num_envs)
+    setup = TD3Setup(config, networks, batch_env, env_params, shift_pad=config.random_shift_pad if camera else 0)
 
     def act(state: TD3State, obs: jax.Array) -> jax.Array:
         encoded = networks.encode(state.critic_params, standardized(config, state.normalizer, obs))
         return to_env_action(spec, networks.action(state.actor_params, encoded))
 
     return Trainer(
-        init=lambda key, hparams: init_state(config, networks, batch_env, env_params, key),
+        init=lambda key, hparams: init_state(setup, key),
         init_for_acting=lambda key, hparams: init_acting_state(config, networks, spec, key),
-        update=functools.partial(update, config, networks, batch_env, env_params, shift_pad),
+        update=functools.partial(update, setup),
         act=act,
         num_updates=config.num_updates,
         env_steps_per_update=config.env_steps_per_update,
