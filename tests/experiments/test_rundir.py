@@ -232,7 +232,9 @@ def test_a_run_records_its_provenance(reference):
 def test_resume_of_a_finished_run_says_so_and_changes_nothing(reference, capsys):
     before = snapshot(reference)
     assert run.main(["--resume", str(reference)]) == 0
-    assert "has finished its 24 updates; nothing done" in capsys.readouterr().err
+    notice = capsys.readouterr().err
+    assert "has finished its 24 updates; nothing done" in notice
+    assert f"python -m experiments.eval {reference}" in notice, "the command that evaluates it again"
     assert snapshot(reference) == before, "no evaluation, no rewritten eval.json"
 
 
