@@ -157,7 +157,8 @@ def put_scene(
     envs, and each env's constraint rows the rows of that many contacts (`constraint_capacity`).
 
     Both live on this process's first device: MJX's default, `jax.devices()[0]`, is process 0's device in every
-    process of a run of several (`--distributed`), where no other process's program may close over them."""
+    process of a run of several (`--distributed`), where no other process's program may close over them. On a
+    CUDA GPU, Warp's kernels for the scene start compiling in the background (`warp_kernels.start_preload`)."""
     device = jax.local_devices()[0]
     if impl == Impl.JAX:
         return mjx.put_model(mj_model, device, impl="jax"), mjx.make_data(mj_model, device, impl="jax")
@@ -171,6 +172,10 @@ def put_scene(
         naconmax=(contacts_per_env or contact_capacity(mj_model)) * max_envs,
         njmax=constraint_capacity(mj_model, contacts_per_env),
     )
+    if device in _cuda_devices():
+        from jaxarm.envs.panda import warp_kernels  # imports warp: only where Warp steps
+
+        warp_kernels.start_preload(mj_model, f"cuda:{device.local_hardware_id}")
     return model, data
 
 
