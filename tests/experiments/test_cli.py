@@ -403,3 +403,12 @@ def test_a_sweep_labels_its_settings_by_what_sets_them_apart():
     assert shared == ["env_kwargs.max_envs=16384", "num_envs=1024"]
     labels = [sweep.describe(sweep.changes(grid.groups[0], base, combo), shared) for combo in grid.dynamic]
     assert labels == ["learning_rate=0.0002", "learning_rate=0.0008"]
+
+
+def test_prepare_names_the_presets_it_has_nothing_to_compile_for_and_refuses_an_unknown_one(capsys):
+    from experiments import prepare
+
+    assert prepare.main(["--config", "ppo_arm2d"]) == 0
+    assert capsys.readouterr().out == "ppo_arm2d: nothing to compile (its scene does not step on Warp here)\n"
+    assert prepare.main(["--config", "ppo_armd2"]) == 2
+    assert "unknown config 'ppo_armd2'" in capsys.readouterr().err
