@@ -13,11 +13,13 @@ from collections.abc import Callable
 from typing import Any
 
 import jax
+from jax.sharding import NamedSharding, PartitionSpec
 
 from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.evaluate import evaluate
+from jaxarm.agents.common.sharding import data_mesh, envs_split_over
 from jaxarm.agents.common.teachers import learner_as_teacher
 from jaxarm.runner.rundir import read_config
 from jaxarm.runner.teacher import teacher_run
@@ -114,11 +116,22 @@ def make_evaluator(trainer, config: RunConfig, episodes: int, randomized: bool =
     """The evaluator of `trainer`'s deterministic policy on `episodes` fresh episodes of `config`'s eval env, with
     the config's `randomize` params drawn per episode if `randomized`."""
     env, env_params = config.make_eval_env(randomized)
-    return Evaluator(
-        jax.jit(lambda learner, key: evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, episodes))
-    )
+
+    def evaluate_policy(learner, key: jax.Array):
+        return evaluate(env, env_params, lambda obs: trainer.act(learner, obs), key, episodes)
+
+    return Evaluator(jax.jit(evaluate_policy))
 
 
 def evaluate_state(trainer, config: RunConfig, state, episodes: int, seed: int) -> dict:
-    """Deterministic-policy results on `episodes` fresh episodes, as a JSON-ready dict."""
-    return make_evaluator(trainer, config, episodes)(state, jax.random.PRNGKey(seed))
+    """Deterministic-policy results on `episodes` fresh episodes, as a JSON-ready dict.
+
+    `state` is placed and the program traced as training places and traces its evaluations (replicated over
+    `data_mesh()`, the episodes split over it), so that with training's `eval_episodes` this is the program the
+    run compiled, read back from the compilation cache (jaxarm/runner/cache.py). A state on one device instead
+    lowers to another program, its arguments unannotated and its functions numbered otherwise, whose cache key
+    differs: the first `experiments.eval` after a CPU training compiled again (365.7 s for td3_peg)."""
+    mesh = data_mesh()
+    with envs_split_over(mesh):
+        placed = jax.device_put(state, NamedSharding(mesh, PartitionSpec()))
+        return make_evaluator(trainer, config, episodes)(placed, jax.random.PRNGKey(seed))

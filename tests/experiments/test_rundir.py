@@ -3,8 +3,10 @@ run; Ctrl-C; evaluation during training. All on arm2d with budgets of a few seco
 
 import dataclasses
 import json
+import logging
 import os
 import pathlib
+import re
 import shutil
 import signal
 import threading
@@ -299,6 +301,40 @@ def test_an_evaluation_compiled_ahead_on_a_thread_gives_what_one_compiled_at_its
         ahead.compile_ahead(pool, state, key)
     assert len(submitted) == 1, "compiled once"
     assert ahead(state, key) == learners.make_evaluator(trainer, config, 8)(state, key)
+
+
+EVALUATION_KEY = re.compile(r"for 'jit_evaluate_policy' with key '([^']+)'")
+
+
+def evaluation_cache_keys(caplog, run) -> set[str]:
+    """The persistent-cache keys of the evaluation programs `run()` compiles or reads back (JAX logs each key).
+    Set process-wide, not by JAX's context managers: the run compiles its evaluation on a thread of its own."""
+    caplog.clear()
+    flags = ("jax_log_compiles", "jax_explain_cache_misses")
+    before = {flag: getattr(jax.config, flag) for flag in flags}
+    try:
+        for flag in flags:
+            jax.config.update(flag, True)
+        with caplog.at_level(logging.WARNING, "jax._src.compiler"):
+            run()
+    finally:
+        for flag, value in before.items():
+            jax.config.update(flag, value)
+    return set(EVALUATION_KEY.findall(caplog.text))
+
+
+@pytest.mark.skipif(not jax.config.jax_compilation_cache_dir, reason="needs the persistent compilation cache")
+def test_the_eval_command_reads_back_the_evaluation_training_compiled(tmp_path, caplog):
+    run_dir = tmp_path / "run"
+    trained = evaluation_cache_keys(caplog, lambda: run_cli("--out", str(run_dir)))
+    config, _ = rundir.read_config(run_dir)
+    trainer = learners.make_trainer(config)
+    state = learners.restore_state(run_dir, trainer, config, acting=True)
+    evaluated = evaluation_cache_keys(
+        caplog, lambda: learners.evaluate_state(trainer, config, state, config.eval_episodes, seed=3)
+    )
+    assert len(trained) == 1, trained
+    assert evaluated == trained, "experiments.eval compiles its program again"
 
 
 def test_lists_parse_with_brackets_too():
