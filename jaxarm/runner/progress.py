@@ -12,12 +12,16 @@ from rich.progress import Progress as RichProgress
 
 
 def chunk_stats(steps_per_second: float, flat_metrics: dict) -> str:
-    """'2,345 steps/s  return 1.23  success 45.0%' of one chunk: return and success weighted by the episodes
-    each update finished (`flat_metrics` maps names to arrays [updates])."""
+    """'2,345 steps/s  return 1.23  success 45.0%' of one chunk: return weighted by the episodes each update
+    finished, training success by those it judged (`jaxarm.agents.common.trainer.summarise_episodes`;
+    `flat_metrics` maps names to arrays [updates])."""
+
+    def weighted(name: str, weights: np.ndarray) -> float:
+        return (flat_metrics[name] * weights).sum() / np.maximum(weights.sum(), 1.0)
+
     episodes = flat_metrics.get("episodes/episodes", np.zeros(1))
-    weight = np.maximum(episodes.sum(), 1.0)
-    mean_return = (flat_metrics["episodes/return_mean"] * episodes).sum() / weight
-    success = (flat_metrics["episodes/success_rate"] * episodes).sum() / weight
+    mean_return = weighted("episodes/return_mean", episodes)
+    success = weighted("episodes/success_rate", flat_metrics.get("episodes/judged", episodes))
     return f"{steps_per_second:,.0f} steps/s  return {mean_return:.2f}  success {success:.1%}"
 
 

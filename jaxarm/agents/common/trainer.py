@@ -81,9 +81,15 @@ def make_chunk_runner(trainer: Trainer, updates_per_chunk: int, state_shardings=
 
 @struct.dataclass
 class EpisodeSummary:
-    """Episodes that finished during one update: count, mean return, length, success and divergence rates.
+    """The episodes of one update's window of env steps (`summarise_episodes`), each field [].
 
-    Means are NaN-free: 0 when no episode finished (the count says so).
+    Attributes:
+      episodes: episodes that finished in the window.
+      return_mean, length_mean, diverged_rate: over the episodes that finished (0 when none did).
+      success_rate: training success, over the `judged` episodes (0 when none): successes that finished in the
+        window / `judged`.
+      judged: episodes that finished in the window, plus the envs that at its end are still in their first
+        episode of the run without success, counted as failures so far.
     """
 
     episodes: jax.Array
@@ -91,22 +97,37 @@ class EpisodeSummary:
     length_mean: jax.Array
     success_rate: jax.Array
     diverged_rate: jax.Array
+    judged: jax.Array
 
 
 def summarise_episodes(states: EnvState) -> EpisodeSummary:
-    """Summarises the episodes that ended in a stack of env states (any leading axes)."""
+    """Summarises a window of env steps, the states after each step, [T, B, ...] (time first; B may span several
+    axes).
+
+    Training success counts the envs still in their first episode: a failure runs to the time limit, so early in
+    a run only episodes that succeeded quickly can have finished, and a rate over finished episodes alone starts
+    near 1 before anything is learnt. Until an env's first episode ends (successes aside) it counts as a failure
+    in every window; once every env has finished an episode (after one time limit at the latest) the rate is that
+    of the episodes that finished. Envs whose episodes ran out together (most of them, while most fail) go on
+    finishing in bursts one time limit apart, so this rate swings from window to window; summed over a span of
+    one time limit or more, as curves do (`jaxarm.runner.plots.rolling_window`), it is the share of the episodes
+    that succeeded.
+    """
     done = states.done.astype(jnp.float32)
     count = done.sum()
-    safe = jnp.maximum(count, 1.0)
 
-    def mean(values):
-        return (values.astype(jnp.float32) * done).sum() / safe
+    def mean(values, total=count):
+        return (values.astype(jnp.float32) * done).sum() / jnp.maximum(total, 1.0)
 
     last = states.last_episode
+    end = jax.tree.map(lambda leaf: leaf[-1], states)
+    first_unsucceeded = (end.last_episode.length == 0) & ~end.episode.success
+    judged = count + first_unsucceeded.sum()
     return EpisodeSummary(
         episodes=count,
         return_mean=mean(last.return_),
         length_mean=mean(last.length),
-        success_rate=mean(last.success),
+        success_rate=mean(last.success, total=judged),
         diverged_rate=mean(last.diverged),
+        judged=judged,
     )
