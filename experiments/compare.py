@@ -4,10 +4,11 @@ For studies whose points are separate runs (a batch-size study stopped at equal 
 `run.py --stop-after-minutes`, or runs from several sessions): reads each run's config.json, metrics.jsonl and,
 where present, eval.json; prints a markdown table (batch, steady env steps/s, env steps, wall clock, training
 success and return at the end and at the wall clock all runs reached, the best evaluation during training and
-the final one) and draws the training success rate and return over env steps and over wall clock, runs
-overlaid, with the evaluations during training (`eval_every_updates`) as points on the success panels. Training
-success counts every training episode, curricula starts included, so it compares runs of one preset, not with
-evaluations; evaluations compare any runs of one task.
+the final one) and draws the success rate and training return over env steps and over wall clock, runs
+overlaid: on the success panels the evaluations during training (`eval_every_updates`) first, solid with dots,
+and the training success dashed. Training success counts every training episode, curricula starts included (and
+an env's first episode as a failure until it ends: `jaxarm.agents.common.trainer.summarise_episodes`), so it
+compares runs of one preset, not with evaluations; evaluations compare any runs of one task.
 """
 
 import argparse
@@ -33,8 +34,8 @@ class RunCurves:
         chunk logs the chunk's end).
       update_seconds: [U] `wall_seconds` with each chunk's updates spread evenly over its seconds
         (`update_times`): what curves over wall clock are drawn against.
-      success, returns: [U] rolling means (weighted by finished episodes) of the training success rate and
-        episode return.
+      success, returns: [U] rolling means of the training success rate (weighted by the episodes each update
+        judged) and of the episode return (by those it finished).
       steps_per_second: the median env-steps rate after the first logged chunk (compile excluded).
       evaluation: eval.json's contents, or None.
       eval_env_steps, eval_wall_seconds, eval_success: [E] the evaluations during training: env steps and
@@ -70,7 +71,7 @@ def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
         return np.array([row[name] for row in rows], float)
 
     episodes = column("episodes/episodes")
-    window = plots.rolling_window(len(rows))  # as in the run's own curve
+    window = plots.rolling_window(len(rows), config.updates_per_time_limit())  # as in the run's own curve
     wall = column("wall_time")
     rates = column("steps_per_second")[wall > wall[0]]
     rollout = getattr(config, "rollout_length", None)
@@ -81,7 +82,7 @@ def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
         env_steps=column("env_steps"),
         wall_seconds=wall,
         update_seconds=ended[kept],
-        success=plots.rolling_mean(column("episodes/success_rate"), window, episodes),
+        success=plots.rolling_mean(column("episodes/success_rate"), window, plots.success_weights(rows)),
         returns=plots.rolling_mean(column("episodes/return_mean"), window, episodes),
         steps_per_second=float(np.median(rates)) if len(rates) else float("nan"),
         evaluation=json.loads(eval_path.read_text()) if eval_path.exists() else None,

@@ -241,7 +241,8 @@ def _final_evaluation(
     result["finished"] = done_updates == trainer.num_updates
     if processes.is_primary():
         rundir.write_json(run_dir / "eval.json", result)
-        plots.learning_curve(metrics_log.read_metrics(run_dir), run_dir / "curve.png", title=preset)
+        rows = metrics_log.read_metrics(run_dir)
+        plots.learning_curve(rows, run_dir / "curve.png", preset, window_at_least=config.updates_per_time_limit())
     return result
 
 

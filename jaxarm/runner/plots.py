@@ -22,9 +22,12 @@ def figure(width: float, height: float, columns: int = 1, rows: int = 1):
     return figure, figure.subplots(rows, columns)
 
 
-def rolling_window(updates: int) -> int:
-    """Updates a learning curve's rolling means span: a twentieth of the run's, at least one."""
-    return max(1, updates // 20)
+def rolling_window(updates: int, at_least: int = 1) -> int:
+    """Updates a learning curve's rolling means span: a twentieth of the run's `updates`, at least `at_least`
+    (`RunConfig.updates_per_time_limit`: envs whose episodes ran out together, as a run's first episodes and
+    those after them do while most fail, finish in bursts one time limit apart, and a window that spans one
+    holds each burst with the successes between)."""
+    return max(1, at_least, updates // 20)
 
 
 def rolling_mean(values: np.ndarray, window: int, weights: np.ndarray | None = None) -> np.ndarray:
@@ -39,45 +42,57 @@ def rolling_mean(values: np.ndarray, window: int, weights: np.ndarray | None = N
     return trailing_sums(np.asarray(values, float) * weights) / trailing_sums(weights)
 
 
-def learning_curve(rows: list[dict], path: pathlib.Path, title: str, device: str | None = None) -> None:
-    """Per-update mean episode return (scatter), its rolling mean and linear trend, and the success rate of
-    the training episodes (rolling, weighted by the episodes each update finished).
+TRAINING_SUCCESS = "training success (rolling; first episodes count as failures until they end)"
+"""How curves label the training episodes' success rate (`jaxarm.agents.common.trainer.summarise_episodes`)."""
 
-    Evaluations during training (rows with "eval/success_rate") are drawn as points on the success axis.
-    Updates in which no episode finished are left out. The device (by default this process's) is named in
-    the title.
+
+def success_weights(rows: list[dict]) -> np.ndarray:
+    """[rows] the episodes each row's training success rate is over: its judged episodes (`episodes/judged`), or
+    its finished ones in a run logged before those were."""
+    return np.array([row.get("episodes/judged", row["episodes/episodes"]) for row in rows], float)
+
+
+def learning_curve(
+    rows: list[dict], path: pathlib.Path, title: str, device: str | None = None, window_at_least: int = 1
+) -> None:
+    """Two panels over env steps. Above, the success rate: first the evaluations during training (rows with
+    "eval/success_rate": the deterministic policy on fresh episodes), then the training episodes' (rolling,
+    weighted by the episodes each update judged; `TRAINING_SUCCESS`). Below, the per-update mean episode return
+    (scatter), its rolling mean and linear trend. Rolling means span `rolling_window(updates, window_at_least)`.
+
+    Updates in which no episode finished are left out. The device (by default this process's) is named in the
+    title.
     """
     evaluations = [row for row in rows if "eval/success_rate" in row]
     rows = [row for row in rows if row.get("episodes/episodes", 0) > 0]
-    fig, ax = figure(8, 4.5)
+    fig, (success_ax, return_ax) = figure(8, 7, rows=2)
+    if evaluations:
+        success_ax.plot(
+            [row["env_steps"] for row in evaluations],
+            [row["eval/success_rate"] for row in evaluations],
+            "o-",
+            color="C3",
+            label="evaluation (fresh episodes, deterministic policy)",
+        )
     if rows:
         steps = np.array([row["env_steps"] for row in rows], float)
         returns = np.array([row["episodes/return_mean"] for row in rows])
         success = np.array([row["episodes/success_rate"] for row in rows])
-        episodes = np.array([row["episodes/episodes"] for row in rows])
-        window = rolling_window(len(rows))
-        ax.scatter(steps, returns, s=6, alpha=0.4, label="episode return (mean per update)")
-        ax.plot(steps, rolling_mean(returns, window), color="C0", label="rolling mean")
+        window = rolling_window(len(rows), window_at_least)
+        success_ax.plot(steps, rolling_mean(success, window, success_weights(rows)), color="C2", label=TRAINING_SUCCESS)
+        return_ax.scatter(steps, returns, s=6, alpha=0.4, label="training episode return (mean per update)")
+        return_ax.plot(steps, rolling_mean(returns, window), color="C0", label="rolling mean")
         if len(rows) > 1:
             slope, intercept = np.polyfit(steps, returns, 1)
-            ax.plot(steps, slope * steps + intercept, "--", color="gray", label="linear trend")
-        twin = ax.twinx()
-        twin.plot(steps, rolling_mean(success, window, episodes), color="C2", label="success rate (rolling)")
-        if evaluations:
-            twin.plot(
-                [row["env_steps"] for row in evaluations],
-                [row["eval/success_rate"] for row in evaluations],
-                "o-",
-                color="C3",
-                label="success rate (evaluation)",
-            )
-        twin.set_ylim(-0.02, 1.02)
-        twin.set_ylabel("success rate")
-        twin.legend(loc="lower right")
-        ax.legend(loc="upper left")
-    ax.set_xlabel("env steps")
-    ax.set_ylabel("episode return")
-    ax.set_title(f"{title} ({device or jax.devices()[0].device_kind})")
+            return_ax.plot(steps, slope * steps + intercept, "--", color="gray", label="linear trend")
+        return_ax.legend(loc="upper left")
+    if evaluations or rows:
+        success_ax.legend(loc="lower right", fontsize=8)
+    success_ax.set_ylim(-0.02, 1.02)
+    success_ax.set_ylabel("success rate")
+    success_ax.set_title(f"{title} ({device or jax.devices()[0].device_kind})")
+    return_ax.set_xlabel("env steps")
+    return_ax.set_ylabel("episode return")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
 
@@ -105,8 +120,9 @@ def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
 
 
 def run_comparison(curves: dict, path: pathlib.Path, title: str) -> None:
-    """Training success rate and return over env steps (left) and over wall clock (right), runs overlaid, and
-    the evaluations during training as points joined by dashes on the success panels.
+    """Success rate and training return over env steps (left) and over wall clock (right), runs overlaid. The
+    success panels draw each run's evaluations during training first (solid, with dots), then its training
+    success (dashed, `TRAINING_SUCCESS`).
 
     `curves` maps a run's label to ((env_steps, wall_seconds, success, returns), (eval_env_steps,
     eval_wall_seconds, eval_success)): the first four [updates], the evaluations' [E] (E may be 0). The title
@@ -116,17 +132,16 @@ def run_comparison(curves: dict, path: pathlib.Path, title: str) -> None:
     for index, (label, ((steps, wall, success, returns), (eval_steps, eval_wall, eval_success))) in enumerate(
         curves.items()
     ):
-        for row, values in enumerate((success, returns)):
-            for column, x in enumerate((steps, wall)):
-                axes[row][column].plot(x, values, color=f"C{index}", label=label)
-        for column, x in enumerate((eval_steps, eval_wall)):
-            axes[0][column].plot(x, eval_success, "o--", color=f"C{index}", markersize=4)
+        for column, (x, eval_x) in enumerate(((steps, eval_steps), (wall, eval_wall))):
+            axes[0][column].plot(eval_x, eval_success, "o-", color=f"C{index}", markersize=4, label=label)
+            axes[0][column].plot(x, success, "--", color=f"C{index}", alpha=0.6)
+            axes[1][column].plot(x, returns, color=f"C{index}", label=label)
     for column, xlabel in enumerate(("env steps", "wall clock since the first jit (s)")):
-        axes[0][column].set_ylabel("success (line: training, rolling; dots: evaluations)")
+        axes[0][column].set_ylabel("success: evaluations (dots, solid); training (dashed)")
         axes[0][column].set_ylim(-0.02, 1.02)
         axes[1][column].set_ylabel("episode return (training, rolling)")
         axes[1][column].set_xlabel(xlabel)
-    axes[0][0].legend(fontsize=8)
-    fig.suptitle(title)
+    axes[1][0].legend(fontsize=8)
+    fig.suptitle(f"{title}\ntraining success: {TRAINING_SUCCESS.removeprefix('training success ')}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

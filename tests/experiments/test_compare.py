@@ -21,7 +21,9 @@ def write_run(
     """A run directory with `ppo_arm2d` at `num_envs` and metric rows of
     (wall_time, steps_per_second, episodes, success_rate, return_mean); `evaluations` maps an update (from 1)
     to the success rate of an evaluation logged with it."""
-    config = dataclasses.replace(configs.get("ppo_arm2d"), num_envs=num_envs)
+    preset = configs.get("ppo_arm2d")
+    # A time limit of one update's steps, so that rolling means span a twentieth of the rows, at least one.
+    config = dataclasses.replace(preset, num_envs=num_envs, env_params=(*preset.env_params, ("max_episode_steps", 16)))
     rundir.write_config(run_dir, config, "ppo_arm2d")
     lines = []
     for update, (wall, rate, episodes, success, returns) in enumerate(rows, start=1):
@@ -62,6 +64,27 @@ def test_a_run_reads_back_with_its_batch_rate_and_episode_weighted_curves(tmp_pa
     assert run.eval_success.shape == (0,)
     assert np.isnan(compare.value_at(run, run.success, 9.0))
     assert compare.value_at(run, run.returns, 13.0) == 3.0
+
+
+def test_training_success_rolls_over_a_time_limit_weighted_by_the_episodes_judged(tmp_path):
+    # ppo_arm2d's own time limit, 200 steps: 13 updates of 16 steps per env, more than a twentieth of 20 rows.
+    config = configs.get("ppo_arm2d")
+    assert config.updates_per_time_limit() == 13
+    run_dir = tmp_path / "a"
+    rundir.write_config(run_dir, config, "ppo_arm2d")
+    # Each update finished 2 episodes, both successes, and judged 8: 6 first episodes still running.
+    row = {
+        "wall_time": 1.0,
+        "steps_per_second": 1.0,
+        "episodes/episodes": 2,
+        "episodes/judged": 8,
+        "episodes/return_mean": 0,
+    }
+    rows = [{**row, "updates": update, "env_steps": update, "episodes/success_rate": 0.25} for update in range(20)]
+    rows[-1].update({"episodes/success_rate": 1.0, "episodes/judged": 2})
+    (run_dir / "metrics.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
+    run = compare.load_run(run_dir)
+    np.testing.assert_allclose(run.success[-1], (12 * 2 + 2) / (12 * 8 + 2))  # the last 13 updates' successes
 
 
 def test_each_chunks_updates_are_spread_over_its_seconds_for_curves_over_wall_clock():

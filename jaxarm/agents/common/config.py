@@ -154,6 +154,11 @@ class RunConfig:
         chunk_steps = self.env_steps_per_update * self.chunk_updates
         return -(-self.total_env_steps // chunk_steps) * self.chunk_updates
 
+    def updates_per_time_limit(self) -> int:
+        """Updates in which every env runs at least its time limit (`max_episode_steps`) of steps; builds the env."""
+        time_limit = int(self.make_env(randomized=False)[1].max_episode_steps)
+        return -(-time_limit * self.num_envs // self.env_steps_per_update)
+
     @classmethod
     def dynamic_fields(cls) -> tuple[str, ...]:
         """Names of the fields declared with `dynamic(...)`, in declaration order."""
