@@ -6,7 +6,6 @@ import contextlib
 import dataclasses
 import pathlib
 import time
-from concurrent.futures import Executor
 from typing import Any
 
 import jax
@@ -50,12 +49,10 @@ def train_chunks(
     start: Start,
     runners: ChunkRunners,
     evaluators: Evaluators,
-    compiling: Executor,
 ) -> tuple[Any, int, float]:
     """Runs chunks of updates (`runners`) from `start` until the budget, the time limit or a stop request,
-    logging, evaluating (`evaluators.nominal`, compiled on `compiling` from the first chunk's end) and
-    checkpointing between them; returns (learner state, updates done, wall seconds of training in all, earlier
-    segments included)."""
+    logging, evaluating (`evaluators.nominal`) and checkpointing between them; returns (learner state, updates
+    done, wall seconds of training in all, earlier segments included)."""
     hparams = config.hparams()
     primary = processes.is_primary()
     key = eval_key(config)
@@ -75,7 +72,6 @@ def train_chunks(
             state, metrics = runner(state, hparams)
             flat = metrics_log.flatten_metrics(jax.device_get(metrics))
             chunk_time = time.perf_counter() - chunk_start
-            evaluators.compile_ahead(compiling, state, key)
             check_finite(flat, state, done_updates, count, checkpoints)
             rows = list(
                 metric_rows(

@@ -136,17 +136,17 @@ def _train_learner(
     if processes.is_primary():
         progress.explain_gspmd(mesh.devices.size)
     # Under the mesh, VmapEnv steps each device's envs on that device (jaxarm.envs.wrappers.over_env_batch). The
-    # pool compiles the first chunk while the start state is made, and the evaluations while training runs;
-    # leaving it waits for that.
+    # pool compiles the first chunk while the start state is made, then the evaluations while it runs; leaving
+    # it waits for that.
     with envs_split_over(mesh), ThreadPoolExecutor(1, thread_name_prefix="compile") as compiling:
         resume = _resumes(run_dir, resume)
         like = state_like(trainer, config, mesh)
         resumed_at = (checkpoint.latest_step(run_dir / "checkpoints") or 0) if resume else 0
         runners = ChunkRunners.ahead(trainer, config, like, resumed_at, compiling)
+        # Behind the first chunk's program on the pool: compiled while the first chunk runs, ready at its end.
+        evaluators.compile_ahead(compiling, like, eval_key(config))
         start = _start(trainer, config, preset, run_dir, resume, overrides, like)
-        state, done_updates, train_time = train_chunks(
-            trainer, config, run_dir, options, start, runners, evaluators, compiling
-        )
+        state, done_updates, train_time = train_chunks(trainer, config, run_dir, options, start, runners, evaluators)
         return _final_evaluation(trainer, config, preset, run_dir, state, done_updates, train_time, evaluators)
 
 
