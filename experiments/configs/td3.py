@@ -24,6 +24,7 @@ def td3_arm2d() -> TD3Config:
         total_env_steps=200_000,
         num_envs=16,
         grad_steps_per_update=4,
+        eval_every_updates=2_500,  # five evaluations of 1,000 arm2d episodes, 0.15 s each on the 2-core CPU
     )
 
 
@@ -54,6 +55,7 @@ def ddpg_arm2d_tutorial() -> TD3Config:
         total_env_steps=30_000,
         updates_per_chunk=5_000,
         checkpoint_every_updates=25_000,
+        eval_every_updates=5_000,  # at every chunk's end: 1,000 arm2d episodes take 0.15 s on the 2-core CPU
     )
 
 

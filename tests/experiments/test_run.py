@@ -30,6 +30,7 @@ SMALL = [
     "updates_per_chunk=4",
     "checkpoint_every_updates=4",
     "eval_episodes=20",
+    "eval_every_updates=0",  # the final evaluation alone, unless a test asks for more
 ]
 
 
