@@ -135,6 +135,7 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
         trainer = learners.make_trainer(config, run_dir)
         phases["env"] = time.perf_counter() - clock
         progress.explain_slow_compiles(config.make_env(randomized=False)[0])  # the env the trainer built
+        progress.explain_gspmd(len(jax.devices()))  # evaluate_state spreads its episodes as training does
         with rundir.locked(run_dir):
             clock = time.perf_counter()
             state = learners.restore_state(run_dir, trainer, config, best=args.best, acting=True)
