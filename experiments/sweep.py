@@ -255,10 +255,15 @@ def collect(
     """One group's outputs -> (results rows, {label: (env_steps, success, return) curves [seeds, updates]}); labels
     leave out the `shared` changes.
 
-    Curve points of updates in which a seed finished no episode are NaN.
+    Training success is each seed's rolling mean over a run's curve window (`plots.rolling_window`, at least one
+    time limit), weighted by the episodes each update judged; NaN where a window judged none. Returns of updates
+    in which a seed finished no episode are NaN.
     """
     rows, curves = [], {}
-    finished = metrics.episodes.episodes > 0
+    episodes = metrics.episodes
+    finished = episodes.episodes > 0
+    window = plots.rolling_window(finished.shape[1], config.updates_per_time_limit())
+    success = plots.rolling_rates(episodes.success_rate, episodes.judged, window)
     env_steps = np.broadcast_to(
         np.arange(1, finished.shape[1] + 1) * config.env_steps_per_update, finished.shape
     ).astype(np.float64)
@@ -272,8 +277,8 @@ def collect(
             np.where(finished[members], values[members], np.nan) if masked else values[members]
             for values, masked in (
                 (env_steps, False),
-                (metrics.episodes.success_rate, True),
-                (metrics.episodes.return_mean, True),
+                (success, False),
+                (episodes.return_mean, True),
             )
         )
     return rows, curves

@@ -42,6 +42,13 @@ def rolling_mean(values: np.ndarray, window: int, weights: np.ndarray | None = N
     return trailing_sums(np.asarray(values, float) * weights) / trailing_sums(weights)
 
 
+def rolling_rates(rates: np.ndarray, weights: np.ndarray, window: int) -> np.ndarray:
+    """[runs, updates]: each run's `rates` [runs, updates] as its `rolling_mean` weighted by its `weights`; NaN
+    where a run's window holds no weight."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.stack([rolling_mean(rate, window, weight) for rate, weight in zip(rates, weights, strict=True)])
+
+
 TRAINING_SUCCESS = "training success (rolling; first episodes count as failures until they end)"
 """How curves label the training episodes' success rate (`jaxarm.agents.common.trainer.summarise_episodes`)."""
 
@@ -98,10 +105,11 @@ def learning_curve(
 
 
 def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
-    """Mean success rate and episode return over env steps, with 95% CI bands across seeds.
+    """Mean training success (`TRAINING_SUCCESS`) and episode return over env steps, with 95% CI bands across
+    seeds.
 
     `curves` maps a setting's label to (env_steps, success_rate, return_mean), each [seeds, updates], with
-    NaN where a seed finished no episode in that update (those points are left out of the mean).
+    NaN where a seed has no value (those points are left out of the mean).
     """
     fig, (success_ax, return_ax) = figure(12, 4.5, columns=2)
     for index, (label, (steps, success, returns)) in enumerate(curves.items()):
@@ -109,7 +117,7 @@ def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
         for ax, (mean, lower, upper) in ((success_ax, mean_band(success, 0.0, 1.0)), (return_ax, mean_band(returns))):
             ax.plot(x, mean, color=f"C{index}", label=label)
             ax.fill_between(x, lower, upper, color=f"C{index}", alpha=0.2)
-    success_ax.set_ylabel("success rate (training episodes)")
+    success_ax.set_ylabel(TRAINING_SUCCESS, fontsize=8)
     return_ax.set_ylabel("episode return")
     for ax in (success_ax, return_ax):
         ax.set_xlabel("env steps")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from experiments import compare, configs
-from jaxarm.runner import rundir
+from jaxarm.runner import plots, rundir
 
 
 def write_run(
@@ -85,6 +85,18 @@ def test_training_success_rolls_over_a_time_limit_weighted_by_the_episodes_judge
     (run_dir / "metrics.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
     run = compare.load_run(run_dir)
     np.testing.assert_allclose(run.success[-1], (12 * 2 + 2) / (12 * 8 + 2))  # the last 13 updates' successes
+
+
+def test_a_sweeps_seeds_roll_their_training_success_each_by_its_own_judged_episodes():
+    import warnings
+
+    rates = np.array([[0.0, 1.0, 0.5], [0.0, 0.0, 1.0]])
+    judged = np.array([[8.0, 2.0, 2.0], [0.0, 0.0, 4.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rolled = plots.rolling_rates(rates, judged, window=2)
+    np.testing.assert_allclose(rolled[0], [0.0, 2 / 10, 3 / 4])
+    assert np.isnan(rolled[1][:2]).all() and rolled[1][2] == 1.0, "NaN where a seed's window judged nothing"
 
 
 def test_each_chunks_updates_are_spread_over_its_seconds_for_curves_over_wall_clock():
