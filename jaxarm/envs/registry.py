@@ -1,5 +1,6 @@
 """Named envs: `make(name, **kwargs)` builds one (once per arguments), `names()` lists them, `override_params`
-edits params.
+edits params. A namespace (`register_namespace`) names a family of envs another library defines, `PREFIX:NAME`
+(`playground:PandaPickCube`): each is built on demand and none is listed, so that listing never imports that library.
 
 Env kwargs are flat (`env_kwargs.impl=warp` in a config): an env whose constructor takes an options record (the
 Panda tasks' `PandaOptions`) gets those naming its fields gathered into it (`constructor_kwargs`).
@@ -67,8 +68,9 @@ def constructor_kwargs(cls: type, kwargs: Mapping[str, Any]) -> dict[str, Any]:
     and `kwargs` gives none) gathered into one under `options`; the rest as they are. TypeError for a name `cls`
     does not take, listing those it does (the constructor's own error names neither)."""
     known = kwarg_defaults(cls)
+    takes_any = any(parameter.kind == parameter.VAR_KEYWORD for parameter in inspect.signature(cls).parameters.values())
     for name in kwargs:
-        if name not in known and name != OPTIONS:
+        if name not in known and name != OPTIONS and not takes_any:  # a `**kwargs` constructor checks its own
             raise TypeError(
                 f"{cls.__name__} takes no env kwarg {name!r}{closest_match_hint(name, known)}; "
                 f"it takes {', '.join(known)}"
@@ -82,6 +84,8 @@ def constructor_kwargs(cls: type, kwargs: Mapping[str, Any]) -> dict[str, Any]:
 
 
 _REGISTRY: dict[str, EnvEntry] = {}
+_NAMESPACES: dict[str, EnvEntry] = {}
+"""Prefix -> the entry every `PREFIX:NAME` is built from, with NAME as its constructor's `task`."""
 
 
 def register(name: str, target: str, description: str, **kwargs) -> None:
@@ -89,6 +93,13 @@ def register(name: str, target: str, description: str, **kwargs) -> None:
     if name in _REGISTRY:
         raise ValueError(f"env {name!r} is already registered")
     _REGISTRY[name] = EnvEntry(target, kwargs, description)
+
+
+def register_namespace(prefix: str, target: str, description: str) -> None:
+    """Registers every name `prefix:NAME` as `target` ("package.module:Class") built with `task=NAME`."""
+    if prefix in _NAMESPACES:
+        raise ValueError(f"env namespace {prefix!r} is already registered")
+    _NAMESPACES[prefix] = EnvEntry(target, {}, description)
 
 
 def closest_match_hint(name: str, candidates) -> str:
@@ -125,10 +136,16 @@ _BUILT: dict[tuple, Any] = {}
 
 
 def entry(name: str) -> EnvEntry:
-    """The registration of `name`; KeyError naming the closest registered env for an unknown name."""
-    if name not in _REGISTRY:
-        raise KeyError(f"unknown env {name!r}{closest_match_hint(name, _REGISTRY)}; known: {', '.join(names())}")
-    return _REGISTRY[name]
+    """The registration of `name` (a `PREFIX:NAME` of a namespace: its entry with `task=NAME`); KeyError naming the
+    closest registered env for an unknown name."""
+    if name in _REGISTRY:
+        return _REGISTRY[name]
+    prefix, _, task = name.partition(":")
+    if task and prefix in _NAMESPACES:
+        namespace = _NAMESPACES[prefix]
+        return EnvEntry(namespace.target, {"task": task}, f"{namespace.description}: {task}")
+    spaces = "".join(f", {prefix}:NAME" for prefix in sorted(_NAMESPACES))
+    raise KeyError(f"unknown env {name!r}{closest_match_hint(name, _REGISTRY)}; known: {', '.join(names())}{spaces}")
 
 
 def uses_mjx(name: str) -> bool:
@@ -240,4 +257,9 @@ register(
     "jaxarm.envs.peg_insert:PegInsert",
     "peg insertion seen by a scene and a wrist camera (64x64 gray and depth) with the arm's own state",
     obs_mode="pixels+proprio",
+)
+register_namespace(
+    "playground",
+    "jaxarm.interop.playground:PlaygroundEnv",
+    "MuJoCo Playground's task of that registry name (the playground extra; jaxarm.interop.playground)",
 )

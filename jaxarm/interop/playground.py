@@ -1,0 +1,255 @@
+"""MuJoCo Playground's envs as jaxarm envs: `envs.make("playground:PandaPickCube")`, `env=playground:NAME` on the CLI.
+
+`PlaygroundEnv(task, impl, privileged, **config_overrides)` wraps the Playground `MjxEnv` of that registry name and
+keeps jaxarm's contract (jaxarm.envs.base), so jaxarm's learners, evaluation, sweeps, `randomize` and
+`eval --perturb` run on it as on any other env:
+
+- The time limit is ours: `params.max_episode_steps`, by default the task's `episode_length` (brax's EpisodeWrapper
+  does this for Playground's own trainers). Playground's `done` (the box out of bounds, NaN physics) is
+  `terminated`; `AutoReset` samples every new episode afresh with Playground's `reset`.
+- `impl` is chosen as the Panda envs choose theirs (`jaxarm.envs.panda.mjx_impl.resolve_impl`: "jax" by default,
+  "warp", or "auto") and handed to Playground's config; its Warp buffers are Playground's own config keys
+  (`naconmax`, `njmax`), overridable like any other (`env_kwargs.naconmax=...`).
+- `success`: the task's own metric where it reports one (`SUCCESS_METRICS`, at any step); for the pick-cube tasks,
+  which report none, the box within `BOX_SUCCESS_RADIUS` of its target at the episode's time limit
+  (`END_CRITERIA`); never for any other task.
+- A dict observation's `privileged_state` is our `privileged` part (for an asymmetric critic) with
+  `privileged=True`, and left out otherwise; a dict left with `state` alone is observed as that flat array.
+- Params scale the physics of Playground's model per env (`PlaygroundParams`), swapped in for each call as
+  Playground's own domain randomisation does (its `BraxDomainRandomizationVmapWrapper`).
+
+Playground clones MuJoCo Menagerie from the internet when it first loads a task; importing this module points it
+at the copy of menagerie's Franka Panda in assets/ instead (`use_vendored_menagerie`), so the Franka tasks build
+offline. Tasks of other robots still need menagerie at Playground's own path.
+"""
+
+import contextlib
+from collections.abc import Callable, Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from flax import struct
+
+from jaxarm._runtime import import_mjx_quietly
+
+import_mjx_quietly()  # before Playground, which imports mujoco.mjx
+
+try:
+    from mujoco_playground import registry as playground_registry
+    from mujoco_playground._src import mjx_env
+except ImportError as error:  # the optional extra is absent
+    raise ImportError(
+        "jaxarm.interop.playground needs MuJoCo Playground: pip install -c constraints.txt -e '.[playground]'"
+    ) from error
+
+from mujoco.mjx import Model as MjxModel  # noqa: E402
+
+from jaxarm.envs.base import Env, EnvSpec, Observation, Transition  # noqa: E402
+from jaxarm.envs.observation import PRIVILEGED  # noqa: E402
+from jaxarm.envs.panda.mjx_impl import Impl, resolve_impl  # noqa: E402
+from jaxarm.envs.registry import closest_match_hint  # noqa: E402
+from jaxarm.ranges import COUNT, POSITIVE, ranged  # noqa: E402
+
+MENAGERIE = Path(__file__).parent / "assets" / "mujoco_menagerie"
+"""Our copy of the part of MuJoCo Menagerie that Playground's Franka tasks load (its README says what changed)."""
+BOX_SUCCESS_RADIUS = 0.02
+"""Metres: a pick-cube episode succeeds when its box's centre ends within this distance of the target's."""
+SUCCESS_METRICS = ("success", "reward/success")
+"""Names under which a Playground task reports its own success in `metrics` (positive where it succeeds)."""
+STATE = "state"
+"""Playground's key of what its policy observes in a dict observation."""
+PLAYGROUND_PRIVILEGED = "privileged_state"
+"""Playground's key of what only its critic observes in a dict observation."""
+
+
+def use_vendored_menagerie() -> None:
+    """Points Playground at `MENAGERIE`: it reads `mjx_env.MENAGERIE_PATH` when it loads a task's assets, and
+    clones menagerie there from the internet only where that path does not exist."""
+    mjx_env.MENAGERIE_PATH = MENAGERIE
+
+
+use_vendored_menagerie()
+
+
+def box_at_target(mj_model: mujoco.MjModel) -> Callable[[mjx_env.State], jax.Array]:
+    """A pick-cube task's criterion: [] bool, the body "box" within `BOX_SUCCESS_RADIUS` of `info["target_pos"]`."""
+    box = mj_model.body("box").id
+
+    def holds(state: mjx_env.State) -> jax.Array:
+        return jnp.linalg.norm(state.data.xpos[box] - state.info["target_pos"]) < BOX_SUCCESS_RADIUS
+
+    return holds
+
+
+END_CRITERIA: Mapping[str, Callable[[mujoco.MjModel], Callable[[mjx_env.State], jax.Array]]] = {
+    "PandaPickCube": box_at_target,
+    "PandaPickCubeOrientation": box_at_target,
+}
+"""Tasks that report no success of their own -> the criterion judged at their episodes' time limit."""
+
+
+@struct.dataclass
+class PlaygroundParams:
+    """What a user may randomise, sweep or perturb: the time limit and scales of the task's physics (1: as
+    Playground builds it). Each is a scalar.
+
+    Attributes:
+      max_episode_steps: time limit, env steps (the task's `episode_length` by default).
+      friction_scale: multiplies every geom's sliding friction.
+      mass_scale: multiplies every body's mass and inertia.
+      actuator_gain_scale: multiplies every actuator's gain and its position feedback (a position servo's kp).
+    """
+
+    max_episode_steps: jax.Array = ranged(allowed=COUNT)
+    friction_scale: jax.Array = ranged(1.0, POSITIVE)
+    mass_scale: jax.Array = ranged(1.0, POSITIVE)
+    actuator_gain_scale: jax.Array = ranged(1.0, POSITIVE)
+
+
+def scaled_model(model: MjxModel, params: PlaygroundParams) -> MjxModel:
+    """`model` with its friction, masses and actuator gains scaled by `params`."""
+    return model.replace(
+        geom_friction=model.geom_friction.at[:, 0].multiply(params.friction_scale),
+        body_mass=model.body_mass * params.mass_scale,
+        body_inertia=model.body_inertia * params.mass_scale,
+        actuator_gainprm=model.actuator_gainprm.at[:, 0].multiply(params.actuator_gain_scale),
+        actuator_biasprm=model.actuator_biasprm.at[:, 1].multiply(params.actuator_gain_scale),
+    )
+
+
+@struct.dataclass
+class PlaygroundSim:
+    """The env's sim: Playground's own state and the steps taken in its episode (for criteria judged at its end)."""
+
+    state: mjx_env.State
+    steps: jax.Array
+
+
+def strongly_typed(tree: Any) -> Any:
+    """`tree` with every leaf an array of its own dtype, not weakly typed: Playground starts some metrics as Python
+    floats, and the state must keep one type from reset to step to be a scan carry."""
+    return jax.tree.map(lambda leaf: jnp.asarray(leaf, jnp.asarray(leaf).dtype), tree)
+
+
+def config_keys(config: Any, prefix: str = "") -> list[str]:
+    """Every key a Playground config takes as an override, nested ones dotted (`reward_config.scales.box_target`)."""
+    keys = []
+    for name, value in config.items():
+        keys.append(prefix + name)
+        if hasattr(value, "items"):
+            keys.extend(config_keys(value, f"{prefix}{name}."))
+    return keys
+
+
+class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
+    """The Playground task `task` behind jaxarm's contract (see the module docstring).
+
+    Args:
+      task: Playground's registry name of the task, e.g. "PandaPickCube".
+      impl: MJX implementation: "jax", "warp" or "auto" (`jaxarm.envs.panda.mjx_impl.Impl`).
+      privileged: observe Playground's `privileged_state` as the `privileged` part, for an asymmetric critic
+        (only for tasks whose observation has one).
+      config_overrides: Playground config keys (dotted where nested) -> values.
+
+    Attributes:
+      task: the Playground registry name.
+      playground: the Playground `MjxEnv`.
+      impl: the MJX implementation in use.
+      mj_model: the task's compiled MuJoCo model.
+    """
+
+    uses_mjx = True
+    draws_with_gl = True
+
+    def __init__(self, task: str, impl: str = Impl.JAX, privileged: bool = False, **config_overrides: Any):
+        known = playground_registry.ALL_ENVS
+        if task not in known:
+            raise KeyError(f"unknown Playground task {task!r}{closest_match_hint(task, known)}")
+        config = playground_registry.get_default_config(task)
+        keys = config_keys(config)
+        for name in config_overrides:
+            if name not in keys:
+                raise TypeError(f"{task}'s config has no key {name!r}{closest_match_hint(name, keys)}")
+        if config.get("action_repeat", 1) != 1:
+            raise ValueError(f"{task} repeats each action {config.action_repeat} times; the adapter steps once")
+        self.task = task
+        self.impl = resolve_impl(impl)
+        self.privileged = privileged
+        self.playground = playground_registry.load(task, config_overrides={**config_overrides, "impl": self.impl.value})
+        self.mj_model = self.playground.mj_model
+        self.episode_length = int(self.playground._config.episode_length)
+        self._nominal_model = self.playground.mjx_model
+        self._end_criterion = END_CRITERIA[task](self.mj_model) if task in END_CRITERIA else None
+        self.spec = self._make_spec()
+
+    def _make_spec(self) -> EnvSpec:
+        obs = jax.eval_shape(lambda key: self._observation(self.playground.reset(key).obs), jax.random.key(0))
+        action_shape = (self.playground.action_size,)
+        if isinstance(obs, Mapping):
+            return EnvSpec(observation_parts=dict(obs), action_shape=action_shape)
+        return EnvSpec(observation_shape=obs.shape, action_shape=action_shape)
+
+    def _observation(self, obs: mjx_env.Observation) -> Observation:
+        """Playground's observation as ours (see the module docstring); ValueError for `privileged` without one."""
+        if not isinstance(obs, Mapping):
+            if self.privileged:
+                raise ValueError(f"{self.task} observes one flat array: it has no {PLAYGROUND_PRIVILEGED} to give")
+            return obs
+        parts = {name: part for name, part in obs.items() if name != PLAYGROUND_PRIVILEGED}
+        if self.privileged:
+            if PLAYGROUND_PRIVILEGED not in obs:
+                raise ValueError(f"{self.task}'s observation has no {PLAYGROUND_PRIVILEGED}: {', '.join(obs)}")
+            parts[PRIVILEGED] = obs[PLAYGROUND_PRIVILEGED]
+        return parts[STATE] if parts.keys() == {STATE} else parts
+
+    def default_params(self) -> PlaygroundParams:
+        return PlaygroundParams(max_episode_steps=jnp.asarray(self.episode_length, jnp.int32))
+
+    @contextlib.contextmanager
+    def _physics(self, params: PlaygroundParams) -> Iterator[Any]:
+        """The Playground env with its model scaled by `params` while the block traces a call to it."""
+        self.playground._mjx_model = scaled_model(self._nominal_model, params)
+        try:
+            yield self.playground
+        finally:
+            self.playground._mjx_model = self._nominal_model
+
+    def _reset(self, key: jax.Array, params: PlaygroundParams) -> tuple[PlaygroundSim, Observation, Any]:
+        with self._physics(params) as playground:
+            state = strongly_typed(playground.reset(key))
+        sim = PlaygroundSim(state=state, steps=jnp.zeros((), jnp.int32))
+        return sim, self._observation(state.obs), state.metrics
+
+    def _transition(self, sim: PlaygroundSim, action: jax.Array, params: PlaygroundParams) -> Transition:
+        # Playground's step updates its state's metrics and info dicts in place: it gets copies, so that the state
+        # passed in stays as it was.
+        before = sim.state.replace(metrics=dict(sim.state.metrics), info=dict(sim.state.info))
+        with self._physics(params) as playground:
+            state = strongly_typed(playground.step(before, action))
+        steps = sim.steps + 1
+        return Transition(
+            sim=PlaygroundSim(state=state, steps=steps),
+            obs=self._observation(state.obs),
+            reward=state.reward,
+            terminated=state.done > 0,
+            success=self._success(state, steps >= params.max_episode_steps),
+            info=state.metrics,
+        )
+
+    def _success(self, state: mjx_env.State, at_time_limit: jax.Array) -> jax.Array:
+        """[] bool: the task's own success metric, else its criterion at the time limit (`END_CRITERIA`), else
+        False."""
+        for name in SUCCESS_METRICS:
+            if name in state.metrics:
+                return state.metrics[name] > 0
+        if self._end_criterion is not None:
+            return self._end_criterion(state) & at_time_limit & (state.done == 0)
+        return jnp.zeros((), jnp.bool_)
+
+    def render(self, state, params: PlaygroundParams) -> np.ndarray:
+        """One (non-batched) state drawn by Playground's renderer from its default camera, uint8 [240, 320, 3]."""
+        return np.asarray(mjx_env.render_array(self.mj_model, state.sim.state, height=240, width=320))
