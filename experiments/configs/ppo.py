@@ -360,3 +360,41 @@ def ppo_sorter_pixels_dr() -> PPOConfig:
         randomize=(*SORTER_RANDOMIZE, *CAMERA_RANDOMIZE),
         total_env_steps=40_000_000,
     )
+
+
+# Playground's own recipe for its pick-cube tasks (mujoco_playground/config/manipulation_params.py, brax PPO),
+# in our terms where brax's differ: brax gathers 32 minibatches of 512 envs x 10 steps per update (163,840 env
+# steps, minibatches of 5,120); here each update takes 2,048 envs x 10 steps in 4 minibatches of the same 5,120,
+# so that an update is 8x smaller and a 20M-step budget makes 8x more of them. brax's other settings are kept:
+# its clipping (0.3), a constant learning rate, swish, and no reward scaling.
+PLAYGROUND_PICK_PPO = PPOConfig(
+    env="playground:PandaPickCube",
+    # MJX Warp on an NVIDIA GPU where warp-lang imports (Playground's own choice), MJX-JAX elsewhere; Warp's
+    # buffers are Playground's config (naconmax 24 x 2,048: its num_envs).
+    env_kwargs=(("impl", "auto"),),
+    num_envs=2048,
+    rollout_length=10,
+    num_minibatches=4,
+    num_epochs=8,
+    # Data-parallel SGD on up to 8 GPUs, one process each, as ppo_sorter.
+    shuffle_groups=8,
+    policy_hidden_sizes=(32, 32, 32, 32),
+    value_hidden_sizes=(256, 256, 256, 256, 256),
+    activation="swish",
+    total_env_steps=20_000_000,
+    learning_rate=1e-3,
+    anneal_learning_rate=False,
+    gamma=0.97,
+    clip_epsilon=0.3,
+    entropy_coef=2e-2,
+    updates_per_chunk=10,
+    checkpoint_every_updates=100,
+    # Success is the box within 2 cm of its target when the episode's time limit ends it
+    # (jaxarm.interop.playground.BOX_SUCCESS_RADIUS), on 1,000 fresh episodes.
+    eval_episodes=1000,
+)
+
+
+@preset("PPO on MuJoCo Playground's PandaPickCube, Playground's recipe (one GPU; the playground extra)")
+def ppo_playground_pick() -> PPOConfig:
+    return PLAYGROUND_PICK_PPO
