@@ -1,0 +1,130 @@
+"""MuJoCo Playground's PandaPickCube through the adapter, on the CPU with MJX-JAX: the registry name and config
+overrides, offline assets, the contract (shapes, finite values, auto-reset, the same key giving the same
+episodes) and the success criterion judged at the time limit.
+
+One program (3 envs auto-resetting, 4 steps of an episode of 3) is compiled once for the module; every test that
+steps reuses it.
+"""
+
+import pytest
+
+pytest.importorskip("mujoco_playground", reason="MuJoCo Playground is not installed (the playground extra)")
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm import envs
+from jaxarm.envs import AutoReset, VmapEnv
+from jaxarm.interop import playground
+
+TASK = "playground:PandaPickCube"
+NUM_ENVS = 3
+EPISODE = 3
+"""Steps of an episode: the rollout of `STEPS` crosses one auto-reset."""
+STEPS = 4
+
+pytestmark = [pytest.mark.mjx, pytest.mark.xdist_group(TASK)]
+
+
+@pytest.fixture(scope="module")
+def pick():
+    """(env, params with an episode of `EPISODE` steps, jitted reset, jitted rollout of `STEPS` steps)."""
+    env = envs.make(TASK)
+    params = envs.override_params(env.default_params(), {"max_episode_steps": EPISODE})
+    batch = VmapEnv(AutoReset(env), NUM_ENVS)
+
+    def rollout(state, key, action_scale):
+        """Every state of `STEPS` steps from `state`, actions uniform in ±`action_scale`: EnvState [STEPS, B]."""
+
+        def step(state, step_key):
+            action = action_scale * jax.random.uniform(step_key, (NUM_ENVS, *env.spec.action_shape), minval=-1)
+            state = batch.step(state, action, params)
+            return state, state
+
+        return jax.lax.scan(step, state, jax.random.split(key, STEPS))[1]
+
+    return env, params, jax.jit(lambda key: batch.reset(key, params)), jax.jit(rollout)
+
+
+def test_the_name_builds_once_from_the_vendored_menagerie():
+    env = envs.make(TASK)
+    assert env is envs.make(TASK)
+    assert isinstance(env, playground.PlaygroundEnv) and env.impl == "jax" and env.uses_mjx
+    assert playground.mjx_env.MENAGERIE_PATH == playground.MENAGERIE
+    assert env.spec.observation_shape == (66,) and env.spec.action_shape == (8,)
+    assert int(env.default_params().max_episode_steps) == 150  # Playground's episode_length
+
+
+def test_config_overrides_are_kwargs_and_typos_name_the_closest_key():
+    assert int(envs.make(TASK, episode_length=40).default_params().max_episode_steps) == 40
+    with pytest.raises(TypeError, match="did you mean 'episode_length'"):
+        envs.make(TASK, episode_lenght=40)
+    with pytest.raises(KeyError, match="did you mean 'PandaPickCube'"):
+        envs.make("playground:PandaPickCub")
+    with pytest.raises(ValueError, match="no privileged_state"):
+        envs.make(TASK, privileged=True)
+
+
+def test_params_scale_the_physics_of_playgrounds_model():
+    env = envs.make(TASK)
+    nominal = env.playground.mjx_model
+    params = env.default_params().replace(friction_scale=0.5, mass_scale=2.0, actuator_gain_scale=3.0)
+    scaled = playground.scaled_model(nominal, params)
+    np.testing.assert_allclose(scaled.geom_friction[:, 0], 0.5 * nominal.geom_friction[:, 0])
+    np.testing.assert_array_equal(scaled.geom_friction[:, 1:], nominal.geom_friction[:, 1:])
+    np.testing.assert_allclose(scaled.body_mass, 2.0 * nominal.body_mass)
+    np.testing.assert_allclose(scaled.actuator_gainprm[:, 0], 3.0 * nominal.actuator_gainprm[:, 0])
+    np.testing.assert_allclose(scaled.actuator_biasprm[:, 1], 3.0 * nominal.actuator_biasprm[:, 1])
+    np.testing.assert_array_equal(scaled.actuator_biasprm[:, 2], nominal.actuator_biasprm[:, 2])  # damping stays
+
+
+def test_steps_auto_reset_at_the_time_limit_and_repeat_for_the_same_key(pick):
+    env, _, reset, rollout = pick
+    key = jax.random.key(0)
+    start = reset(key)
+    states = rollout(start, key, 1.0)
+    assert states.obs.shape == (STEPS, NUM_ENVS, 66) and states.reward.shape == (STEPS, NUM_ENVS)
+    assert np.all(np.isfinite(states.obs)) and np.all(np.isfinite(states.reward))
+    ends = np.broadcast_to(np.arange(1, STEPS + 1)[:, None] == EPISODE, (STEPS, NUM_ENVS))
+    np.testing.assert_array_equal(states.truncated, ends)
+    assert not np.any(states.terminated)
+    ended = jax.tree.map(lambda leaf: leaf[EPISODE - 1], states)
+    np.testing.assert_array_equal(ended.last_episode.length, EPISODE)
+    np.testing.assert_array_equal(ended.step_count, 0)  # the next episode has begun, with a new target
+    targets = states.sim.state.info["target_pos"]
+    assert np.all(np.linalg.norm(targets[EPISODE - 1] - targets[0], axis=-1) > 1e-3)
+    again = rollout(reset(key), key, 1.0)
+    np.testing.assert_array_equal(again.obs, states.obs)
+    np.testing.assert_array_equal(again.reward, states.reward)
+    np.testing.assert_array_equal(again.sim.state.data.qpos, states.sim.state.data.qpos)
+    np.testing.assert_array_equal(again.sim.state.info["target_pos"], targets)
+
+
+def test_success_is_the_box_at_its_target_when_the_time_limit_ends_the_episode(pick):
+    env, _, reset, rollout = pick
+    start = reset(jax.random.key(1))
+    # Playground's reset poses no body (xpos is zero until the first step): the box's place is in qpos.
+    box_qpos = env.mj_model.jnt_qposadr[env.mj_model.body("box").jntadr[0]]
+    box = start.sim.state.data.qpos[:, box_qpos : box_qpos + 3]
+    # The arm holds still (zero actions) and the box rests: a target at the box, 1 cm and 3 cm beside it.
+    offsets = jnp.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, 0.03, 0.0]])
+    info = {**start.sim.state.info, "target_pos": box + offsets}
+    start = start.replace(sim=start.sim.replace(state=start.sim.state.replace(info=info)))
+    states = rollout(start, jax.random.key(1), 0.0)
+    np.testing.assert_array_equal(states.episode.success[: EPISODE - 1], False)  # judged at the end alone
+    np.testing.assert_array_equal(states.last_episode.success[EPISODE - 1], [True, True, False])
+    assert playground.BOX_SUCCESS_RADIUS == 0.02
+
+
+def test_a_run_config_names_the_task_and_its_overrides():
+    from experiments import configs
+    from jaxarm.agents.common.config import apply_overrides
+
+    config = apply_overrides(
+        configs.get("ppo_playground_pick", validate=False),
+        [f"env={TASK}", "env_kwargs.episode_length=40", "env_params.friction_scale=0.8"],
+    )
+    env, params = config.make_env(randomized=False)
+    assert int(params.max_episode_steps) == 40 and float(params.friction_scale) == pytest.approx(0.8)
+    assert env.task == "PandaPickCube"
