@@ -46,7 +46,7 @@ except ImportError as error:  # the optional extra is absent
         "jaxarm.interop.playground needs MuJoCo Playground: pip install -c constraints.txt -e '.[playground]'"
     ) from error
 
-from mujoco.mjx import Model as MjxModel  # noqa: E402
+from mujoco import mjx  # noqa: E402
 
 from jaxarm.envs.base import Env, EnvSpec, Observation, Transition  # noqa: E402
 from jaxarm.envs.observation import PRIVILEGED  # noqa: E402
@@ -110,7 +110,7 @@ class PlaygroundParams:
     actuator_gain_scale: jax.Array = ranged(1.0, POSITIVE)
 
 
-def scaled_model(model: MjxModel, params: PlaygroundParams) -> MjxModel:
+def scaled_model(model: mjx.Model, params: PlaygroundParams) -> mjx.Model:
     """`model` with its friction, masses and actuator gains scaled by `params`."""
     return model.replace(
         geom_friction=model.geom_friction.at[:, 0].multiply(params.friction_scale),
@@ -182,7 +182,12 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
         self.playground = playground_registry.load(task, config_overrides={**config_overrides, "impl": self.impl.value})
         self.mj_model = self.playground.mj_model
         self.episode_length = int(self.playground._config.episode_length)
-        self._nominal_model = self.playground.mjx_model
+        # Playground put its model on jax.devices()[0]: process 0's device in every process of a run of several
+        # (--distributed), where no other process may read it or close over it. Put again from the MjModel on this
+        # process's own device, in every run so that all see one model (a task that edits its MjModel after
+        # Playground put it, as PandaOpenCabinet does the hand's conaffinity, steps with the edit here).
+        self._nominal_model = mjx.put_model(self.mj_model, jax.local_devices()[0], impl=self.impl.value)
+        self.playground._mjx_model = self._nominal_model
         self._end_criterion = END_CRITERIA[task](self.mj_model) if task in END_CRITERIA else None
         self.spec = self._make_spec()
 
