@@ -24,6 +24,7 @@ offline. Tasks of other robots still need menagerie at Playground's own path.
 """
 
 import contextlib
+import dataclasses
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -121,11 +122,42 @@ def scaled_model(model: mjx.Model, params: PlaygroundParams) -> mjx.Model:
     )
 
 
+@dataclasses.dataclass(frozen=True)
+class StateLayout:
+    """Where the arrays of a task's Playground state go in a sim that keeps only those that are not empty: a
+    checkpoint (orbax) refuses arrays of size zero, and an mjx.Data holds several (`act` of a model without
+    activations).
+
+    Attributes:
+      treedef: the structure of the task's state.
+      leaves: each of its arrays' shape and dtype for one env, in the order of `treedef`.
+    """
+
+    treedef: Any
+    leaves: tuple[jax.ShapeDtypeStruct, ...]
+
+    def pack(self, state: mjx_env.State) -> tuple[jax.Array, ...]:
+        """The non-empty arrays of `state` (with any leading batch axes), in order."""
+        leaves, treedef = jax.tree.flatten(state)
+        if treedef != self.treedef:
+            raise ValueError(f"the task's state changed its structure from reset to step: {treedef} != {self.treedef}")
+        return tuple(leaf for leaf, like in zip(leaves, self.leaves, strict=True) if like.size)
+
+    def unpack(self, arrays: tuple[jax.Array, ...]) -> mjx_env.State:
+        """The state `pack` took `arrays` from (with their leading batch axes), its empty arrays made again."""
+        first = next(like for like in self.leaves if like.size)
+        batch = arrays[0].shape[: arrays[0].ndim - len(first.shape)]
+        kept = iter(arrays)
+        leaves = [next(kept) if like.size else jnp.zeros(batch + like.shape, like.dtype) for like in self.leaves]
+        return jax.tree.unflatten(self.treedef, leaves)
+
+
 @struct.dataclass
 class PlaygroundSim:
-    """The env's sim: Playground's own state and the steps taken in its episode (for criteria judged at its end)."""
+    """The env's sim: the non-empty arrays of Playground's state (`StateLayout`, `PlaygroundEnv.playground_state`
+    rebuilds it) and the steps taken in its episode (for criteria judged at its end)."""
 
-    state: mjx_env.State
+    arrays: tuple[jax.Array, ...]
     steps: jax.Array
 
 
@@ -189,10 +221,13 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
         self._nominal_model = mjx.put_model(self.mj_model, jax.local_devices()[0], impl=self.impl.value)
         self.playground._mjx_model = self._nominal_model
         self._end_criterion = END_CRITERIA[task](self.mj_model) if task in END_CRITERIA else None
-        self.spec = self._make_spec()
+        state = jax.eval_shape(lambda key: strongly_typed(self.playground.reset(key)), jax.random.key(0))
+        leaves, treedef = jax.tree.flatten(state)
+        self.layout = StateLayout(treedef, tuple(leaves))
+        self.spec = self._make_spec(self._observation(state.obs))
 
-    def _make_spec(self) -> EnvSpec:
-        obs = jax.eval_shape(lambda key: self._observation(self.playground.reset(key).obs), jax.random.key(0))
+    def _make_spec(self, obs: Any) -> EnvSpec:
+        """The spec of observations shaped as `obs` (their shapes and dtypes) and of the task's actions."""
         action_shape = (self.playground.action_size,)
         if isinstance(obs, Mapping):
             return EnvSpec(observation_parts=dict(obs), action_shape=action_shape)
@@ -211,6 +246,10 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
             parts[PRIVILEGED] = obs[PLAYGROUND_PRIVILEGED]
         return parts[STATE] if parts.keys() == {STATE} else parts
 
+    def playground_state(self, sim: PlaygroundSim) -> mjx_env.State:
+        """Playground's state of `sim` (with any leading batch axes)."""
+        return self.layout.unpack(sim.arrays)
+
     def default_params(self) -> PlaygroundParams:
         return PlaygroundParams(max_episode_steps=jnp.asarray(self.episode_length, jnp.int32))
 
@@ -226,18 +265,17 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
     def _reset(self, key: jax.Array, params: PlaygroundParams) -> tuple[PlaygroundSim, Observation, Any]:
         with self._physics(params) as playground:
             state = strongly_typed(playground.reset(key))
-        sim = PlaygroundSim(state=state, steps=jnp.zeros((), jnp.int32))
+        sim = PlaygroundSim(arrays=self.layout.pack(state), steps=jnp.zeros((), jnp.int32))
         return sim, self._observation(state.obs), state.metrics
 
     def _transition(self, sim: PlaygroundSim, action: jax.Array, params: PlaygroundParams) -> Transition:
-        # Playground's step updates its state's metrics and info dicts in place: it gets copies, so that the state
-        # passed in stays as it was.
-        before = sim.state.replace(metrics=dict(sim.state.metrics), info=dict(sim.state.info))
+        # Playground's step updates its state's metrics and info dicts in place: it gets a state rebuilt from the
+        # sim's arrays, so the state passed in stays as it was.
         with self._physics(params) as playground:
-            state = strongly_typed(playground.step(before, action))
+            state = strongly_typed(playground.step(self.playground_state(sim), action))
         steps = sim.steps + 1
         return Transition(
-            sim=PlaygroundSim(state=state, steps=steps),
+            sim=PlaygroundSim(arrays=self.layout.pack(state), steps=steps),
             obs=self._observation(state.obs),
             reward=state.reward,
             terminated=state.done > 0,
@@ -257,4 +295,4 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
 
     def render(self, state, params: PlaygroundParams) -> np.ndarray:
         """One (non-batched) state drawn by Playground's renderer from its default camera, uint8 [240, 320, 3]."""
-        return np.asarray(mjx_env.render_array(self.mj_model, state.sim.state, height=240, width=320))
+        return np.asarray(mjx_env.render_array(self.mj_model, self.playground_state(state.sim), height=240, width=320))
