@@ -1,6 +1,6 @@
 """MuJoCo Playground's PandaPickCube through the adapter, on the CPU with MJX-JAX: the registry name and config
 overrides, offline assets, the contract (shapes, finite values, auto-reset, the same key giving the same
-episodes) and the success criterion judged at the time limit.
+episodes), a checkpoint of the envs' state, and the success criterion judged at the time limit.
 
 One program (3 envs auto-resetting, 4 steps of an episode of 3) is compiled once for the module; every test that
 steps reuses it.
