@@ -57,6 +57,20 @@ def test_the_name_builds_once_from_the_vendored_menagerie():
     assert int(env.default_params().max_episode_steps) == 150  # Playground's episode_length
 
 
+@pytest.mark.parametrize(
+    ("task", "observation_shape", "action_shape"),
+    [
+        ("PandaPickCubeOrientation", (66,), (8,)),
+        ("PandaPickCubeCartesian", (70,), (3,)),
+        ("PandaOpenCabinet", (55,), (8,)),
+    ],
+)
+def test_every_franka_task_builds_from_the_vendored_menagerie(task, observation_shape, action_shape):
+    # PandaPickCubeCartesian recolours the geoms of menagerie's finger_1 mesh: the vendored Panda has one.
+    spec = envs.make(f"playground:{task}").spec
+    assert spec.observation_shape == observation_shape and spec.action_shape == action_shape
+
+
 def test_config_overrides_are_kwargs_and_typos_name_the_closest_key():
     assert int(envs.make(TASK, episode_length=40).default_params().max_episode_steps) == 40
     with pytest.raises(TypeError, match="did you mean 'episode_length'"):
