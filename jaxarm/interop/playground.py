@@ -177,6 +177,20 @@ def config_keys(config: Any, prefix: str = "") -> list[str]:
     return keys
 
 
+def observation(obs: mjx_env.Observation, privileged: bool) -> Observation:
+    """A Playground observation as jaxarm's: a flat one as it is; of a dict, every part but `privileged_state`,
+    which is the `privileged` part where `privileged` asks for it, and a dict left with `state` alone as that
+    array. ValueError where `privileged` asks for a privileged state the observation lacks."""
+    if privileged and not (isinstance(obs, Mapping) and PLAYGROUND_PRIVILEGED in obs):
+        raise ValueError(f"the task's observation has no {PLAYGROUND_PRIVILEGED}: privileged=true has nothing to give")
+    if not isinstance(obs, Mapping):
+        return obs
+    parts = {name: part for name, part in obs.items() if name != PLAYGROUND_PRIVILEGED}
+    if privileged:
+        parts[PRIVILEGED] = obs[PLAYGROUND_PRIVILEGED]
+    return parts[STATE] if parts.keys() == {STATE} else parts
+
+
 class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
     """The Playground task `task` behind jaxarm's contract (see the module docstring).
 
@@ -211,7 +225,11 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
         self.task = task
         self.impl = resolve_impl(impl)
         self.privileged = privileged
-        self.playground = playground_registry.load(task, config_overrides={**config_overrides, "impl": self.impl.value})
+        if "impl" in config:
+            config_overrides = {**config_overrides, "impl": self.impl.value}
+        elif self.impl != Impl.JAX:
+            raise ValueError(f"{task}'s config has no impl to set: it steps MJX-JAX")
+        self.playground = playground_registry.load(task, config_overrides=config_overrides)
         self.mj_model = self.playground.mj_model
         self.episode_length = int(self.playground._config.episode_length)
         # Playground put its model on jax.devices()[0]: process 0's device in every process of a run of several
@@ -234,17 +252,7 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
         return EnvSpec(observation_shape=obs.shape, action_shape=action_shape)
 
     def _observation(self, obs: mjx_env.Observation) -> Observation:
-        """Playground's observation as ours (see the module docstring); ValueError for `privileged` without one."""
-        if not isinstance(obs, Mapping):
-            if self.privileged:
-                raise ValueError(f"{self.task} observes one flat array: it has no {PLAYGROUND_PRIVILEGED} to give")
-            return obs
-        parts = {name: part for name, part in obs.items() if name != PLAYGROUND_PRIVILEGED}
-        if self.privileged:
-            if PLAYGROUND_PRIVILEGED not in obs:
-                raise ValueError(f"{self.task}'s observation has no {PLAYGROUND_PRIVILEGED}: {', '.join(obs)}")
-            parts[PRIVILEGED] = obs[PLAYGROUND_PRIVILEGED]
-        return parts[STATE] if parts.keys() == {STATE} else parts
+        return observation(obs, self.privileged)
 
     def playground_state(self, sim: PlaygroundSim) -> mjx_env.State:
         """Playground's state of `sim` (with any leading batch axes)."""

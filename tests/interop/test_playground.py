@@ -17,6 +17,7 @@ import numpy as np
 from jaxarm import envs
 from jaxarm.agents.common import checkpoint
 from jaxarm.envs import AutoReset, VmapEnv
+from jaxarm.envs.observation import PRIVILEGED
 from jaxarm.interop import playground
 
 TASK = "playground:PandaPickCube"
@@ -79,6 +80,20 @@ def test_config_overrides_are_kwargs_and_typos_name_the_closest_key():
         envs.make("playground:PandaPickCub")
     with pytest.raises(ValueError, match="no privileged_state"):
         envs.make(TASK, privileged=True)
+
+
+def test_a_dict_observations_privileged_state_is_the_critics_part_alone():
+    state, privileged, pixels = jnp.zeros(3), jnp.ones(5), jnp.zeros((8, 8, 3), jnp.uint8)
+    both = {"state": state, "privileged_state": privileged}
+    assert playground.observation(both, privileged=False) is state
+    critics = playground.observation(both, privileged=True)
+    assert critics.keys() == {"state", PRIVILEGED} and critics["state"] is state and critics[PRIVILEGED] is privileged
+    assert playground.observation({**both, "pixels/view_0": pixels}, privileged=False).keys() == {
+        "state",
+        "pixels/view_0",
+    }
+    with pytest.raises(ValueError, match="no privileged_state"):
+        playground.observation({"state": state}, privileged=True)
 
 
 def test_params_scale_the_physics_of_playgrounds_model():
