@@ -191,6 +191,27 @@ def observation(obs: mjx_env.Observation, privileged: bool) -> Observation:
     return parts[STATE] if parts.keys() == {STATE} else parts
 
 
+def checked_overrides(task: str, impl: Impl, overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """`overrides` of the Playground task `task`'s config, with `impl` where the config has one. KeyError naming the
+    closest task for an unknown one, TypeError the closest key for one the config lacks; ValueError for a task that
+    repeats its actions (the adapter steps once per action) or Warp asked of a task whose config has no impl."""
+    known = playground_registry.ALL_ENVS
+    if task not in known:
+        raise KeyError(f"unknown Playground task {task!r}{closest_match_hint(task, known)}")
+    config = playground_registry.get_default_config(task)
+    keys = config_keys(config)
+    for name in overrides:
+        if name not in keys:
+            raise TypeError(f"{task}'s config has no key {name!r}{closest_match_hint(name, keys)}")
+    if config.get("action_repeat", 1) != 1:
+        raise ValueError(f"{task} repeats each action {config.action_repeat} times; the adapter steps once")
+    if "impl" in config:
+        return {**overrides, "impl": impl.value}
+    if impl != Impl.JAX:
+        raise ValueError(f"{task}'s config has no impl to set: it steps MJX-JAX")
+    return dict(overrides)
+
+
 class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
     """The Playground task `task` behind jaxarm's contract (see the module docstring).
 
@@ -212,24 +233,12 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
     draws_with_gl = True
 
     def __init__(self, task: str, impl: str = Impl.JAX, privileged: bool = False, **config_overrides: Any):
-        known = playground_registry.ALL_ENVS
-        if task not in known:
-            raise KeyError(f"unknown Playground task {task!r}{closest_match_hint(task, known)}")
-        config = playground_registry.get_default_config(task)
-        keys = config_keys(config)
-        for name in config_overrides:
-            if name not in keys:
-                raise TypeError(f"{task}'s config has no key {name!r}{closest_match_hint(name, keys)}")
-        if config.get("action_repeat", 1) != 1:
-            raise ValueError(f"{task} repeats each action {config.action_repeat} times; the adapter steps once")
         self.task = task
         self.impl = resolve_impl(impl)
         self.privileged = privileged
-        if "impl" in config:
-            config_overrides = {**config_overrides, "impl": self.impl.value}
-        elif self.impl != Impl.JAX:
-            raise ValueError(f"{task}'s config has no impl to set: it steps MJX-JAX")
-        self.playground = playground_registry.load(task, config_overrides=config_overrides)
+        self.playground = playground_registry.load(
+            task, config_overrides=checked_overrides(task, self.impl, config_overrides)
+        )
         self.mj_model = self.playground.mj_model
         self.episode_length = int(self.playground._config.episode_length)
         # Playground put its model on jax.devices()[0]: process 0's device in every process of a run of several
@@ -242,7 +251,7 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
         state = jax.eval_shape(lambda key: strongly_typed(self.playground.reset(key)), jax.random.key(0))
         leaves, treedef = jax.tree.flatten(state)
         self.layout = StateLayout(treedef, tuple(leaves))
-        self.spec = self._make_spec(self._observation(state.obs))
+        self.spec = self._make_spec(observation(state.obs, self.privileged))
 
     def _make_spec(self, obs: Any) -> EnvSpec:
         """The spec of observations shaped as `obs` (their shapes and dtypes) and of the task's actions."""
@@ -250,9 +259,6 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
         if isinstance(obs, Mapping):
             return EnvSpec(observation_parts=dict(obs), action_shape=action_shape)
         return EnvSpec(observation_shape=obs.shape, action_shape=action_shape)
-
-    def _observation(self, obs: mjx_env.Observation) -> Observation:
-        return observation(obs, self.privileged)
 
     def playground_state(self, sim: PlaygroundSim) -> mjx_env.State:
         """Playground's state of `sim` (with any leading batch axes)."""
@@ -274,7 +280,7 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
         with self._physics(params) as playground:
             state = strongly_typed(playground.reset(key))
         sim = PlaygroundSim(arrays=self.layout.pack(state), steps=jnp.zeros((), jnp.int32))
-        return sim, self._observation(state.obs), state.metrics
+        return sim, observation(state.obs, self.privileged), state.metrics
 
     def _transition(self, sim: PlaygroundSim, action: jax.Array, params: PlaygroundParams) -> Transition:
         # Playground's step updates its state's metrics and info dicts in place: it gets a state rebuilt from the
@@ -284,7 +290,7 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
         steps = sim.steps + 1
         return Transition(
             sim=PlaygroundSim(arrays=self.layout.pack(state), steps=steps),
-            obs=self._observation(state.obs),
+            obs=observation(state.obs, self.privileged),
             reward=state.reward,
             terminated=state.done > 0,
             success=self._success(state, steps >= params.max_episode_steps),
