@@ -48,6 +48,8 @@ except ImportError as error:  # the optional extra is absent
     ) from error
 
 from mujoco import mjx  # noqa: E402
+from mujoco.mjx._src.types import tree_path_to_attr_str  # noqa: E402
+from mujoco.mjx.warp import types as warp_types  # noqa: E402
 
 from jaxarm.envs.base import Env, EnvSpec, Observation, Transition  # noqa: E402
 from jaxarm.envs.observation import PRIVILEGED  # noqa: E402
@@ -122,34 +124,60 @@ def scaled_model(model: mjx.Model, params: PlaygroundParams) -> mjx.Model:
     )
 
 
+def shared_by_the_batch(path: jax.tree_util.KeyPath, state: mjx_env.State) -> bool:
+    """Whether the leaf at `path` of `state` is one of MJX Warp's Data fields that every env of a batch shares (its
+    contact buffer, counters and sizes: `mujoco.mjx.warp.types._BATCH_DIM`), which a vmap must leave unbatched."""
+    if state.data.impl != mjx.Impl.WARP or path[0] != jax.tree_util.GetAttrKey("data"):
+        return False
+    return not warp_types._BATCH_DIM["Data"].get(tree_path_to_attr_str(path[1:]), True)
+
+
 @dataclasses.dataclass(frozen=True)
 class StateLayout:
-    """Where the arrays of a task's Playground state go in a sim that keeps only those that are not empty: a
-    checkpoint (orbax) refuses arrays of size zero, and an mjx.Data holds several (`act` of a model without
-    activations).
+    """Which arrays of a task's Playground state its sim keeps, one set per env: not those of size zero (a checkpoint,
+    orbax, refuses them; an mjx.Data holds several, `act` of a model without activations), nor those MJX Warp shares
+    over a batch (`shared_by_the_batch`: jaxarm's envs are vmapped whole, which would give every env its own), which
+    are recomputed at every step. Those are put back as a state made once holds them.
 
     Attributes:
       treedef: the structure of the task's state.
-      leaves: each of its arrays' shape and dtype for one env, in the order of `treedef`.
+      kept: per array of `treedef`, whether the sim keeps it.
+      fixed: per array not kept, in order: zeros of its shape and dtype (a `jax.ShapeDtypeStruct`), or its value.
     """
 
     treedef: Any
-    leaves: tuple[jax.ShapeDtypeStruct, ...]
+    kept: tuple[bool, ...]
+    fixed: tuple[Any, ...]
+
+    @classmethod
+    def of(cls, state: mjx_env.State) -> "StateLayout":
+        """The layout of states like `state`, one env's, which gives the arrays not kept."""
+        paths, treedef = jax.tree_util.tree_flatten_with_path(state)
+        kept = tuple(leaf.size > 0 and not shared_by_the_batch(path, state) for path, leaf in paths)
+        fixed = tuple(
+            np.asarray(leaf) if np.any(leaf) else jax.ShapeDtypeStruct(leaf.shape, leaf.dtype)
+            for (_, leaf), keep in zip(paths, kept, strict=True)
+            if not keep
+        )
+        return cls(treedef, kept, fixed)
 
     def pack(self, state: mjx_env.State) -> tuple[jax.Array, ...]:
-        """The non-empty arrays of `state` (with any leading batch axes), in order."""
+        """The arrays the sim keeps of `state` (with any leading batch axes), in order."""
         leaves, treedef = jax.tree.flatten(state)
         if treedef != self.treedef:
             raise ValueError(f"the task's state changed its structure from reset to step: {treedef} != {self.treedef}")
-        return tuple(leaf for leaf, like in zip(leaves, self.leaves, strict=True) if like.size)
+        return tuple(leaf for leaf, keep in zip(leaves, self.kept, strict=True) if keep)
 
     def unpack(self, arrays: tuple[jax.Array, ...]) -> mjx_env.State:
-        """The state `pack` took `arrays` from (with their leading batch axes), its empty arrays made again."""
-        first = next(like for like in self.leaves if like.size)
-        batch = arrays[0].shape[: arrays[0].ndim - len(first.shape)]
-        kept = iter(arrays)
-        leaves = [next(kept) if like.size else jnp.zeros(batch + like.shape, like.dtype) for like in self.leaves]
-        return jax.tree.unflatten(self.treedef, leaves)
+        """The state `pack` took `arrays` from, the arrays not kept put back without batch axes."""
+        kept, fixed = iter(arrays), iter(self.fixed)
+
+        def put_back(value: Any) -> jax.Array:
+            if isinstance(value, jax.ShapeDtypeStruct):
+                return jnp.zeros(value.shape, value.dtype)
+            return jnp.asarray(value)
+
+        return jax.tree.unflatten(self.treedef, [next(kept) if keep else put_back(next(fixed)) for keep in self.kept])
 
 
 @struct.dataclass
@@ -248,9 +276,8 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
         self._nominal_model = mjx.put_model(self.mj_model, jax.local_devices()[0], impl=self.impl.value)
         self.playground._mjx_model = self._nominal_model
         self._end_criterion = END_CRITERIA[task](self.mj_model) if task in END_CRITERIA else None
-        state = jax.eval_shape(lambda key: strongly_typed(self.playground.reset(key)), jax.random.key(0))
-        leaves, treedef = jax.tree.flatten(state)
-        self.layout = StateLayout(treedef, tuple(leaves))
+        state = jax.jit(lambda key: strongly_typed(self.playground.reset(key)))(jax.random.key(0))
+        self.layout = StateLayout.of(state)
         self.spec = self._make_spec(observation(state.obs, self.privileged))
 
     def _make_spec(self, obs: Any) -> EnvSpec:
