@@ -171,3 +171,32 @@ def test_a_run_config_names_the_task_and_its_overrides():
     env, params = config.make_env(randomized=False)
     assert int(params.max_episode_steps) == 40 and float(params.friction_scale) == pytest.approx(0.8)
     assert env.task == "PandaPickCube"
+
+
+def test_warp_follows_mjx_jax_and_its_physics_params():
+    # Warp shares its contact buffer over the batch: the sim keeps it out of the envs' vmap (StateLayout).
+    pytest.importorskip("warp", reason="warp-lang is not installed (the warp extra)")
+
+    def trajectory(impl, params_of):
+        env = envs.make(TASK, impl=impl, naconmax=24 * NUM_ENVS, naccdmax=24 * NUM_ENVS)
+        batch, params = VmapEnv(AutoReset(env), NUM_ENVS), params_of(env.default_params())
+
+        def run(key):
+            def step(state, step_key):
+                action = 0.5 * jax.random.uniform(step_key, (NUM_ENVS, *env.spec.action_shape), minval=-1)
+                state = batch.step(state, action, params)
+                return state, env.playground_state(state.sim).data.qpos
+
+            return jax.lax.scan(step, batch.reset(key, params), jax.random.split(key, STEPS))[1]
+
+        return np.asarray(jax.jit(run)(jax.random.key(0)))
+
+    def nominal(params):
+        return params
+
+    def slippery(params):
+        return params.replace(friction_scale=jnp.float32(0.5), actuator_gain_scale=jnp.float32(2.0))
+
+    warp = trajectory("warp", nominal)
+    np.testing.assert_allclose(warp, trajectory("jax", nominal), atol=1e-4)
+    assert np.max(np.abs(trajectory("warp", slippery) - warp)) > 1e-3
