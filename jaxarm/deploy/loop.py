@@ -51,6 +51,28 @@ class Controller(Protocol):
     def act(self, reading: ArmReading, ctrl: np.ndarray, action: np.ndarray) -> np.ndarray: ...
 
 
+class Robot(Protocol):
+    """A robot as the loop drives it, one control tick at a time: stock MuJoCo (`mujoco_robot.MujocoRobot`), or a
+    robot process behind a socket (`remote.RemoteRobot`)."""
+
+    def now(self) -> float:
+        """Seconds on the robot's clock: simulated time for a simulator, wall-clock time for a real robot."""
+        ...
+
+    def reading(self) -> ArmReading:
+        """What the arm's sensors report now."""
+        ...
+
+    def command(self, ctrl: np.ndarray) -> None:
+        """Sends servo targets [9]: the arm's joints (rad), then each finger's opening (m)."""
+        ...
+
+    def step(self) -> None:
+        """Lets one control period pass on the robot's clock: a simulator steps its physics, a real robot's loop
+        waits for its next tick."""
+        ...
+
+
 @dataclasses.dataclass
 class LimitCounts:
     """How often the loop's commands went beyond Franka's limits, per arm joint, over the ticks so far.
@@ -122,4 +144,12 @@ class DeploymentLoop:
             self._velocity = (ctrl[:7] - self.ctrl[:7]) / self.period
         self.ctrl = ctrl
         self.tick_seconds.append(time.perf_counter() - start)
+        return ctrl
+
+    def drive(self, robot: Robot, estimate: Any) -> np.ndarray:
+        """One control tick on `robot`: its reading -> `tick` -> the targets sent to it (returned, [9]), then one
+        control period on its clock."""
+        ctrl = self.tick(robot.reading(), estimate)
+        robot.command(ctrl)
+        robot.step()
         return ctrl

@@ -26,7 +26,7 @@ def stock_solver(model: mujoco.MjModel) -> dict[str, float]:
 
 
 class MujocoRobot:
-    """A Panda scene in MuJoCo C, driven one control period at a time.
+    """A Panda scene in MuJoCo C, driven one control period at a time (a `loop.Robot`).
 
     Args:
       model: the scene (a Panda with jaxarm's joint and actuator names; its gripper one of `FINGER_ACTUATORS`).
@@ -51,6 +51,10 @@ class MujocoRobot:
         # Command units per metre of finger opening: 1 for a finger's own servo, 255 / 0.04 for menagerie's.
         travel = model.joint(FINGER_JOINTS[0]).range[1]
         self._finger_scale = model.actuator_ctrlrange[self._finger_actuators, 1] / travel
+
+    def now(self) -> float:
+        """The scene's simulated time (s): the robot's clock, which `step` advances by one control period."""
+        return float(self.data.time)
 
     def reading(self) -> ArmReading:
         """What the arm's sensors report now."""

@@ -9,9 +9,12 @@ import numpy as np
 import pytest
 
 from jaxarm.deploy import limits
-from jaxarm.deploy.loop import DeploymentLoop, UnsafeAction
+from jaxarm.deploy.loop import DeploymentLoop, Robot, UnsafeAction
+from jaxarm.deploy.mujoco_robot import MujocoRobot
 from jaxarm.deploy.reading import ArmReading
 from jaxarm.envs.panda import robot
+from jaxarm.envs.panda_sort import model as sort_model
+from jaxarm.envs.panda_sort.layout import make_layout
 
 
 def test_the_deployment_package_imports_no_jax():
@@ -104,3 +107,18 @@ def test_the_loop_refuses_an_action_that_is_not_finite_and_sends_nothing():
         assert f"is not finite ([{bad}]); the robot was stopped at its last targets" in str(raised.value)
         # The robot keeps the last targets it was sent: finite, within the limits.
         np.testing.assert_array_equal(loop.ctrl, sent)
+
+
+def test_the_loop_drives_stock_mujoco_as_a_robot_on_its_clock():
+    mujoco_robot = MujocoRobot(sort_model.build_model(2, make_layout()), period=0.04)
+    start = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 1.9, 0.8])
+    mujoco_robot.data.qpos[:7] = start
+    plant: Robot = mujoco_robot
+    loop = DeploymentLoop(lambda obs: np.zeros(1), StepController(0.01), period=0.04)
+    loop.begin(np.concatenate([start, [0.04, 0.04]]))
+    for tick in range(1, 6):
+        sent = loop.drive(plant, None)
+        # Each tick: the targets sent, then one control period of the robot's clock.
+        assert plant.now() == pytest.approx(0.04 * tick)
+    np.testing.assert_allclose(sent[:7], start + 0.05)
+    assert np.all(plant.reading().arm_q - start > 0.01)
