@@ -12,6 +12,9 @@ ARM_SPEED_LIMITS = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61], np.f
 """[7] the arm joints' speed limits (rad/s) in Franka's datasheet; panda.xml's servos do not enforce them."""
 ARM_ACCELERATION_LIMITS = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0], np.float32)
 """[7] the arm joints' acceleration limits (rad/s²) in Franka's datasheet."""
+ARM_JERK_LIMITS = np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0], np.float32)
+"""[7] the arm joints' jerk limits (rad/s³) in Franka's datasheet: what a 1 kHz servo stream must keep within
+(`stream.ServoStream`); a 25 Hz tick's targets are not held to them."""
 
 
 class LimitedTargets(NamedTuple):

@@ -1,0 +1,100 @@
+"""A jerk-limited servo stream: the policy's joint targets, one each control tick (25 Hz), turned into a setpoint
+each servo tick (1 kHz) within Franka's speed, acceleration and jerk limits, by Ruckig's online trajectories.
+Imports numpy and ruckig alone.
+
+Each target is reached no sooner than `arrival` seconds after it was given, moving at the rate the loop's targets
+change over a tick: the stream follows the loop's piecewise-linear path that much behind, its corners rounded off
+within the jerk limit. `hold` brakes to rest from wherever the stream is, within the same limits.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+import ruckig
+
+from jaxarm.deploy.limits import ARM_ACCELERATION_LIMITS, ARM_JERK_LIMITS, ARM_SPEED_LIMITS
+
+JOINTS = 7
+
+
+class StreamPoint(NamedTuple):
+    """One servo tick's setpoint, each [7]: joint angle (rad), speed (rad/s) and acceleration (rad/s²)."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+
+
+class StreamError(RuntimeError):
+    """Ruckig found no trajectory to the given target (an input beyond the limits or not finite)."""
+
+
+class ServoStream:
+    """Setpoints every `servo_period` seconds towards the latest target, within Franka's limits.
+
+    Args:
+      position: [7] where the arm is, at rest.
+      servo_period: seconds between setpoints (0.001: Franka's 1 kHz).
+      arrival: seconds after a target is given that the stream reaches it, at the earliest (`wire.Timing.arrival`).
+
+    Attributes:
+      holding: whether `hold` was called: the stream brakes to rest and takes no more targets.
+    """
+
+    def __init__(self, position: np.ndarray, servo_period: float, arrival: float):
+        self._generator = ruckig.Ruckig(JOINTS, servo_period)
+        self._input = ruckig.InputParameter(JOINTS)
+        self._output = ruckig.OutputParameter(JOINTS)
+        self._input.max_velocity = ARM_SPEED_LIMITS.astype(np.float64)
+        self._input.max_acceleration = ARM_ACCELERATION_LIMITS.astype(np.float64)
+        self._input.max_jerk = ARM_JERK_LIMITS.astype(np.float64)
+        self._input.current_position = np.asarray(position, np.float64)
+        self._input.target_position = np.asarray(position, np.float64)
+        self._input.minimum_duration = arrival
+        self._result = ruckig.Result.Finished
+        self.holding = False
+
+    def retarget(self, target: np.ndarray, velocity: np.ndarray) -> None:
+        """Heads for `target` [7] (rad), to arrive there moving at `velocity` [7] (rad/s, clipped to the speed
+        limits), `arrival` seconds from now or as soon after as the limits allow. Ignored once holding."""
+        if self.holding:
+            return
+        self._input.target_position = np.asarray(target, np.float64)
+        # Ruckig refuses a target speed at the limit's float rounding; 1e-9 below it changes nothing measurable.
+        speed = ARM_SPEED_LIMITS.astype(np.float64) * (1 - 1e-9)
+        self._input.target_velocity = np.clip(velocity, -speed, speed)
+
+    def hold(self) -> None:
+        """Brakes to rest where the arm gets to, within the limits: the safe reaction to a missing or late target."""
+        self.holding = True
+        self._input.control_interface = ruckig.ControlInterface.Velocity
+        self._input.target_velocity = np.zeros(JOINTS)
+        self._input.target_acceleration = np.zeros(JOINTS)
+        self._input.minimum_duration = None
+
+    @property
+    def at_rest(self) -> bool:
+        """Holding, and braked to rest."""
+        return self.holding and self._result == ruckig.Result.Finished
+
+    def next(self) -> StreamPoint:
+        """The next servo tick's setpoint; `StreamError` where Ruckig finds no trajectory."""
+        self._result = self._generator.update(self._input, self._output)
+        if self._result not in (ruckig.Result.Working, ruckig.Result.Finished):
+            raise StreamError(f"no jerk-limited trajectory to the target ({self._result})")
+        self._output.pass_to_input(self._input)
+        output = self._output
+        return StreamPoint(
+            np.array(output.new_position), np.array(output.new_velocity), np.array(output.new_acceleration)
+        )
+
+
+def limit_ratios(velocity: np.ndarray, acceleration: np.ndarray, servo_period: float) -> dict[str, np.ndarray]:
+    """[7] each joint's largest speed, acceleration and jerk over setpoints' `velocity` and `acceleration` [T, 7]
+    (the jerk from successive accelerations), as fractions of Franka's limits: 1 is at a limit."""
+    jerk = np.diff(acceleration, axis=0) / servo_period
+    return {
+        "speed": np.abs(velocity).max(0) / ARM_SPEED_LIMITS,
+        "acceleration": np.abs(acceleration).max(0) / ARM_ACCELERATION_LIMITS,
+        "jerk": np.abs(jerk).max(0, initial=0.0) / ARM_JERK_LIMITS,
+    }
