@@ -2,10 +2,13 @@
 robot reads, the exported numpy policy (`jaxarm.export.numpy_policy`), and the env's own controller (IK, running
 target, joint limits) in numpy, within Franka's joint speed and acceleration limits.
 
-`loop.py` keeps the tick; `sort.py` and `peg.py` are the sorter's and the peg's observation and control;
-`kinematics.py` poses the arm with MuJoCo's C library; `ik.py` is the env's IK maths in numpy; `limits.py` the
-datasheet's limits; `scoring.py` the tasks' scoring; `mujoco_robot.py` is stock MuJoCo playing the robot. These
-import numpy and mujoco alone, so a robot's computer needs no JAX: `files.py` loads a controller from the
+`loop.py` keeps the tick and the `Robot` it drives; `sort.py` and `peg.py` are the sorter's and the peg's
+observation and control; `kinematics.py` poses the arm with MuJoCo's C library; `ik.py` is the env's IK maths in
+numpy; `limits.py` the datasheet's limits; `scoring.py` the tasks' scoring; `mujoco_robot.py` is stock MuJoCo playing
+the robot. `stream.py` turns the 25 Hz targets into a jerk-limited 1 kHz servo stream (Ruckig); `driver.py` and
+`remote.py` are a robot process behind a socket and the policy's side of it, `wire.py` their messages and clocks,
+`rehearsal.py` a real-time episode through them (the robot extra: ruckig, pyzmq). These import numpy and mujoco
+(and the robot extra's packages) alone, so a robot's computer needs no JAX: `files.py` loads a controller from the
 deploy.json and robot.mjb that `python -m experiments.export` writes. `jaxarm.deployable` (JAX), above this package
 and the envs, reads a task's numbers from a jaxarm env and its params.
 No module here imports JAX or `jaxarm.envs` (tests/deploy/test_imports.py).
