@@ -19,6 +19,7 @@ import numpy as np
 import zmq
 
 from jaxarm.deploy import wire
+from jaxarm.deploy.clock import sleep_until
 from jaxarm.deploy.mujoco_robot import MujocoRobot
 from jaxarm.deploy.stream import ServoStream
 
@@ -108,7 +109,7 @@ def stream_commands(robot: MujocoRobot, socket: zmq.Socket, setup: DriverSetup) 
     last = wire.Command(wire.TARGET, start, setup.ctrl)
     tick = 0
     while True:
-        log.lateness.append(wire.sleep_until(start + tick * timing.servo_period))
+        log.lateness.append(sleep_until(start + tick * timing.servo_period))
         now = time.monotonic()
         for command in receive(socket):
             log.fault = log.fault or judge(command, now, last.stamp, timing)

@@ -52,8 +52,8 @@ class Controller(Protocol):
 
 
 class Robot(Protocol):
-    """A robot as the loop drives it, one control tick at a time: stock MuJoCo (`mujoco_robot.MujocoRobot`), or a
-    robot process behind a socket (`remote.RemoteRobot`)."""
+    """A robot as the loop drives it, one control tick at a time: stock MuJoCo (`mujoco_robot.MujocoRobot`), a robot
+    process behind a socket (`remote.RemoteRobot`), or a robot's own driver (`adapters`)."""
 
     def now(self) -> float:
         """Seconds on the robot's clock: simulated time for a simulator, wall-clock time for a real robot."""

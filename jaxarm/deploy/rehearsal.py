@@ -84,4 +84,4 @@ def rehearse(
     with np.load(setup.log_path) as stream:
         arrays = dict(stream)
     fault_name = wire.FAULTS[int(arrays["fault"])]
-    return Rehearsal(ticks, np.array(robot.jitter), robot.deadline_misses, fault_name, final, arrays)
+    return Rehearsal(ticks, np.array(robot.schedule.jitter), robot.deadline_misses, fault_name, final, arrays)

@@ -10,6 +10,7 @@ import numpy as np
 import zmq
 
 from jaxarm.deploy import wire
+from jaxarm.deploy.clock import Schedule
 from jaxarm.deploy.reading import ArmReading, ObjectEstimate
 
 FAULT_KINDS = ("late", "drop", "stall")
@@ -38,7 +39,7 @@ class RobotStopped(RuntimeError):
 class RemoteRobot:
     """A robot process at `address`, driven at `timing.control_period` on the wall clock (a `loop.Robot`).
 
-    Tick k starts `k` control periods after `connect`; each command is stamped with its tick's start.
+    Its ticks keep `schedule` from `connect` on; each command is stamped with its tick's start.
 
     Args:
       address: the robot process's zmq address.
@@ -49,7 +50,7 @@ class RemoteRobot:
 
     Attributes:
       state: the newest state the robot sent.
-      jitter: seconds each tick started after its slot.
+      schedule: the policy's ticks, and each one's jitter.
       deadline_misses: commands sent later than the latency budget after their tick's start.
     """
 
@@ -64,12 +65,11 @@ class RemoteRobot:
         self.timing = timing
         self.object_shape, self.object_size = object_shape, object_size
         self.fault = fault
-        self.jitter: list[float] = []
+        self.schedule = Schedule(timing.control_period)
         self.deadline_misses = 0
         self._context = zmq.Context()
         self._socket = self._context.socket(zmq.PAIR)
         self._socket.connect(address)
-        self._start = self._stamp = 0.0
 
     def connect(self, ctrl: np.ndarray) -> None:
         """Starts the robot's clock with the servo targets it starts at (`ctrl` [9]), and the policy's schedule at
@@ -78,7 +78,7 @@ class RemoteRobot:
         if not self._socket.poll(round(self.timing.connect_timeout * 1000)):
             raise RobotStopped(f"no state from the robot within {self.timing.connect_timeout} s")
         self.state = wire.decode_state(self._socket.recv())
-        self._start = self._stamp = time.monotonic()
+        self.schedule.start()
 
     def now(self) -> float:
         return time.monotonic()
@@ -92,20 +92,20 @@ class RemoteRobot:
 
     def command(self, ctrl: np.ndarray) -> None:
         """Sends servo targets [9] stamped with this tick's start (or, at the fault's tick, injects it)."""
-        tick = len(self.jitter)
-        kind = self.fault.kind if self.fault is not None and self.fault.tick == tick else None
+        stamp = self.schedule.stamp
+        fault = self.fault
+        kind = fault.kind if fault is not None and fault.tick == self.schedule.tick else None
         if kind == "drop":
             return
         if kind is not None:
             time.sleep(STALL_SECONDS if kind == "stall" else 1.5 * self.timing.latency_budget)
-        self._socket.send(wire.encode_command(wire.Command(wire.TARGET, self._stamp, ctrl)))
-        self.deadline_misses += time.monotonic() > self._stamp + self.timing.latency_budget
+        self._socket.send(wire.encode_command(wire.Command(wire.TARGET, stamp, ctrl)))
+        self.deadline_misses += time.monotonic() > stamp + self.timing.latency_budget
 
     def step(self) -> None:
         """Waits for the next tick's slot and reads the robot's newest state; `RobotStopped` where it is holding or
         stopped, or its newest state is older than a deadline."""
-        self._stamp = self._start + (len(self.jitter) + 1) * self.timing.control_period
-        self.jitter.append(wire.sleep_until(self._stamp))
+        self.schedule.wait()
         while self._socket.poll(0):
             self.state = wire.decode_state(self._socket.recv())
         if self.state.status != wire.RUNNING:

@@ -1,5 +1,5 @@
 """The messages between a policy process and a robot process (`remote.RemoteRobot`, `driver.serve`), and the
-clocks both keep: flat float64 arrays, one per zmq message, so that each side reads them with numpy alone and
+deadlines both keep: flat float64 arrays, one per zmq message, so that each side reads them with numpy alone and
 nothing on the wire is executable. Imports numpy and zmq alone.
 
 A command: [kind, stamp, ctrl 9]; `stamp` is the time (s, the host's monotonic clock, which both processes of a
@@ -10,7 +10,6 @@ with the robot's status and the fault that made it hold.
 
 import contextlib
 import dataclasses
-import time
 from typing import NamedTuple
 
 import numpy as np
@@ -115,14 +114,6 @@ def decode_state(message: bytes) -> State:
         object_pose=values[ARM_FIELDS:pose_end].reshape(count, 7).copy(),
         object_velocity=values[pose_end:].reshape(count, 6).copy(),
     )
-
-
-def sleep_until(deadline: float) -> float:
-    """Sleeps until `deadline` (s, monotonic clock); returns how late it woke (s)."""
-    delay = deadline - time.monotonic()
-    if delay > 0:
-        time.sleep(delay)
-    return time.monotonic() - deadline
 
 
 def send(socket: zmq.Socket, message: bytes) -> None:
