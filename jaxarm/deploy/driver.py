@@ -5,9 +5,10 @@ ruckig alone.
 Each servo tick (1 kHz) it takes the policy's newest targets (`wire.Command`, 25 Hz), sends the arm the next
 setpoint of a jerk-limited stream towards them (`stream.ServoStream`) and steps the physics one servo period; every
 `Timing.publish_period` it sends its state (`wire.State`). Its watchdog is the safe reaction: when a command misses
-its deadline (one control period and the latency budget after the last one's tick), is not finite, or the policy
-ends, the arm holds (brakes to rest within Franka's limits, the gripper keeping its grip), then stops: the driver
-sends its last state, takes no more commands, and writes the setpoints it streamed (`StreamLog`).
+its deadline (one control period and the latency budget after the last one's tick), one is missing from the
+sequence, one is not finite, or the policy ends, the arm holds (brakes to rest within Franka's limits, the gripper
+keeping its grip), then stops: the driver sends its last state, takes no more commands, and writes the setpoints it
+streamed (`StreamLog`).
 """
 
 import dataclasses
@@ -74,12 +75,15 @@ class StreamLog:
         np.savez(path, **arrays)
 
 
-def judge(command: wire.Command, now: float, last_stamp: float, timing: wire.Timing) -> int:
-    """The fault (`wire` code) a command arriving at `now` shows, after one stamped `last_stamp`: `ENDED`, `MISSED`
-    past the last one's deadline, `UNSAFE` with targets not finite, else `NO_FAULT`."""
+def judge(command: wire.Command, now: float, last: wire.Command, timing: wire.Timing) -> int:
+    """The fault (`wire` code) a command arriving at `now` shows, after the `last` one followed: `ENDED`, `DROPPED`
+    where its number is not the next, `MISSED` past the last one's deadline, `UNSAFE` with targets not finite, else
+    `NO_FAULT`."""
     if command.kind == wire.END:
         return wire.ENDED
-    if now > last_stamp + timing.deadline:
+    if command.seq != last.seq + 1:
+        return wire.DROPPED
+    if now > last.stamp + timing.deadline:
         return wire.MISSED
     if not np.all(np.isfinite(command.ctrl)):
         return wire.UNSAFE
@@ -101,18 +105,18 @@ def state_message(robot: MujocoRobot, setup: DriverSetup, status: int, fault: in
 
 
 def stream_commands(robot: MujocoRobot, socket: zmq.Socket, setup: DriverSetup) -> StreamLog:
-    """The real-time loop, from the policy's first message until the arm has held and stopped. The first target is
-    due one deadline after the start, as if a command stamped at the start had come."""
+    """The real-time loop, from the policy's first message (number 0) until the arm has held and stopped. The first
+    target is due one deadline after the start, as if that message had been stamped then."""
     timing, log = setup.timing, StreamLog()
     stream = ServoStream(robot.reading().arm_q, timing.servo_period, timing.arrival)
     start = time.monotonic()
-    last = wire.Command(wire.TARGET, start, setup.ctrl)
+    last = wire.Command(wire.TARGET, 0, start, setup.ctrl)
     tick = 0
     while True:
         log.lateness.append(sleep_until(start + tick * timing.servo_period))
         now = time.monotonic()
         for command in receive(socket):
-            log.fault = log.fault or judge(command, now, last.stamp, timing)
+            log.fault = log.fault or judge(command, now, last, timing)
             if not log.fault:
                 stream.retarget(command.ctrl[:7], (command.ctrl[:7] - last.ctrl[:7]) / timing.control_period)
                 last = command

@@ -67,6 +67,7 @@ class RemoteRobot:
         self.fault = fault
         self.schedule = Schedule(timing.control_period)
         self.deadline_misses = 0
+        self._seq = 0
         self._context = zmq.Context()
         self._socket = self._context.socket(zmq.PAIR)
         self._socket.connect(address)
@@ -74,7 +75,7 @@ class RemoteRobot:
     def connect(self, ctrl: np.ndarray) -> None:
         """Starts the robot's clock with the servo targets it starts at (`ctrl` [9]), and the policy's schedule at
         the robot's first state; `RobotStopped` if none comes within the connect timeout."""
-        self._socket.send(wire.encode_command(wire.Command(wire.TARGET, time.monotonic(), ctrl)))
+        self._socket.send(wire.encode_command(wire.Command(wire.TARGET, 0, time.monotonic(), ctrl)))
         if not self._socket.poll(round(self.timing.connect_timeout * 1000)):
             raise RobotStopped(f"no state from the robot within {self.timing.connect_timeout} s")
         self.state = wire.decode_state(self._socket.recv())
@@ -93,13 +94,14 @@ class RemoteRobot:
     def command(self, ctrl: np.ndarray) -> None:
         """Sends servo targets [9] stamped with this tick's start (or, at the fault's tick, injects it)."""
         stamp = self.schedule.stamp
+        self._seq += 1
         fault = self.fault
         kind = fault.kind if fault is not None and fault.tick == self.schedule.tick else None
         if kind == "drop":
             return
         if kind is not None:
             time.sleep(STALL_SECONDS if kind == "stall" else 1.5 * self.timing.latency_budget)
-        self._socket.send(wire.encode_command(wire.Command(wire.TARGET, stamp, ctrl)))
+        self._socket.send(wire.encode_command(wire.Command(wire.TARGET, self._seq, stamp, ctrl)))
         self.deadline_misses += time.monotonic() > stamp + self.timing.latency_budget
 
     def step(self) -> None:
@@ -116,7 +118,8 @@ class RemoteRobot:
     def end(self) -> wire.State:
         """Tells the robot the run is over; its last state, once it has held and stopped (`RobotStopped` if it sends
         none within the connect timeout)."""
-        wire.send(self._socket, wire.encode_command(wire.Command(wire.END, time.monotonic(), np.zeros(9))))
+        self._seq += 1
+        wire.send(self._socket, wire.encode_command(wire.Command(wire.END, self._seq, time.monotonic(), np.zeros(9))))
         while self.state.status != wire.STOPPED:
             if not self._socket.poll(round(self.timing.connect_timeout * 1000)):
                 raise RobotStopped(f"the robot did not stop within {self.timing.connect_timeout} s of the end")

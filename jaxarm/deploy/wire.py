@@ -2,8 +2,9 @@
 deadlines both keep: flat float64 arrays, one per zmq message, so that each side reads them with numpy alone and
 nothing on the wire is executable. Imports numpy and zmq alone.
 
-A command: [kind, stamp, ctrl 9]; `stamp` is the time (s, the host's monotonic clock, which both processes of a
-rehearsal share) of the control tick it was computed for. A state: [status, fault, time, arm_q 7, arm_qvel 7,
+A command: [kind, seq, stamp, ctrl 9]; `seq` counts the policy's commands from 0 (a gap is a dropped one); `stamp`
+is the time (s, the host's monotonic clock, which both processes of a rehearsal share) of the control tick it was
+computed for. A state: [status, fault, time, arm_q 7, arm_qvel 7,
 finger_q 2, object pose N×7, object velocity N×6]: the robot's reading and what an object detector would report,
 with the robot's status and the fault that made it hold.
 """
@@ -21,11 +22,11 @@ TARGET, END = 0, 1
 """A command's kinds: servo targets, or the end of the policy's run (the robot holds, then stops)."""
 RUNNING, HOLDING, STOPPED = 0, 1, 2
 """A robot's statuses: following targets; braking to rest after a fault; at rest, taking no more commands."""
-NO_FAULT, ENDED, MISSED, UNSAFE = range(4)
-FAULTS = ("none", "ended", "missed", "unsafe")
-"""Why a robot held, by the code a state carries: no fault; the policy's END; no command by its deadline (a late,
-dropped or stalled one, or a policy process that died: the robot cannot tell which before the deadline passes);
-servo targets that are not finite."""
+NO_FAULT, ENDED, DROPPED, MISSED, UNSAFE = range(5)
+FAULTS = ("none", "ended", "dropped", "missed", "unsafe")
+"""Why a robot held, by the code a state carries: no fault; the policy's END; a gap in the commands' numbers; no
+command by its deadline (a late or stalled one, or a policy process that died: the robot cannot tell which before
+the deadline passes); servo targets that are not finite."""
 ARM_FIELDS = 3 + 7 + 7 + 2
 
 
@@ -67,9 +68,10 @@ class Timing:
 
 
 class Command(NamedTuple):
-    """A policy's command: its `kind` (`TARGET`, `END`), its tick's stamp (s) and servo targets [9]."""
+    """A policy's command: its `kind` (`TARGET`, `END`), number, its tick's stamp (s) and servo targets [9]."""
 
     kind: int
+    seq: int
     stamp: float
     ctrl: np.ndarray
 
@@ -87,12 +89,12 @@ class State(NamedTuple):
 
 
 def encode_command(command: Command) -> bytes:
-    return np.concatenate([[command.kind, command.stamp], command.ctrl]).astype(np.float64).tobytes()
+    return np.concatenate([[command.kind, command.seq, command.stamp], command.ctrl]).astype(np.float64).tobytes()
 
 
 def decode_command(message: bytes) -> Command:
     values = np.frombuffer(message, np.float64)
-    return Command(int(values[0]), float(values[1]), values[2:].copy())
+    return Command(int(values[0]), int(values[1]), float(values[2]), values[3:].copy())
 
 
 def encode_state(state: State) -> bytes:

@@ -40,20 +40,20 @@ def scene(tmp_path_factory):
 
 
 def test_the_watchdog_names_each_fault():
-    ctrl = np.zeros(9)
-    on_time = wire.Command(wire.TARGET, 1.0, ctrl)
-    # Due one control period after the last one's tick, within the latency budget.
-    last = 1.0 - TIMING.control_period
+    # The command after the last one followed: due one control period after its tick, within the latency budget.
+    last = wire.Command(wire.TARGET, 4, 1.0 - TIMING.control_period, np.zeros(9))
+    on_time = wire.Command(wire.TARGET, 5, 1.0, np.zeros(9))
     assert judge(on_time, 1.0 + TIMING.latency_budget - 1e-3, last, TIMING) == wire.NO_FAULT
     assert judge(on_time, 1.0 + TIMING.latency_budget + 1e-3, last, TIMING) == wire.MISSED
-    assert judge(on_time._replace(ctrl=np.full(9, np.nan)), 1.0, 1.0, TIMING) == wire.UNSAFE
-    assert judge(on_time._replace(kind=wire.END), 9.0, 1.0, TIMING) == wire.ENDED
+    assert judge(on_time._replace(seq=6), 1.0, last, TIMING) == wire.DROPPED
+    assert judge(on_time._replace(ctrl=np.full(9, np.nan)), 1.0, last, TIMING) == wire.UNSAFE
+    assert judge(on_time._replace(kind=wire.END), 9.0, last, TIMING) == wire.ENDED
 
 
 def test_messages_round_trip():
-    command = wire.Command(wire.TARGET, 12.5, np.arange(9.0))
+    command = wire.Command(wire.TARGET, 7, 12.5, np.arange(9.0))
     decoded = wire.decode_command(wire.encode_command(command))
-    assert decoded.kind == command.kind and decoded.stamp == command.stamp
+    assert decoded[:3] == command[:3]
     np.testing.assert_array_equal(decoded.ctrl, command.ctrl)
     reading = ArmReading(np.arange(7.0), -np.arange(7.0), np.array([0.01, 0.02]))
     state = wire.State(wire.HOLDING, wire.MISSED, 3.0, reading, np.ones((2, 7)), np.zeros((2, 6)))
@@ -95,15 +95,16 @@ def test_a_rehearsal_that_ends_holds_then_stops_where_the_arm_is(scene, tmp_path
     assert len(result.jitter) == STEPS and np.median(result.jitter) < 0.01
 
 
-@pytest.mark.parametrize("kind", ["late", "drop", "stall"])
-def test_each_fault_ends_in_hold_then_stop(scene, tmp_path, kind):
+@pytest.mark.parametrize(("kind", "fault"), [("late", "missed"), ("drop", "dropped"), ("stall", "missed")])
+def test_each_fault_ends_in_hold_then_stop(scene, tmp_path, kind, fault):
     result = sway(driver_setup(scene, tmp_path), Fault(kind, FAULT_TICK))
-    assert result.fault == "missed" and result.steps < STEPS
+    assert result.fault == fault and result.steps < STEPS
     assert_held_then_stopped_within_the_limits(result.stream)
-    # It held at the deadline after the last command on time: tick 7's, one control period and the budget after it.
+    # It held when the next command showed the gap (tick 9's), or at the deadline after the last command on time
+    # (tick 7's: one control period and the budget after it), on the robot's wall clock from its start.
     hold = int(result.stream["hold_tick"])
-    held = hold * TIMING.servo_period + result.stream["lateness"][hold]  # its wall clock, from the robot's start
-    due = FAULT_TICK * TIMING.control_period + TIMING.latency_budget
+    held = hold * TIMING.servo_period + result.stream["lateness"][hold]
+    due = (FAULT_TICK + 1) * TIMING.control_period if kind == "drop" else FAULT_TICK * 0.04 + TIMING.latency_budget
     assert due <= held < due + 0.1
 
 
