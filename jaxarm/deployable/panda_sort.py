@@ -89,14 +89,23 @@ def dress_scene(model: mujoco.MjModel, env: sort_env.PandaSort, params, shape, s
     return ids
 
 
-def episode(robot: MujocoRobot, loop: DeploymentLoop, env: sort_env.PandaSort, params, sim, capture: Capture) -> dict:
-    """One sorter episode from `sim` (the env's reset); its success, return, steps and objects placed."""
-    model, data = robot.model, robot.data
+def start_scene(
+    model: mujoco.MjModel, data: mujoco.MjData, env: sort_env.PandaSort, params, sim
+) -> sort_model.ModelIds:
+    """Dresses the robot's scene `model` for the episode `sim` (the env's reset) and puts `data` at its start (in
+    place; the servos' targets are the caller's to send); returns the scene's ids."""
     ids = dress_scene(model, env, params, sim.shape, sim.size, sim.colour)
     # The objects' new masses change the constants MuJoCo derives from them (their inverse weights).
     mujoco.mj_setConst(model, data)
     mujoco.mj_resetData(model, data)
     data.qpos[:] = sim.qpos
+    return ids
+
+
+def episode(robot: MujocoRobot, loop: DeploymentLoop, env: sort_env.PandaSort, params, sim, capture: Capture) -> dict:
+    """One sorter episode from `sim` (the env's reset); its success, return, steps and objects placed."""
+    model, data = robot.model, robot.data
+    ids = start_scene(model, data, env, params, sim)
     robot.command(sim.ctrl)
     mujoco.mj_forward(model, data)
     bins, reward = scoring_bins(env.layout), sort_reward(env, params)

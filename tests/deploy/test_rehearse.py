@@ -1,0 +1,40 @@
+"""`python -m experiments.rehearse`: an exported sorter policy rehearsed in real time against MuJoCo in its own
+process. The episodes' starts come from the env's reset (one MJX program: marked mjx)."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from experiments import configs, rehearse
+from experiments.benchmarks.deploy import random_policy
+from jaxarm.export import origin
+from jaxarm.runner import rundir
+
+STEPS = 10
+
+
+@pytest.mark.mjx
+@pytest.mark.slow
+def test_the_rehearsal_cli_reports_placements_jitter_and_misses(tmp_path, capsys):
+    config = configs.get("ppo_sorter_dr")
+    config = dataclasses.replace(config, env_params=(*config.env_params, ("max_episode_steps", STEPS)))
+    rundir.write_config(tmp_path, config, "ppo_sorter_dr")
+    assert rehearse.main([str(tmp_path)]) == 2
+    assert "export the run first" in capsys.readouterr().err
+    env, _ = config.make_eval_env()
+    policy = random_policy(config, env.spec.observation_shape[0], env.spec.action_shape[0], np.random.default_rng(0))
+    (tmp_path / "export").mkdir()
+    policy.save(tmp_path / "export" / "policy.npz")
+    rundir.write_json(tmp_path / "export" / origin.FILE, origin.record("24"))
+    assert rehearse.main([str(tmp_path), "--episodes", "2"]) == 0
+    result = json.loads((tmp_path / "rehearse-2-12345-24-20ms.json").read_text())
+    assert result["episodes"] == 2 and result["ticks"] == 2 * STEPS and result["faults"] == ["ended", "ended"]
+    assert 0.0 <= result["placed_fraction"] <= 1.0 and result["tick_jitter_ms_p99"] >= 0.0
+    assert all(np.max(result[f"max_{name}_of_limit"]) <= 1 + 1e-6 for name in ("speed", "acceleration", "jerk"))
+    assert "rehearsed in real time" in capsys.readouterr().out
+    # A stall: the robot holds and stops, and the episodes end early.
+    assert rehearse.main([str(tmp_path), "--episodes", "1", "--fault", "stall", "--fault-tick", "3"]) == 0
+    result = json.loads((tmp_path / "rehearse-1-12345-24-20ms-stall.json").read_text())
+    assert result["faults"] == ["missed"] and result["ticks"] < STEPS
