@@ -30,7 +30,7 @@ from jaxarm.deploy import scoring, wire
 from jaxarm.deploy.driver import DriverSetup
 from jaxarm.deploy.loop import DeploymentLoop, UnsafeAction
 from jaxarm.deploy.rehearsal import Rehearsal, rehearse
-from jaxarm.deploy.remote import FAULT_KINDS, Fault
+from jaxarm.deploy.remote import FAULT_KINDS, Fault, RobotStopped
 from jaxarm.deploy.sort import SortController
 from jaxarm.deploy.stream import limit_ratios
 from jaxarm.deployable import panda_sort
@@ -159,7 +159,7 @@ def main(argv=None) -> int:
             f"faults {sorted(set(result['faults']))}"
         )
         print(f"wrote {path}")
-    except (ValueError, UnsafeAction, mujoco.FatalError) as error:
+    except (ValueError, UnsafeAction, RobotStopped, mujoco.FatalError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     except OSError as error:
