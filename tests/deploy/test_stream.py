@@ -42,7 +42,8 @@ def test_no_setpoint_goes_beyond_frankas_limits_and_hold_brakes_to_rest():
     for name, ratio in ratios.items():
         assert np.all(ratio <= 1 + 1e-9), (name, ratio)
         assert ratio.max() > 0.99, (name, ratio)  # each limit binds: the test is not vacuous
-    # Braking takes less than Franka's slowest stop from full speed (2.6 rad/s at 7.5 rad/s², 0.35 s) and a jerk ramp.
+    # Braking takes less than 0.6 s: Franka's slowest stop from full speed is 0.29 s (joint 2: 2.175 rad/s at
+    # 7.5 rad/s²), and the jerk limit adds its ramps.
     assert len(points) - 50 * SERVO_TICKS < 600
     np.testing.assert_allclose(points[-1].velocity, 0.0, atol=1e-12)
 
