@@ -15,7 +15,7 @@ import pytest
 from jaxarm.deploy import wire
 from jaxarm.deploy.driver import DriverSetup, judge
 from jaxarm.deploy.reading import ArmReading
-from jaxarm.deploy.rehearsal import rehearse, start_driver
+from jaxarm.deploy.rehearsal import Rehearsal, rehearse, start_driver
 from jaxarm.deploy.remote import Fault
 from jaxarm.deploy.stream import limit_ratios
 from jaxarm.envs.panda_sort import model as sort_model
@@ -70,8 +70,22 @@ def driver_setup(scene, tmp_path) -> DriverSetup:
     return DriverSetup(address, path, qpos, ctrl, *no_objects, TIMING, str(tmp_path / "stream.npz"))
 
 
-def sway(setup: DriverSetup, fault: Fault | None = None):
-    return rehearse(sway_loop(setup), setup, np.zeros(0, int), np.zeros(0), STEPS, lambda: False, fault)
+ATTEMPTS = 3
+"""Rehearsals of a case before its test judges the last: a shared 2-core CI host can stall a process past even the
+tests' budget, which the watchdog rightly calls a miss. A rehearsal held by a miss before its injected fault's tick
+was the machine's, not the code's, and runs again; any other outcome is judged as it is."""
+
+
+def stalled_by_the_host(result: Rehearsal, fault: Fault | None) -> bool:
+    return result.fault == "missed" and result.steps < (STEPS if fault is None else fault.tick)
+
+
+def sway(setup: DriverSetup, fault: Fault | None = None) -> Rehearsal:
+    for _ in range(ATTEMPTS):
+        result = rehearse(sway_loop(setup), setup, np.zeros(0, int), np.zeros(0), STEPS, lambda: False, fault)
+        if not stalled_by_the_host(result, fault):
+            break
+    return result
 
 
 def assert_held_then_stopped_within_the_limits(stream: dict[str, np.ndarray]) -> None:
