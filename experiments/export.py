@@ -10,7 +10,9 @@ From the run's latest checkpoint, writes into RUN_DIR/export/ (or --out):
                      scene it poses the arm in; `jaxarm.deploy.files.load(dir)` builds its controller without JAX
   export.json        which checkpoint the policy came from (its update count): `experiments.transfer` names its
                      results by it
-Every form maps flat observations float32 [B, O] (or [O] for the numpy policy) to deterministic actions.
+Every form maps observations to deterministic actions: flat ones float32 [B, O] (or [O] for the numpy policy), a
+camera's as their parts by name (the uint8 image [B, H, W, C], the float32 proprio [B, P] where the env observes
+one; the ONNX model's inputs are named "image" and "proprio", the numpy policy and jax.export module take a dict).
 """
 
 import argparse
@@ -31,13 +33,14 @@ def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Pat
     """
     config, _ = rundir.read_config(run_dir)
     env, _ = config.make_env()
-    observation_size = policy.check_flat_observations(env.spec)
+    if env.spec.flat_observation:
+        policy.check_flat_observations(env.spec)
     trainer = learners.make_trainer(config, run_dir)
     state = learners.restore_state(run_dir, trainer, config, acting=True)
     arrays = policy.numpy_policy(trainer, state)
-    serialized = policy.serialized_jax_policy(trainer, state, observation_size)
+    serialized = policy.serialized_jax_policy(trainer, state, env.spec)
     try:
-        onnx_model: bytes | None = policy.onnx_policy(trainer, state, observation_size)
+        onnx_model: bytes | None = policy.onnx_policy(trainer, state, env.spec)
     except ImportError:
         onnx_model = None
     eval_env, eval_params = config.make_eval_env()

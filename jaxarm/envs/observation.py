@@ -14,11 +14,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm.export.numpy_policy import IMAGE, PROPRIO  # declared there: policies run without JAX read them
+
 OBS_MODES = ("state", "pixels", "pixels+proprio")
-IMAGE = "image"
-"""Key of the camera image in a dict observation."""
-PROPRIO = "proprio"
-"""Key of the proprioceptive part in a dict observation."""
 PRIVILEGED = "privileged"
 """Key of the privileged part in a dict observation: the env's state observation (see the module docstring)."""
 

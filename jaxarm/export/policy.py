@@ -1,20 +1,24 @@
 """A trained policy in the forms that run without the learner: numpy arrays, a serialised `jax.export` module,
 and ONNX (with the `export` extra: `pip install -e ".[export]"`). Each is the learner's own deterministic action,
-`trainer.act(state, obs)`, for flat observations [B, O] -> actions [B, A], the state's arrays built in.
+`trainer.act(state, obs)`, for a batch of observations [B, ...] -> actions [B, A], the state's arrays built in:
+flat observations float32 [B, O], or a camera's parts by name (`policy_inputs`: the uint8 image [B, H, W, C] and
+the float32 proprio [B, P] where the env observes one).
 """
 
 import functools
 import logging
 
 import jax
-import jax.numpy as jnp
 
 from jaxarm.agents.common.trainer import Trainer
 from jaxarm.envs import EnvSpec
+from jaxarm.envs.observation import actor_observation
 from jaxarm.export.numpy_policy import NumpyPolicy
 
 JAX_EXPORT_PLATFORMS = ("cpu", "cuda")
 """The serialised module runs on either (both are lowered into it, whatever device exports it)."""
+FLAT_INPUT = "obs"
+"""The ONNX input's name for flat observations."""
 
 
 def check_flat_observations(spec: EnvSpec) -> int:
@@ -25,6 +29,21 @@ def check_flat_observations(spec: EnvSpec) -> int:
     return shape[0]
 
 
+def policy_inputs(spec: EnvSpec) -> dict[str, jax.ShapeDtypeStruct]:
+    """What a policy of `spec`'s env reads, one observation's parts by name: {"obs": [O]} for flat observations,
+    else the dict observation's parts but the privileged one (which only a critic reads)."""
+    if spec.flat_observation:
+        return {FLAT_INPUT: spec.observation}
+    return dict(actor_observation(spec.observation))
+
+
+def _batched(spec: EnvSpec):
+    """`spec`'s observation (the policy's parts of it) with a symbolic leading batch axis, for `jax.export`."""
+    (batch,) = jax.export.symbolic_shape("batch")
+    parts = {name: jax.ShapeDtypeStruct((batch, *part.shape), part.dtype) for name, part in policy_inputs(spec).items()}
+    return parts[FLAT_INPUT] if spec.flat_observation else parts
+
+
 def numpy_policy(trainer: Trainer, state) -> NumpyPolicy:
     """`trainer.act` at `state` as numpy arrays; ValueError for a learner without a numpy policy."""
     if trainer.numpy_policy is None:
@@ -32,22 +51,30 @@ def numpy_policy(trainer: Trainer, state) -> NumpyPolicy:
     return trainer.numpy_policy(state)
 
 
-def serialized_jax_policy(trainer: Trainer, state, observation_size: int) -> bytearray:
+def serialized_jax_policy(trainer: Trainer, state, spec: EnvSpec) -> bytearray:
     """`trainer.act` at `state`, for any batch size B, serialised by `jax.export`.
 
-    Run it with `jax.export.deserialize(data).call(obs)`, obs float32 [B, O] -> actions [B, A].
+    Run it with `jax.export.deserialize(data).call(obs)`, obs float32 [B, O] (or a dict of `policy_inputs`' parts,
+    [B, ...] each) -> actions [B, A].
     """
     act = jax.jit(functools.partial(trainer.act, state))
-    obs = jax.ShapeDtypeStruct(jax.export.symbolic_shape(f"batch, {observation_size}"), jnp.float32)
-    return jax.export.export(act, platforms=JAX_EXPORT_PLATFORMS)(obs).serialize()
+    return jax.export.export(act, platforms=JAX_EXPORT_PLATFORMS)(_batched(spec)).serialize()
 
 
-def onnx_policy(trainer: Trainer, state, observation_size: int) -> bytes:
-    """`trainer.act` at `state` as a serialised ONNX model with one input float32 [B, O]; ImportError without the
-    `export` extra (jax2onnx)."""
+def onnx_policy(trainer: Trainer, state, spec: EnvSpec) -> bytes:
+    """`trainer.act` at `state` as a serialised ONNX model with one input per `policy_inputs` part, named as it is
+    ([B, ...] each); ImportError without the `export` extra (jax2onnx)."""
     from jax2onnx import to_onnx
 
-    # jax2onnx logs every optional plugin it cannot load with this jax (dm_pix's, none of which an MLP uses).
+    # jax2onnx logs every optional plugin it cannot load with this jax (dm_pix's, none of which a policy uses).
     logging.getLogger("jax2onnx").setLevel(logging.ERROR)
-    model = to_onnx(functools.partial(trainer.act, state), [("B", observation_size)])
+    parts = policy_inputs(spec)
+
+    def act(*arrays):
+        if spec.flat_observation:
+            return trainer.act(state, arrays[0])
+        return trainer.act(state, dict(zip(parts, arrays, strict=True)))
+
+    inputs = [jax.ShapeDtypeStruct(("B", *part.shape), part.dtype) for part in parts.values()]
+    model = to_onnx(act, inputs, input_names=list(parts))
     return model.SerializeToString()

@@ -4,6 +4,7 @@ import re
 import subprocess
 import sys
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -110,7 +111,7 @@ def test_a_policy_file_that_is_no_policy_is_refused_in_one_line_naming_it(tmp_pa
         "kernel_1 holds <U1, not floating-point numbers": {"kernel_1": np.full((8, 6), "a")},
         "obs_std has shape [5]; the arrays before it make it [4]": {"obs_std": np.ones(5, np.float32)},
         "kernel_1 has shape [7, 6]; the arrays before it make it [8, 6]": {"kernel_1": np.ones((7, 6), np.float32)},
-        "bias_0 has shape [8, 1], not [n]": {"bias_0": np.zeros((8, 1), np.float32)},
+        "bias_0 has shape [8, 1], not a 1-d array": {"bias_0": np.zeros((8, 1), np.float32)},
         "the last layer has fewer outputs than action_offset's 3 actions": {
             "kernel_1": np.ones((8, 2), np.float32),
             "bias_1": np.zeros(2, np.float32),
@@ -124,3 +125,68 @@ def test_a_policy_file_that_is_no_policy_is_refused_in_one_line_naming_it(tmp_pa
             numpy_policy.load(path)
         assert str(raised.value).startswith(str(path)) and "\n" not in str(raised.value)
         assert str(raised.value).endswith("export the run again (python -m experiments.export RUN)")
+
+
+def camera_policy(rng: np.random.Generator) -> numpy_policy.NumpyPolicy:
+    """A policy of 12x12x2 images alone (no proprio): convs 3x3 by 2 then 2x2 by 1, 5 features, 2 actions."""
+    encoder = numpy_policy.NumpyEncoder(
+        image_shape=np.array([12, 12, 2]),
+        conv_kernels=(
+            rng.normal(size=(3, 3, 2, 4)).astype(np.float32),
+            rng.normal(size=(2, 2, 4, 3)).astype(np.float32),
+        ),
+        conv_biases=(rng.normal(size=4).astype(np.float32), rng.normal(size=3).astype(np.float32)),
+        conv_strides=np.array([2, 1]),
+        dense_kernel=rng.normal(size=(4 * 4 * 3, 5)).astype(np.float32) / 4,
+        dense_bias=rng.normal(size=5).astype(np.float32),
+    )
+    return small_policy(
+        kernels=(rng.normal(size=(5, 2)).astype(np.float32),),
+        biases=(np.zeros(2, np.float32),),
+        obs_mean=np.zeros(0, np.float32),
+        obs_std=np.ones(0, np.float32),
+        action_offset=np.zeros(2, np.float32),
+        action_scale=np.ones(2, np.float32),
+        encoder=encoder,
+    )
+
+
+def test_a_camera_policy_convolves_as_xla_and_saves_whole(tmp_path):
+    rng = np.random.default_rng(1)
+    policy = camera_policy(rng)
+    images = rng.integers(0, 256, (3, 12, 12, 2), np.uint8)
+    x = jnp.asarray(images, jnp.float32) / 255.0
+    for kernel, bias, stride in zip(policy.encoder.conv_kernels, policy.encoder.conv_biases, (2, 1), strict=True):
+        x = jax.nn.relu(
+            jax.lax.conv_general_dilated(
+                x, kernel, (stride, stride), "VALID", dimension_numbers=("NHWC", "HWIO", "NHWC")
+            )
+            + bias
+        )
+    features = jax.nn.relu(x.reshape(3, -1) @ policy.encoder.dense_kernel + policy.encoder.dense_bias)
+    expected = np.tanh(np.asarray(features @ policy.kernels[0] + policy.biases[0]))
+    np.testing.assert_allclose(policy({"image": images}), expected, atol=1e-5)
+    np.testing.assert_allclose(policy({"image": images[0]}), expected[0], atol=1e-5)
+    assert policy.observation_parts() == {"image": (12, 12, 2)}
+
+    policy.save(tmp_path / "policy.npz")
+    loaded = numpy_policy.load(tmp_path / "policy.npz")
+    np.testing.assert_array_equal(loaded({"image": images}), policy({"image": images}))
+    for bad, message in (
+        (images, "observations must be dicts of image"),
+        ({"image": images, "proprio": np.zeros((3, 1))}, "observations must be dicts of image"),
+        ({"image": images.astype(np.float32)}, r"image must be numeric arrays of shape \[12, 12, 2\]"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            loaded(bad)
+    with np.load(tmp_path / "policy.npz") as data:
+        arrays = {name: data[name] for name in data.files}
+    for edit, message in (
+        ({"conv_strides": np.array([2.0, 1.0])}, "conv_strides holds float64"),
+        ({"image_shape": np.array([2, 2, 2])}, r"the convs do not fit a \[2, 2, 2\] image"),
+        ({"dense_kernel": np.ones((47, 5), np.float32)}, r"dense_kernel has shape \[47, 5\]; .* make it \[48, 5\]"),
+        ({"conv_bias_1": None}, "it lacks conv_bias_1"),
+    ):
+        np.savez(tmp_path / "policy.npz", **{k: v for k, v in (arrays | edit).items() if v is not None})
+        with pytest.raises(numpy_policy.PolicyFileError, match=message):
+            numpy_policy.load(tmp_path / "policy.npz")

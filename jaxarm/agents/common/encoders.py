@@ -17,12 +17,15 @@ strided conv over 1,024 32×32 images took 6.7 s in a scan against 0.11 s each o
 
 import functools
 from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxarm.envs.observation import IMAGE, PROPRIO
+from jaxarm.export.numpy_policy import NumpyEncoder
 from jaxarm.ranges import Range
 
 
@@ -118,6 +121,37 @@ class PixelEncoder(nn.Module):
         if PROPRIO in obs:
             features = jnp.concatenate([features, obs[PROPRIO]], axis=-1)
         return features
+
+
+def numpy_encoder(stack: str, params: Mapping[str, Any], image_shape: tuple[int, ...]) -> NumpyEncoder:
+    """A `PixelEncoder` of `stack` with `params` (its flax params, without the "params" key) for images of
+    `image_shape` (H, W, C), as the numpy policy runs it; ValueError for "impala" (max-pools and residual blocks,
+    which the numpy policy does not run: export a run of "nature" or "patches")."""
+    convs = ENCODERS[stack]()
+    if isinstance(convs, StridedConvs):
+        layers = params["StridedConvs_0"]
+        kernels = [layers[f"Conv_{i}"]["kernel"] for i in range(len(convs.layers))]
+        strides = [stride for _, _, stride in convs.layers]
+    elif isinstance(convs, PatchConvs):
+        layers = params["PatchConvs_0"]
+        # A patch layer's [P·P·C, C'] matmul is the [P, P, C, C'] conv of stride P: its rows are a patch's pixels
+        # row by row, each pixel's channels together, as `PatchConvs` reshapes them.
+        strides = [patch for _, patch in convs.layers]
+        kernels = [
+            np.reshape(layers[f"Dense_{i}"]["kernel"], (patch, patch, -1, channels))
+            for i, (channels, patch) in enumerate(convs.layers)
+        ]
+    else:
+        raise ValueError(f"the numpy policy runs the encoders nature and patches, not {stack}")
+    names = [f"Conv_{i}" if isinstance(convs, StridedConvs) else f"Dense_{i}" for i in range(len(kernels))]
+    return NumpyEncoder(
+        image_shape=np.asarray(image_shape, np.int64),
+        conv_kernels=tuple(np.asarray(kernel, np.float32) for kernel in kernels),
+        conv_biases=tuple(np.asarray(layers[name]["bias"], np.float32) for name in names),
+        conv_strides=np.asarray(strides, np.int64),
+        dense_kernel=np.asarray(params["Dense_0"]["kernel"], np.float32),
+        dense_bias=np.asarray(params["Dense_0"]["bias"], np.float32),
+    )
 
 
 class EncodedMLP(nn.Module):

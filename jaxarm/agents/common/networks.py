@@ -8,9 +8,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm.agents.common.encoders import statistics_part
 from jaxarm.agents.common.normalizer import numpy_mean_std
 from jaxarm.envs import EnvSpec
-from jaxarm.export.numpy_policy import NumpyPolicy
+from jaxarm.export.numpy_policy import NumpyEncoder, NumpyPolicy
 from jaxarm.ranges import Range
 
 ACTIVATIONS = {
@@ -52,7 +53,8 @@ def mlp_layers(variables: Mapping[str, Any]) -> tuple[tuple[np.ndarray, ...], tu
     as float32 numpy arrays (the form `jaxarm.export.numpy_policy` runs)."""
     tree = variables["params"]
     while not any(name.startswith("Dense_") for name in tree):
-        (tree,) = tree.values()  # a module wrapping one MLP (TD3's actor)
+        # A module wrapping one MLP (TD3's actor), perhaps beside its encoder (a camera policy's).
+        (tree,) = (part for name, part in tree.items() if name != "encoder")
     names = sorted(tree, key=lambda name: int(name.removeprefix("Dense_")))
     return (
         tuple(np.asarray(tree[name]["kernel"], np.float32) for name in names),
@@ -61,15 +63,22 @@ def mlp_layers(variables: Mapping[str, Any]) -> tuple[tuple[np.ndarray, ...], tu
 
 
 def numpy_mlp_policy(
-    variables: Mapping[str, Any], spec: EnvSpec, normalizer, normalize: bool, activation: str, offset, scale
+    variables: Mapping[str, Any],
+    spec: EnvSpec,
+    normalizer,
+    normalize: bool,
+    activation: str,
+    offset,
+    scale,
+    encoder: NumpyEncoder | None = None,
 ) -> NumpyPolicy:
     """The `NumpyPolicy` of the MLP in `variables` (its first A outputs are the action's) for an env of `spec`:
-    observations standardised as `normalizer` does where the learner `normalize`s them, actions
-    `offset + scale * output` ([A] each). ValueError for an env whose observation is not flat (a camera's)."""
-    if not spec.flat_observation:
-        raise ValueError("only MLP policies of flat observations export to numpy; this one reads a camera")
+    observations (a camera's: their proprio part) standardised as `normalizer` does where the learner
+    `normalize`s them, read through `encoder` where they are a camera's, actions `offset + scale * output` ([A]
+    each)."""
     kernels, biases = mlp_layers(variables)
-    mean, std = numpy_mean_std(normalizer, normalize, spec.observation_size)
+    size = int(statistics_part(spec.zero_observation()).shape[-1])
+    mean, std = numpy_mean_std(normalizer, normalize, size)
     return NumpyPolicy(
         kernels=kernels,
         biases=biases,
@@ -78,4 +87,5 @@ def numpy_mlp_policy(
         obs_std=std,
         action_offset=np.asarray(offset, np.float32),
         action_scale=np.asarray(scale, np.float32),
+        encoder=encoder,
     )

@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxarm.envs import EnvState
+from jaxarm.envs import EnvState, Observation
 from jaxarm.export.numpy_policy import NumpyPolicy
 
 
@@ -28,7 +28,7 @@ class Trainer:
         what acting, exporting and warm starts read, made without tracing an env reset; a checkpoint is restored
         into it to evaluate or export its policy.
       update: (learner state, hparams) -> (learner state, per-update metrics pytree of scalars).
-      act: (learner state, obs [B, O]) -> deterministic actions [B, A] (for evaluation).
+      act: (learner state, observations [B, ...]) -> deterministic actions [B, A] (for evaluation).
       numpy_policy: learner state -> the same deterministic policy as numpy arrays (`NumpyPolicy`, which runs
         without JAX), or None for a learner that cannot export.
       num_updates: updates in the whole run.
@@ -40,7 +40,7 @@ class Trainer:
     init: Callable[[jax.Array, Any], Any]
     init_for_acting: Callable[[jax.Array, Any], Any]
     update: Callable[[Any, Any], tuple[Any, Any]]
-    act: Callable[[Any, jax.Array], jax.Array]
+    act: Callable[[Any, Observation], jax.Array]
     num_updates: int
     env_steps_per_update: int
     compiler_options: dict[str, Any] = dataclasses.field(default_factory=dict)

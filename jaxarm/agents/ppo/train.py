@@ -26,6 +26,7 @@ from flax import struct
 
 from jaxarm.agents.common import normalizer as observation_normalizer
 from jaxarm.agents.common.config import HParams
+from jaxarm.agents.common.encoders import numpy_encoder
 from jaxarm.agents.common.networks import numpy_mlp_policy
 from jaxarm.agents.common.permutation import random_permutation
 from jaxarm.agents.common.teachers import Teacher
@@ -34,7 +35,7 @@ from jaxarm.agents.ppo import losses
 from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.agents.ppo.networks import NetworkParams, PPONetworks, make_networks
 from jaxarm.envs import AutoReset, EnvSpec, EnvState, Observation, VmapEnv, compiler_options, deferred_step_checks
-from jaxarm.envs.observation import PRIVILEGED
+from jaxarm.envs.observation import IMAGE, PRIVILEGED
 from jaxarm.export.numpy_policy import NumpyPolicy
 
 SGD_STEPS_UNROLLED = 4
@@ -345,8 +346,11 @@ def update(setup: PPOSetup, state: PPOState, hparams: HParams) -> tuple[PPOState
 
 
 def numpy_policy(config: PPOConfig, spec: EnvSpec, state: PPOState) -> NumpyPolicy:
-    """The deterministic policy as arrays: the policy MLP (its first A outputs are the Gaussian's mean) and the
-    normaliser."""
+    """The deterministic policy as arrays: the policy MLP (its first A outputs are the Gaussian's mean), the
+    normaliser, and for a camera the policy's encoder."""
+    encoder = None
+    if not spec.flat_observation:
+        encoder = numpy_encoder(config.encoder, state.params.policy["params"]["encoder"], spec.observation[IMAGE].shape)
     return numpy_mlp_policy(
         state.params.policy,
         spec,
@@ -355,6 +359,7 @@ def numpy_policy(config: PPOConfig, spec: EnvSpec, state: PPOState) -> NumpyPoli
         config.activation,
         offset=np.zeros(spec.action_size),
         scale=np.ones(spec.action_size),
+        encoder=encoder,
     )
 
 

@@ -29,6 +29,7 @@ from jaxarm.agents.common import normalizer as observation_normalizer
 from jaxarm.agents.common import replay
 from jaxarm.agents.common.augment import shift_observation
 from jaxarm.agents.common.config import HParams
+from jaxarm.agents.common.encoders import numpy_encoder
 from jaxarm.agents.common.networks import numpy_mlp_policy
 from jaxarm.agents.common.trainer import EpisodeSummary, Trainer, remaining_fraction, summarise_episodes
 from jaxarm.agents.td3.config import TD3Config
@@ -44,6 +45,7 @@ from jaxarm.agents.td3.losses import (
 )
 from jaxarm.agents.td3.networks import Params, TD3Networks, make_networks
 from jaxarm.envs import AutoReset, EnvSpec, EnvState, Observation, VmapEnv, compiler_options, deferred_step_checks
+from jaxarm.envs.observation import IMAGE
 from jaxarm.export.numpy_policy import NumpyPolicy
 
 
@@ -435,6 +437,14 @@ def update(setup: TD3Setup, state: TD3State, hparams: HParams) -> tuple[TD3State
 def numpy_policy(config: TD3Config, spec: EnvSpec, state: TD3State) -> NumpyPolicy:
     """The actor as arrays: its MLP, and the map of its tanh outputs onto the env's action bounds."""
     half_range = 0.5 * (spec.action_high - spec.action_low)
+    encoder = None
+    if not spec.flat_observation:
+        # The shared encoder's params sit beside the critics' heads (`TD3Networks`), an own one in the actor's.
+        if config.shared_encoder:
+            params = state.critic_params["encoder"]["params"]
+        else:
+            params = state.actor_params["params"]["encoder"]
+        encoder = numpy_encoder(config.encoder, params, spec.observation[IMAGE].shape)
     return numpy_mlp_policy(
         state.actor_params,
         spec,
@@ -443,6 +453,7 @@ def numpy_policy(config: TD3Config, spec: EnvSpec, state: TD3State) -> NumpyPoli
         config.activation,
         offset=np.full(spec.action_size, spec.action_low + half_range),
         scale=np.full(spec.action_size, half_range),
+        encoder=encoder,
     )
 
 
