@@ -12,6 +12,11 @@ eval env would start one (its reset, drawn by JAX); from there no jaxarm env cod
 recomputed from MuJoCo's state in numpy (`jaxarm.deploy.scoring`). Writes
 RUN/transfer-<model>-<episodes>-<seed>-<update>[-noclip].json (<update>: the checkpoint the policy was exported from,
 as RUN/export/export.json says) and, with --video, the same name .gif (or .mp4) of the first episode.
+
+A policy that reads cameras (a pixel run) gets, each tick, the env's camera image drawn by MuJoCo's own OpenGL
+renderer (`mujoco.Renderer`: each of the env's cameras at its resolution, RGB to the env's gray, the depth buffer to
+metres; `jaxarm.deploy.camera`) of the robot's scene, and the proprio part computed from the arm's reading; it needs
+an offscreen GL (MUJOCO_GL=egl). Object estimates are still read, to score the episode, but never shown to it.
 """
 
 import argparse
@@ -26,8 +31,9 @@ import numpy as np
 from scipy import stats
 
 from jaxarm import deployable, envs, headless, ranges
-from jaxarm.deploy.loop import DeploymentLoop, UnsafeAction
+from jaxarm.deploy.loop import Controller, DeploymentLoop, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
+from jaxarm.envs.observation import actor_observation
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda.robot import MENAGERIE_PANDA_XML, MENAGERIE_TIMESTEP
 from jaxarm.export import numpy_policy, origin
@@ -84,23 +90,32 @@ class Recorder:
 
 
 def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int, clip: bool, record: bool) -> dict:
-    """Runs `episodes` episodes of `policy` (flat observation -> action, numpy) in the eval `env`'s scene with
+    """Runs `episodes` episodes of `policy` (observation -> action, numpy) in the eval `env`'s scene with
     `model_name`'s Panda, from the env's resets drawn from `seed`; the summary, and the first episode's frames
-    under "frames" when `record`."""
-    controller = deployable.controller(env, params)
+    under "frames" when `record`. A camera's policy sees the scene drawn by MuJoCo's renderer at each tick
+    (`jaxarm.deploy.camera`)."""
     run_episode = deployable.entry(env).episode
     model = plant_model(env, params, model_name)
     robot = MujocoRobot(model, CONTROL_DT)
+    camera = None if env.spec.flat_observation else deployable.camera_renderer(env, model)
+    if camera is None:
+        controller: Controller = deployable.controller(env, params)
+    else:
+        controller = deployable.camera_controller(env, params, camera, robot.data)
     loop = DeploymentLoop(policy, controller, CONTROL_DT, clip=clip)
     sims = episode_starts(env, params, episodes, seed)
     began = time.perf_counter()
     results: list[dict] = []
     frames: list[np.ndarray] = []
-    for index in range(episodes):
-        recorder = Recorder(model if record and index == 0 else None)
-        results.append(run_episode(robot, loop, env, params, one(sims, index), recorder.capture))
-        recorder.close()
-        frames = frames or recorder.frames
+    try:
+        for index in range(episodes):
+            recorder = Recorder(model if record and index == 0 else None)
+            results.append(run_episode(robot, loop, env, params, one(sims, index), recorder.capture))
+            recorder.close()
+            frames = frames or recorder.frames
+    finally:
+        if camera is not None:
+            camera.close()
     successes = sum(result["success"] for result in results)
     interval = stats.binomtest(successes, episodes).proportion_ci(method="wilson")
     ticks = np.array(loop.tick_seconds)
@@ -127,9 +142,19 @@ def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int,
     return summary | {"frames": frames} if record else summary
 
 
+def fits(policy: numpy_policy.NumpyPolicy, spec) -> bool:
+    """Whether `policy` reads `spec`'s observations (a camera's: the parts its actor reads) and acts as it does."""
+    if spec.flat_observation:
+        observed = policy.encoder is None and policy.observation_size == spec.observation_shape[0]
+    else:
+        parts = {name: part.shape for name, part in actor_observation(spec.observation_parts).items()}
+        observed = policy.observation_parts() == parts
+    return observed and policy.action_size == spec.action_shape[0]
+
+
 def transferable_envs() -> list[str]:
-    """The registered envs the deployment loop runs as registered (the sorter's and the peg's with state
-    observations)."""
+    """The registered envs the deployment loop runs as registered (the sorter's and the peg's, with state
+    observations or cameras)."""
     return [name for name in envs.names() if deployable.runs(envs.make(name))]
 
 
@@ -146,7 +171,7 @@ def transfer(run_dir: pathlib.Path, model_name: str, episodes: int, seed: int, c
     if not policy_path.exists():
         raise ValueError(f"no {policy_path}: export the run first (python -m experiments.export {run_dir})")
     policy = numpy_policy.load(policy_path)
-    if policy.observation_size != env.spec.observation_shape[0] or policy.action_size != env.spec.action_shape[0]:
+    if not fits(policy, env.spec):
         raise ValueError(f"{policy_path} does not fit the run's env ({env.spec})")
     checkpoint_name = origin.read(policy_path.parent)
     return {"checkpoint": checkpoint_name} | run_episodes(env, params, policy, model_name, episodes, seed, clip, record)

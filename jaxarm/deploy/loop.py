@@ -46,7 +46,10 @@ class Controller(Protocol):
 
     def begin(self) -> None: ...
 
-    def observe(self, reading: ArmReading, estimate: Any, ctrl: np.ndarray) -> np.ndarray: ...
+    def observe(self, reading: ArmReading, estimate: Any, ctrl: np.ndarray) -> Any:
+        """The policy's observation: a flat float32 [O], or a camera policy's parts by name
+        (`camera.CameraController`)."""
+        ...
 
     def act(self, reading: ArmReading, ctrl: np.ndarray, action: np.ndarray) -> np.ndarray: ...
 
@@ -90,7 +93,8 @@ class DeploymentLoop:
     """Runs a policy on a robot one control tick at a time.
 
     Args:
-      policy: flat observation [O] -> action [A] (`jaxarm.export.numpy_policy.load(path)`).
+      policy: the controller's observation (flat [O], or a camera's parts) -> action [A]
+        (`jaxarm.export.numpy_policy.load(path)`).
       controller: the task's observation and control.
       period: seconds per tick (the env's control step).
       clip: whether commands beyond Franka's limits are clipped (else only counted).
@@ -101,9 +105,7 @@ class DeploymentLoop:
       tick_seconds: wall time of each tick so far (observation, policy, control, limits).
     """
 
-    def __init__(
-        self, policy: Callable[[np.ndarray], np.ndarray], controller: Controller, period: float, clip: bool = True
-    ):
+    def __init__(self, policy: Callable[[Any], np.ndarray], controller: Controller, period: float, clip: bool = True):
         self.policy = policy
         self.controller = controller
         self.period = period

@@ -49,12 +49,21 @@ def observation(
 ) -> np.ndarray:
     """float32 [12]: `PegInsert._observe` of the arm at `pose` (the last one `kinematics` posed), the hole's
     estimate and the tool-centre target [3]."""
-    tip, tip_jacobian = kinematics.site_position_jacobian(PEG_TIP_SITE)
+    tip, _ = kinematics.site_position_jacobian(PEG_TIP_SITE)
     hole_bottom = np.concatenate([hole.centre, [task.hole_floor]])
+    own = arm_observation(task, kinematics, pose, reading, tcp_target)
+    return np.concatenate([(hole_bottom - tip) / task.position_scale, own]).astype(np.float32)
+
+
+def arm_observation(
+    task: PegTask, kinematics: ArmKinematics, pose: ArmPose, reading: ArmReading, tcp_target
+) -> np.ndarray:
+    """float32 [9]: the arm's own part of `observation`, which a camera policy reads as its proprio part: the tip's
+    velocity, the tool's lead towards its target [3] and the tip's offset from the nominal hole."""
+    tip, tip_jacobian = kinematics.site_position_jacobian(PEG_TIP_SITE)
     nominal = np.concatenate([task.hole_nominal, [task.hole_floor]])
     return np.concatenate(
         [
-            (hole_bottom - tip) / task.position_scale,
             tip_jacobian @ reading.arm_qvel / task.position_scale,
             (tcp_target - pose.tcp) / task.max_lead,
             (tip - nominal) / task.position_scale,
@@ -105,11 +114,21 @@ class PegController:
         """A new episode: the target is set to the measured tool centre at the first observation."""
         self.tcp_target = None
 
-    def observe(self, reading: ArmReading, hole: HoleEstimate, ctrl: np.ndarray) -> np.ndarray:
+    def _sense(self, reading: ArmReading) -> tuple[ArmPose, np.ndarray]:
+        """The arm's pose at `reading` and the running target (the tool centre at an episode's first tick)."""
         self._pose = self.kinematics.pose(reading.arm_q)
         if self.tcp_target is None:
             self.tcp_target = self._pose.tcp
-        return observation(self.task, self.kinematics, self._pose, reading, hole, self.tcp_target)
+        return self._pose, self.tcp_target
+
+    def observe(self, reading: ArmReading, hole: HoleEstimate, ctrl: np.ndarray) -> np.ndarray:
+        pose, target = self._sense(reading)
+        return observation(self.task, self.kinematics, pose, reading, hole, target)
+
+    def proprio(self, reading: ArmReading, ctrl: np.ndarray) -> np.ndarray:
+        """A camera policy's proprio part at this tick (`arm_observation`), in place of `observe`."""
+        pose, target = self._sense(reading)
+        return arm_observation(self.task, self.kinematics, pose, reading, target)
 
     def act(self, reading: ArmReading, ctrl: np.ndarray, action: np.ndarray) -> np.ndarray:
         """[9] servo targets: the arm's towards the moved target, the fingers' as they were."""

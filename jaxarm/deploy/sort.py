@@ -95,17 +95,19 @@ def observation(
         ],
         -1,
     )
-    tool = [
-        pose.tcp,
-        pose.hand_quat,
-        pose.jacobian @ reading.arm_qvel,
-        [np.sum(reading.finger_q)],
-        reading.arm_q,
-    ]
+    rows = rows * in_play
+    tool = tool_observation(task, pose, reading, ctrl)
+    return np.concatenate([rows[slot_order(task, target)].ravel(), tool]).astype(np.float32)
+
+
+def tool_observation(task: SortTask, pose: ArmPose, reading: ArmReading, ctrl: np.ndarray) -> np.ndarray:
+    """float32 [21] ([28] with `running_target`): the tool's part of `observation`, which a camera policy reads as
+    its proprio part: tool centre, hand orientation, tool velocity, gripper width, arm joints (and each joint's
+    servo target `ctrl` [9] minus its angle)."""
+    tool = [pose.tcp, pose.hand_quat, pose.jacobian @ reading.arm_qvel, [np.sum(reading.finger_q)], reading.arm_q]
     if task.running_target:
         tool.append(ctrl[:7] - reading.arm_q)
-    rows = rows * in_play
-    return np.concatenate([rows[slot_order(task, target)].ravel(), *tool]).astype(np.float32)
+    return np.concatenate(tool).astype(np.float32)
 
 
 def arm_targets(
@@ -179,8 +181,13 @@ class SortController:
         self.target = scoring.next_target(self.outcome, self.target, position, self._pose.tcp)
         return observation(self.task, self._pose, reading, objects, self.outcome, self.target, ctrl)
 
+    def proprio(self, reading: ArmReading, ctrl: np.ndarray) -> np.ndarray:
+        """A camera policy's proprio part at this tick (`tool_observation`), in place of `observe`."""
+        self._pose = self.kinematics.pose(reading.arm_q)
+        return tool_observation(self.task, self._pose, reading, ctrl)
+
     def act(self, reading: ArmReading, ctrl: np.ndarray, action: np.ndarray) -> np.ndarray:
-        """[9] servo targets (arm, then fingers) for `action`, after `observe` of the same tick."""
+        """[9] servo targets (arm, then fingers) for `action`, after `observe` (or `proprio`) of the same tick."""
         assert self._pose is not None, "observe before act"
         arm = arm_targets(self.task, self.kinematics, self._pose, ctrl, action)
         return np.concatenate([arm, finger_targets(self.task, action)])

@@ -6,6 +6,6 @@ imports neither, so a robot's computer runs it without JAX. `panda_sort.py` and 
 `registry.py` lists them (`DEPLOYABLES`), one entry each (`base.Deployable`: controller, scene, episode).
 """
 
-from jaxarm.deployable.registry import DEPLOYABLES, controller, entry, runs
+from jaxarm.deployable.registry import DEPLOYABLES, camera_controller, camera_renderer, controller, entry, runs
 
-__all__ = ["DEPLOYABLES", "controller", "entry", "runs"]
+__all__ = ["DEPLOYABLES", "camera_controller", "camera_renderer", "controller", "entry", "runs"]

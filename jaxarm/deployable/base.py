@@ -8,7 +8,8 @@ from typing import Any
 
 import mujoco
 
-from jaxarm.deploy.loop import Controller, DeploymentLoop
+from jaxarm.deploy.camera import SeesItself
+from jaxarm.deploy.loop import DeploymentLoop
 from jaxarm.deploy.mujoco_robot import MujocoRobot
 
 Capture = Callable[[mujoco.MjData], None]
@@ -21,7 +22,8 @@ class Deployable:
 
     Attributes:
       env_class: the env whose instances with state observations the task is (wrapped ones too).
-      controller: (env, params) -> the task's numpy controller, posing the arm in the env's own model.
+      controller: (env, params) -> the task's numpy controller, posing the arm in the env's own model (with its
+        proprio part for a camera's policy).
       scene: (env, params, robot_xml) -> the env's scene with the Panda of `robot_xml` in place of jaxarm's (a cached
         model: copy it before editing).
       episode: (robot, loop, env, params, sim, capture) -> one episode from `sim` (the env's reset, as numpy arrays)
@@ -30,6 +32,6 @@ class Deployable:
     """
 
     env_class: type
-    controller: Callable[[Any, Any], Controller]
+    controller: Callable[[Any, Any], SeesItself]
     scene: Callable[[Any, Any, Path], mujoco.MjModel]
     episode: Callable[[MujocoRobot, DeploymentLoop, Any, Any, Any, Capture], dict]

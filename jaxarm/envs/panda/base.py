@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from jaxarm.deploy.camera import DEPTH_RANGE
 from jaxarm.deploy.limits import limit_targets
 from jaxarm.envs.base import Env, EnvSpec, EnvState, HasEpisodeLimit, Observation
 from jaxarm.envs.observation import check_obs_mode, observation_parts, pixel_observation
@@ -44,8 +45,6 @@ damping, MJX-JAX keeps it in. At 0.01 s the Panda's clamped servos then chatter 
 (H100) and ppo_sorter 87.5% after 3.4 minutes. At 0.04/6 s: 72% (64 envs, CPU); the wrist's damping x20 or its force
 limit x3 changed nothing; dropping every arm force limit gave 83%, and 95% with 0.005 s, but Franka's torque limits
 stay."""
-DEPTH_RANGE = 1.0
-"""Metres of depth a camera image's depth channel spans (0 to 255); farther reads 255."""
 CAMERAS = ("scene", "hand_camera")
 """The MJCF cameras a pixel observation stacks by default: the task's fixed scene camera and the wrist's."""
 
@@ -202,6 +201,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       start_qpos: [7] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
       obs_mode, resolution, max_action_latency, privileged: as in `options`.
       cameras: the `camera.Camera`s of `cameras`, resolved once (none in "state" mode).
+      camera_names: their names in the MJCF (what a renderer outside JAX draws, `jaxarm.deploy.camera`).
     """
 
     uses_mjx = True
@@ -221,8 +221,10 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         # Resolved only where they are observed: a state-only scene need not declare cameras, nor keep to the
         # primitive geoms the caster draws.
         self.cameras: tuple[camera.Camera, ...] = ()
+        self.camera_names: tuple[str, ...] = ()
         self._camera_scene: camera.Scene | None = None
         if options.obs_mode != "state":
+            self.camera_names = options.cameras
             self.cameras = tuple(camera.Camera.from_model(mj_model, name) for name in options.cameras)
             self._camera_scene = camera.Scene.from_model(mj_model)
         self.impl = resolve_impl(options.impl)

@@ -23,8 +23,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-AMBIENT = 0.3
-"""Share of a surface's brightness lit regardless of its angle to the ray."""
+from jaxarm.deploy.camera import AMBIENT, LUMA  # declared there: the deployment loop draws the same images
+
 FAR = 10.0
 """Depth, metres, of a ray that hits nothing."""
 _EPSILON = 1e-9
@@ -183,7 +183,7 @@ class Scene:
             if geom_type not in RAY_TESTS:
                 kind = mujoco.mjtGeom(geom_type).name
                 raise ValueError(f"geom {model.geom(geom).name or geom} is a {kind}: the camera casts primitives only")
-        luma = model.geom_rgba[visible, :3] @ np.array([0.299, 0.587, 0.114])
+        luma = model.geom_rgba[visible, :3] @ LUMA
         return cls(geoms=visible, types=types, luma=luma.astype(np.float32))
 
 

@@ -1,0 +1,177 @@
+"""A Panda env's camera image of a stock-MuJoCo scene, drawn by MuJoCo's own OpenGL renderer (`mujoco.Renderer`):
+what the deployment loop gives a policy that reads cameras. Imports numpy and mujoco alone.
+
+The env's image (`PandaBase.camera_image`) stacks, per camera, its gray then its depth: uint8 [R, R, 2 per
+camera]. Gray is the Rec. 601 luma (`LUMA`) of a surface's colour lit by a head light, `AMBIENT` plus the rest
+times the cosine of the light's angle to the surface; depth is metres along the optical axis over `DEPTH_RANGE`;
+each clipped to 0-1 and scaled to 0-255. Here MuJoCo draws each named camera (its MJCF pose on its body, its
+fovy) at R×R pixels: its RGB becomes gray by the same weights, its depth buffer (which `mujoco.Renderer`
+linearises to metres along the optical axis) the depth channel.
+
+Drawn `as_env` (the default), the scene is lit and coloured as the env's ray caster sees it: one light at the
+camera (each pixel lit by the cosine of its own ray) of ambient `AMBIENT` and diffuse 1 - `AMBIENT`, no specular
+light, each geom in its own rgba (no material, texture, emission, reflection or shadow), nothing behind (black: the
+caster's miss). What still differs is how each draws: the rasteriser's sampling of edges, OpenGL's interpolation
+of light across a triangle, meshes (menagerie's Panda) where the caster has primitives (tests/deploy/test_camera.py
+measures the difference). Drawn otherwise, the scene looks as its MJCF declares (its lights, textures, reflections
+and shadows): a camera the env never showed its policy.
+"""
+
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol
+
+import mujoco
+import numpy as np
+
+from jaxarm.deploy.kinematics import ArmKinematics
+from jaxarm.deploy.loop import Controller, Task
+from jaxarm.deploy.reading import ArmReading
+from jaxarm.export.numpy_policy import IMAGE, PROPRIO
+
+LUMA = np.array([0.299, 0.587, 0.114])
+"""Rec. 601 weights of red, green and blue in a colour's gray."""
+AMBIENT = 0.3
+"""Share of a surface's brightness lit regardless of its angle to the light."""
+DEPTH_RANGE = 1.0
+"""Metres of depth a camera image's depth channel spans (0 to 255); farther reads 255."""
+HIDDEN_FLAGS = (
+    mujoco.mjtRndFlag.mjRND_SHADOW,
+    mujoco.mjtRndFlag.mjRND_REFLECTION,
+    mujoco.mjtRndFlag.mjRND_SKYBOX,
+    mujoco.mjtRndFlag.mjRND_FOG,
+    mujoco.mjtRndFlag.mjRND_HAZE,
+)
+"""What MuJoCo draws beyond a geom's lit colour; off where the image is drawn as the env's."""
+
+
+def to_channel(values: np.ndarray) -> np.ndarray:
+    """[...] values in 0-1 (beyond them clipped) -> uint8 [...] in 0-255, rounded, as the env scales both channels."""
+    return np.round(np.clip(values, 0.0, 1.0) * 255.0).astype(np.uint8)
+
+
+def gray_of(rgb: np.ndarray) -> np.ndarray:
+    """uint8 [..., 3] RGB -> uint8 [...] gray (`LUMA`)."""
+    return to_channel(rgb.astype(np.float32) @ LUMA / 255.0)
+
+
+def depth_of(depth: np.ndarray) -> np.ndarray:
+    """[...] metres along the optical axis -> uint8 [...] over `DEPTH_RANGE`."""
+    return to_channel(depth / DEPTH_RANGE)
+
+
+def light_as_env(scene: mujoco.MjvScene, model: mujoco.MjModel) -> None:
+    """Edits a scene `mujoco.Renderer.update_scene` made from a camera: its head light alone, of the env's
+    ambient and diffuse light, and each of the model's geoms in its own rgba, without material, texture, emission
+    or specular highlight (in place)."""
+    headlight = scene.lights[0]
+    # A light at the camera, as the caster's: each pixel lit by the cosine of its own ray (a directional head light
+    # lights a plane evenly, 25 gray levels off the caster's at a 64-pixel image's corners). A spot of a 90° cone
+    # and no fall-off covers all the camera sees; the classic renderer does not light with a point light.
+    headlight.type = mujoco.mjtLightType.mjLIGHT_SPOT
+    headlight.cutoff, headlight.exponent = 90.0, 0.0
+    headlight.attenuation[:] = (1.0, 0.0, 0.0)
+    headlight.ambient[:] = AMBIENT
+    headlight.diffuse[:] = 1.0 - AMBIENT
+    headlight.specular[:] = 0.0
+    scene.nlight = 1  # the head light comes first where the model has it on (`CameraRenderer` checks)
+    for index in range(scene.ngeom):
+        geom = scene.geoms[index]
+        if geom.objtype == mujoco.mjtObj.mjOBJ_GEOM:
+            geom.rgba[:] = model.geom_rgba[geom.objid]
+        geom.matid, geom.texid = -1, -1
+        geom.emission, geom.specular, geom.reflectance = 0.0, 0.0, 0.0
+
+
+class CameraRenderer:
+    """Draws a scene's cameras into the env's camera image.
+
+    Args:
+      model: the scene (the robot's; its cameras those the env stacks, by name).
+      cameras: the cameras' names, in the env's order.
+      resolution: side of the square images, pixels.
+      as_env: light and colour the scene as the env's caster does (see the module docstring).
+
+    One OpenGL context, reused for every image (building one costs more than drawing); `close` frees it.
+    """
+
+    def __init__(self, model: mujoco.MjModel, cameras: Sequence[str], resolution: int, as_env: bool = True):
+        for name in cameras:
+            model.camera(name)  # KeyError naming a camera the scene lacks, before a context is made
+        if as_env and not model.vis.headlight.active:
+            raise ValueError("the scene's head light is off: the env's images are lit by it alone")
+        self.model = model
+        self.cameras = tuple(cameras)
+        self.as_env = as_env
+        self._renderer = mujoco.Renderer(model, resolution, resolution)
+        if as_env:
+            for flag in HIDDEN_FLAGS:
+                self._renderer.scene.flags[flag] = False
+
+    def _render(self, data: mujoco.MjData, camera: str, depth: bool) -> np.ndarray:
+        if depth:
+            self._renderer.enable_depth_rendering()
+        else:
+            self._renderer.disable_depth_rendering()
+        self._renderer.update_scene(data, camera=camera)
+        if self.as_env:
+            light_as_env(self._renderer.scene, self.model)
+        return self._renderer.render()
+
+    def image(self, data: mujoco.MjData) -> np.ndarray:
+        """uint8 [R, R, 2 per camera]: each camera's gray, then its depth, of the scene posed in `data` (after
+        `mj_forward` or a step: its cameras' poses)."""
+        channels = []
+        for camera in self.cameras:
+            channels += [gray_of(self._render(data, camera, False)), depth_of(self._render(data, camera, True))]
+        return np.stack(channels, axis=-1)
+
+    def close(self) -> None:
+        self._renderer.close()
+
+
+class SeesItself(Controller, Protocol):
+    """A task's controller that also gives its observation's proprio part alone (`sort.SortController`,
+    `peg.PegController`): the robot's own state, as the env's pixel modes observe it."""
+
+    def proprio(self, reading: ArmReading, ctrl: np.ndarray) -> np.ndarray: ...
+
+
+class CameraController:
+    """A task's control with a camera policy's observation: {"image": the cameras' image now, "proprio": the
+    task's proprio part} (no "proprio" where the env observes none). The deployment loop's estimate goes unread:
+    what the task's objects are, the policy sees in the image.
+
+    Args:
+      controller: the task's controller.
+      camera: () -> the cameras' image now, uint8 [R, R, 2 per camera] (`CameraRenderer.image` of the robot's
+        data, or a real camera's frames in the env's format).
+      proprio: whether the policy reads a proprio part.
+    """
+
+    def __init__(self, controller: SeesItself, camera: Callable[[], np.ndarray], proprio: bool):
+        self.controller = controller
+        self.camera = camera
+        self.reads_proprio = proprio
+
+    @property
+    def task(self) -> Task:
+        return self.controller.task
+
+    @property
+    def kinematics(self) -> ArmKinematics:
+        return self.controller.kinematics
+
+    @property
+    def action_size(self) -> int:
+        return self.controller.action_size
+
+    def begin(self) -> None:
+        self.controller.begin()
+
+    def observe(self, reading: ArmReading, estimate: Any, ctrl: np.ndarray) -> dict[str, np.ndarray]:
+        own = self.controller.proprio(reading, ctrl)  # poses the arm for `act` whether read or not
+        image = self.camera()
+        return {IMAGE: image, PROPRIO: own} if self.reads_proprio else {IMAGE: image}
+
+    def act(self, reading: ArmReading, ctrl: np.ndarray, action: np.ndarray) -> np.ndarray:
+        return self.controller.act(reading, ctrl, action)
