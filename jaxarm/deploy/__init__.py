@@ -5,7 +5,8 @@ target, joint limits) in numpy, within Franka's joint speed and acceleration lim
 `loop.py` keeps the tick and the `Robot` it drives; `sort.py` and `peg.py` are the sorter's and the peg's
 observation and control; `kinematics.py` poses the arm with MuJoCo's C library; `ik.py` is the env's IK maths in
 numpy; `limits.py` the datasheet's limits; `scoring.py` the tasks' scoring; `mujoco_robot.py` is stock MuJoCo playing
-the robot. `stream.py` turns the 25 Hz targets into a jerk-limited 1 kHz servo stream (Ruckig); `driver.py` and
+the robot; `camera.py` draws a scene's cameras as the envs observe them and gives a camera policy its observation.
+`stream.py` turns the 25 Hz targets into a jerk-limited 1 kHz servo stream (Ruckig); `driver.py` and
 `remote.py` are a robot process behind a socket and the policy's side of it, `wire.py` their messages and deadlines,
 `clock.py` the policy's wall-clock ticks, `rehearsal.py` a real-time episode through them (the robot extra: ruckig,
 pyzmq); `adapters.py` drives a Panda through franky-control or a UR5e through ur_rtde (the adapters extra; not run on
