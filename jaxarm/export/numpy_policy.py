@@ -190,7 +190,7 @@ class NumpyPolicy:
             single = array.ndim == 1
             return single, (array.astype(np.float32).reshape(-1, self.observation_size) - self.obs_mean) / self.obs_std
         parts = self.observation_parts()
-        if not isinstance(obs, Mapping) or set(obs) - {"privileged"} != set(parts):
+        if not isinstance(obs, Mapping) or set(obs) != set(parts):
             raise ValueError(f"observations must be dicts of {', '.join(parts)}, got {type(obs).__name__}")
         image = _checked(obs[IMAGE], IMAGE, parts[IMAGE], "u")
         single = image.ndim == 3

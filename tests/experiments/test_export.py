@@ -181,3 +181,13 @@ def test_export_errors_are_one_line(tmp_path, capsys):
     assert export_cli.main([str(tmp_path)]) == 2
     assert "checkpoint" in capsys.readouterr().err
     assert not (tmp_path / "export").exists()
+
+
+def test_a_camera_policy_the_numpy_policy_cannot_run_is_refused_before_anything_is_written(tmp_path, capsys):
+    config = dataclasses.replace(CONFIGS["ppo_pixels"], encoder="impala")
+    trainer = learners.make_trainer(config)
+    rundir.write_config(tmp_path, config, "tiny_impala")
+    checkpoint.save(tmp_path / "checkpoints", 1, trainer.init(jax.random.PRNGKey(0), config.hparams()))
+    assert export_cli.main([str(tmp_path)]) == 2
+    assert capsys.readouterr().err == "error: the numpy policy runs the encoders nature and patches, not impala\n"
+    assert not (tmp_path / "export").exists()
