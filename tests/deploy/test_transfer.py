@@ -2,8 +2,12 @@
 and on menagerie's.
 
 The tests of episodes draw their starts with the env's reset (one MJX program: marked mjx); from there only
-MuJoCo C and `jaxarm.deploy` run.
+MuJoCo C and `jaxarm.deploy` run (and MuJoCo's OpenGL renderer, for a camera policy).
 """
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco loads a GL: the camera policy's images are drawn
 
 import dataclasses
 import json
@@ -26,6 +30,7 @@ from jaxarm.envs.peg_insert.params import RUNNING_TARGET_MAX_LEAD
 from jaxarm.export import origin
 from jaxarm.export.numpy_policy import EXPORT_AGAIN
 from jaxarm.runner import rundir
+from tests.deploy.test_camera import camera_policy
 
 
 def test_both_pandas_have_the_same_kinematics_and_the_stock_solver():
@@ -192,3 +197,22 @@ def test_transfer_refuses_a_damaged_policy_too_many_episodes_and_a_video_without
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and error.startswith("error: cannot draw here (FatalError: an OpenGL platform")
     assert error.strip().endswith(headless.GL_HINT)
+
+
+@pytest.mark.mjx
+@pytest.mark.slow
+def test_the_transfer_cli_runs_an_exported_camera_policy_on_both_pandas(tmp_path, capsys):
+    config = apply_overrides(configs.get("ppo_peg_pixels"), ["env_kwargs.resolution=16", "num_envs=2"])
+    config = dataclasses.replace(config, env_params=(*config.env_params, ("max_episode_steps", 5)))
+    rundir.write_config(tmp_path, config, "ppo_peg_pixels")
+    (tmp_path / "export").mkdir()
+    rundir.write_json(tmp_path / "export" / origin.FILE, origin.record("7"))
+    camera_policy((16, 16, 4), 8, 3).save(tmp_path / "export" / "policy.npz")  # one proprio value short
+    assert transfer.main([str(tmp_path), "--episodes", "1"]) == 2
+    assert "does not fit the run's env" in capsys.readouterr().err
+    camera_policy((16, 16, 4), 9, 3).save(tmp_path / "export" / "policy.npz")
+    for name in transfer.MODELS:
+        assert transfer.main([str(tmp_path), "--model", name, "--episodes", "2"]) == 0, capsys.readouterr().err
+        result = json.loads((tmp_path / f"transfer-{name}-2-12345-7.json").read_text())
+        assert result["model"] == name and result["ticks"] == 2 * result["steps_mean"] and result["steps_mean"] >= 1
+        assert f"({name}'s Panda)" in capsys.readouterr().out
