@@ -5,7 +5,9 @@ flat observations float32 [B, O], or a camera's parts by name (`policy_inputs`: 
 the float32 proprio [B, P] where the env observes one).
 """
 
+import contextlib
 import functools
+import io
 import logging
 
 import jax
@@ -66,8 +68,10 @@ def onnx_policy(trainer: Trainer, state, spec: EnvSpec) -> bytes:
     ([B, ...] each); ImportError without the `export` extra (jax2onnx)."""
     from jax2onnx import to_onnx
 
-    # jax2onnx logs every optional plugin it cannot load with this jax (dm_pix's, none of which a policy uses).
-    logging.getLogger("jax2onnx").setLevel(logging.ERROR)
+    # jax2onnx logs every optional plugin it cannot load with this jax (dm_pix's, none of which a policy uses), and
+    # onnx_ir a warning per shape constant of a conv encoder's reshapes.
+    for name in ("jax2onnx", "onnx_ir"):
+        logging.getLogger(name).setLevel(logging.ERROR)
     parts = policy_inputs(spec)
 
     def act(*arrays):
@@ -76,5 +80,7 @@ def onnx_policy(trainer: Trainer, state, spec: EnvSpec) -> bytes:
         return trainer.act(state, dict(zip(parts, arrays, strict=True)))
 
     inputs = [jax.ShapeDtypeStruct(("B", *part.shape), part.dtype) for part in parts.values()]
-    model = to_onnx(act, inputs, input_names=list(parts))
+    # jax2onnx 0.13.0's conv plugin prints its debugging lines (66 for the Nature stack) to stdout.
+    with contextlib.redirect_stdout(io.StringIO()):
+        model = to_onnx(act, inputs, input_names=list(parts))
     return model.SerializeToString()
