@@ -6,7 +6,7 @@ From the run's latest checkpoint, writes into RUN_DIR/export/ (or --out):
   policy.jax_export  the learner's own `act`, serialised by jax.export (CPU and CUDA);
                      `jax.export.deserialize(data).call(obs)` runs it for any batch size
   policy.onnx        the same as an ONNX model, when jax2onnx is installed (`pip install -e ".[export]"`)
-  deploy.json, robot.mjb   for the sorter and the peg (state observations): the deployment loop's task and the
+  deploy.json, robot.mjb   for the sorter and the peg (state or cameras): the deployment loop's task and the
                      scene it poses the arm in; `jaxarm.deploy.files.load(dir)` builds its controller without JAX
   export.json        which checkpoint the policy came from (its update count): `experiments.transfer` names its
                      results by it

@@ -21,7 +21,7 @@ from jaxarm import deployable
 from jaxarm.deploy.loop import Controller, DeploymentLoop
 from jaxarm.deploy.reading import ArmReading, HoleEstimate, ObjectEstimate
 from jaxarm.envs.panda.base import CONTROL_DT
-from jaxarm.export.numpy_policy import NumpyPolicy
+from jaxarm.export.numpy_policy import NumpyEncoder, NumpyPolicy
 
 GOAL_P99_MS = 2.0
 
@@ -43,6 +43,36 @@ def random_policy(config, observation_size: int, action_size: int, rng: np.rando
         obs_std=np.ones(observation_size, np.float32),
         action_offset=np.zeros(action_size, np.float32),
         action_scale=np.ones(action_size, np.float32),
+    )
+
+
+def random_camera_policy(
+    image_shape: tuple[int, int, int], proprio_size: int, action_size: int, rng: np.random.Generator
+) -> NumpyPolicy:
+    """A policy of a camera's images (patch convs 4 by 4, then 2 by 2: H and W divide by 8) and `proprio_size`
+    values, with random weights (PPO's outputs: mean and scale)."""
+    height, width, channels = image_shape
+
+    def normal(*shape: int) -> np.ndarray:
+        return (rng.normal(size=shape) / np.sqrt(np.prod(shape[:-1]))).astype(np.float32)
+
+    encoder = NumpyEncoder(
+        image_shape=np.array(image_shape),
+        conv_kernels=(normal(4, 4, channels, 8), normal(2, 2, 8, 8)),
+        conv_biases=(np.zeros(8, np.float32), np.zeros(8, np.float32)),
+        conv_strides=np.array([4, 2]),
+        dense_kernel=normal(height // 8 * width // 8 * 8, 16),
+        dense_bias=np.zeros(16, np.float32),
+    )
+    return NumpyPolicy(
+        kernels=(normal(16 + proprio_size, 2 * action_size),),
+        biases=(np.zeros(2 * action_size, np.float32),),
+        activation="tanh",
+        obs_mean=np.zeros(proprio_size, np.float32),
+        obs_std=np.ones(proprio_size, np.float32),
+        action_offset=np.zeros(action_size, np.float32),
+        action_scale=np.ones(action_size, np.float32),
+        encoder=encoder,
     )
 
 

@@ -1,6 +1,6 @@
-"""The peg insertion (`peg_insert`, state observations) next to a robot: its observation and controller in numpy,
-the same formulas as `jaxarm.envs.peg_insert.env` (tests/deploy/test_controller.py holds them to 1e-5). Imports
-numpy and mujoco alone."""
+"""The peg insertion (`peg_insert`) next to a robot: its state observation (and its arm part, a camera policy's
+proprio) and controller in numpy, the same formulas as `jaxarm.envs.peg_insert.env` (tests/deploy/test_controller.py
+holds them to 1e-5). Imports numpy and mujoco alone."""
 
 import dataclasses
 

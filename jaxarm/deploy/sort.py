@@ -1,6 +1,6 @@
-"""The sorter (`panda_sort`, state observations) next to a robot: its observation and its controller in numpy,
-the same formulas as `jaxarm.envs.panda_sort.env` (tests/deploy/test_controller.py holds them to 1e-5), and
-which objects are still in play. Imports numpy and mujoco alone.
+"""The sorter (`panda_sort`) next to a robot: its state observation (and its tool part, a camera policy's proprio)
+and its controller in numpy, the same formulas as `jaxarm.envs.panda_sort.env` (tests/deploy/test_controller.py
+holds them to 1e-5), and which objects are still in play. Imports numpy and mujoco alone.
 
 The env parks an object once it is scored and observes it as zeros; here an object leaves play when its
 estimated centre enters a bin or drops off the table (`scoring.next_outcome`), and is observed as zeros after.

@@ -21,7 +21,7 @@ class Deployable:
     """One task the deployment loop runs.
 
     Attributes:
-      env_class: the env whose instances with state observations the task is (wrapped ones too).
+      env_class: the env whose instances the task is (wrapped ones too; state observations or cameras).
       controller: (env, params) -> the task's numpy controller, posing the arm in the env's own model (with its
         proprio part for a camera's policy).
       scene: (env, params, robot_xml) -> the env's scene with the Panda of `robot_xml` in place of jaxarm's (a cached

@@ -24,7 +24,7 @@ def scoring_bins(layout: Layout) -> scoring.Bins:
 
 
 def sort_task(env: sort_env.PandaSort, params) -> sort.SortTask:
-    """The sorter's `SortTask` of `env` (state observations) with `params`."""
+    """The sorter's `SortTask` of `env` (of state observations or cameras: the controller is the same) with `params`."""
 
     def number(name: str) -> float:
         return float(getattr(params, name))

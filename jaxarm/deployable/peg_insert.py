@@ -17,7 +17,7 @@ from jaxarm.envs.peg_insert import model as peg_model
 
 
 def peg_task(env: peg_env.PegInsert, params) -> peg.PegTask:
-    """The peg's `PegTask` of `env` (state observations) with `params`."""
+    """The peg's `PegTask` of `env` (of state observations or cameras: the controller is the same) with `params`."""
     return peg.PegTask(
         running_target=env.running_target,
         ee_step=float(params.ee_step),

@@ -20,6 +20,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from experiments.benchmarks.deploy import random_camera_policy
 from experiments.transfer import MODELS, plant_model
 from jaxarm import deployable
 from jaxarm.deploy.camera import CameraRenderer
@@ -30,7 +31,6 @@ from jaxarm.envs.panda.base import CAMERAS, CONTROL_DT, PandaOptions
 from jaxarm.envs.panda.robot import resolve_panda_ids
 from jaxarm.envs.peg_insert import PegInsert
 from jaxarm.envs.peg_insert.model import HOLE_NOMINAL
-from jaxarm.export.numpy_policy import NumpyEncoder, NumpyPolicy
 
 RESOLUTION = 32
 
@@ -78,34 +78,6 @@ def test_a_camera_the_scene_lacks_is_named():
         CameraRenderer(model, ("c", "hand_camera"), 8)
 
 
-def camera_policy(image_shape: tuple[int, int, int], proprio_size: int, action_size: int) -> NumpyPolicy:
-    """A random policy of a camera's images (patch convs 4 by 4, then 2 by 2) and `proprio_size` values."""
-    rng = np.random.default_rng(0)
-    height, width, channels = image_shape
-
-    def normal(*shape):
-        return (rng.normal(size=shape) / np.sqrt(np.prod(shape[:-1]))).astype(np.float32)
-
-    encoder = NumpyEncoder(
-        image_shape=np.array(image_shape),
-        conv_kernels=(normal(4, 4, channels, 8), normal(2, 2, 8, 8)),
-        conv_biases=(np.zeros(8, np.float32), np.zeros(8, np.float32)),
-        conv_strides=np.array([4, 2]),
-        dense_kernel=normal(height // 8 * width // 8 * 8, 16),
-        dense_bias=np.zeros(16, np.float32),
-    )
-    return NumpyPolicy(
-        kernels=(normal(16 + proprio_size, 2 * action_size),),
-        biases=(np.zeros(2 * action_size, np.float32),),
-        activation="tanh",
-        obs_mean=np.zeros(proprio_size, np.float32),
-        obs_std=np.ones(proprio_size, np.float32),
-        action_offset=np.zeros(action_size, np.float32),
-        action_scale=np.ones(action_size, np.float32),
-        encoder=encoder,
-    )
-
-
 @pytest.mark.parametrize("model_name", MODELS)
 def test_the_loop_drives_a_camera_policy_with_either_pandas_scene(model_name):
     env = PegInsert(options=PandaOptions(obs_mode="pixels+proprio", resolution=16))
@@ -115,7 +87,7 @@ def test_the_loop_drives_a_camera_policy_with_either_pandas_scene(model_name):
     mujoco.mj_forward(robot.model, robot.data)
     camera = deployable.camera_renderer(env, robot.model)
     controller = deployable.camera_controller(env, params, camera, robot.data)
-    policy = camera_policy((16, 16, 4), 9, 3)
+    policy = random_camera_policy((16, 16, 4), 9, 3, np.random.default_rng(0))
     seen = []
     loop = DeploymentLoop(lambda obs: seen.append(obs) or policy(obs), controller, CONTROL_DT)
     hole = HoleEstimate(np.array(HOLE_NOMINAL))

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from experiments import configs, transfer
-from experiments.benchmarks.deploy import random_policy
+from experiments.benchmarks.deploy import random_camera_policy, random_policy
 from experiments.configs.td3 import td3_peg
 from jaxarm import deployable, headless
 from jaxarm.agents.common.config import apply_overrides
@@ -30,7 +30,6 @@ from jaxarm.envs.peg_insert.params import RUNNING_TARGET_MAX_LEAD
 from jaxarm.export import origin
 from jaxarm.export.numpy_policy import EXPORT_AGAIN
 from jaxarm.runner import rundir
-from tests.deploy.test_camera import camera_policy
 
 
 def test_both_pandas_have_the_same_kinematics_and_the_stock_solver():
@@ -207,10 +206,11 @@ def test_the_transfer_cli_runs_an_exported_camera_policy_on_both_pandas(tmp_path
     rundir.write_config(tmp_path, config, "ppo_peg_pixels")
     (tmp_path / "export").mkdir()
     rundir.write_json(tmp_path / "export" / origin.FILE, origin.record("7"))
-    camera_policy((16, 16, 4), 8, 3).save(tmp_path / "export" / "policy.npz")  # one proprio value short
+    short = random_camera_policy((16, 16, 4), 8, 3, np.random.default_rng(0))  # one proprio value short
+    short.save(tmp_path / "export" / "policy.npz")
     assert transfer.main([str(tmp_path), "--episodes", "1"]) == 2
     assert "does not fit the run's env" in capsys.readouterr().err
-    camera_policy((16, 16, 4), 9, 3).save(tmp_path / "export" / "policy.npz")
+    random_camera_policy((16, 16, 4), 9, 3, np.random.default_rng(0)).save(tmp_path / "export" / "policy.npz")
     for name in transfer.MODELS:
         assert transfer.main([str(tmp_path), "--model", name, "--episodes", "2"]) == 0, capsys.readouterr().err
         result = json.loads((tmp_path / f"transfer-{name}-2-12345-7.json").read_text())
