@@ -20,15 +20,16 @@ import mujoco
 import numpy as np
 import pytest
 
-from experiments.benchmarks.deploy import random_camera_policy
+from experiments.benchmarks.deploy import random_camera_policy, random_inputs
 from experiments.transfer import MODELS, plant_model
 from jaxarm import deployable
-from jaxarm.deploy.camera import CameraRenderer
+from jaxarm.deploy.camera import CameraController, CameraRenderer
 from jaxarm.deploy.loop import DeploymentLoop
 from jaxarm.deploy.mujoco_robot import MujocoRobot
 from jaxarm.deploy.reading import HoleEstimate
 from jaxarm.envs.panda.base import CAMERAS, CONTROL_DT, PandaOptions
 from jaxarm.envs.panda.robot import resolve_panda_ids
+from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.peg_insert import PegInsert
 from jaxarm.envs.peg_insert.model import HOLE_NOMINAL
 
@@ -104,3 +105,21 @@ def test_the_loop_drives_a_camera_policy_with_either_pandas_scene(model_name):
     assert all(obs["image"].shape == (16, 16, 4) and obs["image"].dtype == np.uint8 for obs in seen)
     assert not np.array_equal(seen[0]["image"][..., 2:], seen[-1]["image"][..., 2:]), "the wrist camera moves"
     assert np.abs(robot.reading().arm_q - env.start_qpos).max() > 1e-3, "the policy moved the arm"
+
+
+def test_a_sorter_camera_policy_reads_the_state_observations_tool_part():
+    env = PandaSort(options=PandaOptions(obs_mode="pixels+proprio", resolution=8))
+    params = env.default_params()
+    controller = deployable.controller(env, params)
+    image = np.zeros((8, 8, 4), np.uint8)
+    camera = CameraController(deployable.controller(env, params), lambda: image, proprio=True)
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        reading, objects = random_inputs(controller, env.start_qpos, rng)
+        ctrl = np.concatenate([reading.arm_q + 0.01, [0.02, 0.02]])
+        state, obs = controller.observe(reading, objects, ctrl), camera.observe(reading, None, ctrl)
+        proprio_size = env.spec.observation_parts["proprio"].shape[0]
+        np.testing.assert_array_equal(obs["proprio"], state[-proprio_size:])
+        assert obs["image"] is image
+        action = rng.uniform(-1, 1, controller.action_size)
+        np.testing.assert_array_equal(camera.act(reading, ctrl, action), controller.act(reading, ctrl, action))
