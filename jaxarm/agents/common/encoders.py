@@ -129,25 +129,24 @@ def numpy_encoder(stack: str, params: Mapping[str, Any], image_shape: tuple[int,
     which the numpy policy does not run: export a run of "nature" or "patches")."""
     convs = ENCODERS[stack]()
     if isinstance(convs, StridedConvs):
-        layers = params["StridedConvs_0"]
-        kernels = [layers[f"Conv_{i}"]["kernel"] for i in range(len(convs.layers))]
+        layers = [params["StridedConvs_0"][f"Conv_{i}"] for i in range(len(convs.layers))]
+        kernels = [layer["kernel"] for layer in layers]
         strides = [stride for _, _, stride in convs.layers]
     elif isinstance(convs, PatchConvs):
-        layers = params["PatchConvs_0"]
+        layers = [params["PatchConvs_0"][f"Dense_{i}"] for i in range(len(convs.layers))]
         # A patch layer's [P·P·C, C'] matmul is the [P, P, C, C'] conv of stride P: its rows are a patch's pixels
         # row by row, each pixel's channels together, as `PatchConvs` reshapes them.
-        strides = [patch for _, patch in convs.layers]
         kernels = [
-            np.reshape(layers[f"Dense_{i}"]["kernel"], (patch, patch, -1, channels))
-            for i, (channels, patch) in enumerate(convs.layers)
+            np.reshape(layer["kernel"], (patch, patch, -1, channels))
+            for layer, (channels, patch) in zip(layers, convs.layers, strict=True)
         ]
+        strides = [patch for _, patch in convs.layers]
     else:
         raise ValueError(f"the numpy policy runs the encoders nature and patches, not {stack}")
-    names = [f"Conv_{i}" if isinstance(convs, StridedConvs) else f"Dense_{i}" for i in range(len(kernels))]
     return NumpyEncoder(
         image_shape=np.asarray(image_shape, np.int64),
         conv_kernels=tuple(np.asarray(kernel, np.float32) for kernel in kernels),
-        conv_biases=tuple(np.asarray(layers[name]["bias"], np.float32) for name in names),
+        conv_biases=tuple(np.asarray(layer["bias"], np.float32) for layer in layers),
         conv_strides=np.asarray(strides, np.int64),
         dense_kernel=np.asarray(params["Dense_0"]["kernel"], np.float32),
         dense_bias=np.asarray(params["Dense_0"]["bias"], np.float32),
