@@ -10,11 +10,11 @@ linearises to metres along the optical axis) the depth channel.
 
 Drawn `as_env` (the default), the scene is lit and coloured as the env's ray caster sees it: one light at the
 camera (each pixel lit by the cosine of its own ray) of ambient `AMBIENT` and diffuse 1 - `AMBIENT`, no specular
-light, each geom in its own rgba (no material, texture, emission, reflection or shadow), nothing behind (black: the
-caster's miss). What still differs is how each draws: the rasteriser's sampling of edges, OpenGL's interpolation
-of light across a triangle, meshes (menagerie's Panda) where the caster has primitives (tests/deploy/test_camera.py
-measures the difference). Drawn otherwise, the scene looks as its MJCF declares (its lights, textures, reflections
-and shadows): a camera the env never showed its policy.
+light, each geom in the rgba it was built with (no material, texture, emission, reflection or shadow; none where its
+alpha is 0), nothing behind (black: the caster's miss). What still differs is how each draws: the rasteriser's
+sampling of edges, OpenGL's interpolation of light across a triangle, meshes (menagerie's Panda) where the caster
+has primitives (tests/deploy/test_camera.py measures the difference). Drawn otherwise, the scene looks as its MJCF
+declares (its lights, textures, reflections and shadows): a camera the env never showed its policy.
 """
 
 from collections.abc import Callable, Sequence
@@ -59,10 +59,10 @@ def depth_of(depth: np.ndarray) -> np.ndarray:
     return to_channel(depth / DEPTH_RANGE)
 
 
-def light_as_env(scene: mujoco.MjvScene, model: mujoco.MjModel) -> None:
+def light_as_env(scene: mujoco.MjvScene, rgba: np.ndarray) -> None:
     """Edits a scene `mujoco.Renderer.update_scene` made from a camera: its head light alone, of the env's
-    ambient and diffuse light, and each of the model's geoms in its own rgba, without material, texture, emission
-    or specular highlight (in place)."""
+    ambient and diffuse light, and each of the model's geoms in its colour of `rgba` [ngeom, 4] (none where its
+    alpha is 0), without material, texture, emission or specular highlight (in place)."""
     headlight = scene.lights[0]
     # A light at the camera, as the caster's: each pixel lit by the cosine of its own ray (a directional head light
     # lights a plane evenly, 25 gray levels off the caster's at a 64-pixel image's corners). A spot of a 90° cone
@@ -77,7 +77,9 @@ def light_as_env(scene: mujoco.MjvScene, model: mujoco.MjModel) -> None:
     for index in range(scene.ngeom):
         geom = scene.geoms[index]
         if geom.objtype == mujoco.mjtObj.mjOBJ_GEOM:
-            geom.rgba[:] = model.geom_rgba[geom.objid]
+            geom.rgba[:] = rgba[geom.objid]
+            if rgba[geom.objid, 3] == 0:
+                geom.size[:] = 0.0  # the caster skips it; a transparent geom would still write depth
         geom.matid, geom.texid = -1, -1
         geom.emission, geom.specular, geom.reflectance = 0.0, 0.0, 0.0
 
@@ -86,7 +88,8 @@ class CameraRenderer:
     """Draws a scene's cameras into the env's camera image.
 
     Args:
-      model: the scene (the robot's; its cameras those the env stacks, by name).
+      model: the scene (the robot's; its cameras those the env stacks, by name), as built: drawn `as_env`, its geoms
+        keep the colours and visibility they have now, whatever an episode writes into it later.
       cameras: the cameras' names, in the env's order.
       resolution: side of the square images, pixels.
       as_env: light and colour the scene as the env's caster does (see the module docstring).
@@ -102,6 +105,9 @@ class CameraRenderer:
         self.model = model
         self.cameras = tuple(cameras)
         self.as_env = as_env
+        # The caster resolves its geoms' colours once, from the model as built: a task that recolours geoms per
+        # episode (the sorter's objects, for its videos) does so for drawing alone.
+        self._rgba = model.geom_rgba.copy()
         self._renderer = mujoco.Renderer(model, resolution, resolution)
         if as_env:
             for flag in HIDDEN_FLAGS:
@@ -114,7 +120,7 @@ class CameraRenderer:
             self._renderer.disable_depth_rendering()
         self._renderer.update_scene(data, camera=camera)
         if self.as_env:
-            light_as_env(self._renderer.scene, self.model)
+            light_as_env(self._renderer.scene, self._rgba)
         return self._renderer.render()
 
     def image(self, data: mujoco.MjData) -> np.ndarray:

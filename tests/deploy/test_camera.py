@@ -30,6 +30,8 @@ from jaxarm.deploy.reading import HoleEstimate
 from jaxarm.envs.panda.base import CAMERAS, CONTROL_DT, PandaOptions
 from jaxarm.envs.panda.robot import resolve_panda_ids
 from jaxarm.envs.panda_sort import PandaSort
+from jaxarm.envs.panda_sort.layout import SHAPE_CUBE
+from jaxarm.envs.panda_sort.render import dress_objects
 from jaxarm.envs.peg_insert import PegInsert
 from jaxarm.envs.peg_insert.model import HOLE_NOMINAL
 
@@ -123,3 +125,32 @@ def test_a_sorter_camera_policy_reads_the_state_observations_tool_part():
         assert obs["image"] is image
         action = rng.uniform(-1, 1, controller.action_size)
         np.testing.assert_array_equal(camera.act(reading, ctrl, action), controller.act(reading, ctrl, action))
+
+
+def test_a_sorter_object_recoloured_for_videos_is_drawn_as_the_caster_sees_it():
+    env = PandaSort(options=PandaOptions(obs_mode="pixels", resolution=64))
+    model = copy.copy(env.mj_model)  # the env's model stays as built
+    renderer = CameraRenderer(model, CAMERAS, 64)
+    size, ids = 0.05, env.ids
+    # As an episode dresses the robot's scene: the object's shape, size and a colour for the video.
+    dress_objects(model, ids, np.array([SHAPE_CUBE]), np.array([size]), np.array([[0.1, 0.9, 0.1]]))
+    data = mujoco.MjData(model)
+    data.qpos[env.ids.robot.arm_qpos] = env.start_qpos
+    data.qpos[ids.object_qpos[0] : ids.object_qpos[0] + 7] = [0.5, -0.05, size, 1, 0, 0, 0]
+    mujoco.mj_forward(model, data)
+    poses = SimpleNamespace(**{name: getattr(data, name) for name in ("geom_xpos", "geom_xmat", "xpos", "xmat")})
+    sizes = SimpleNamespace(geom_size=model.geom_size)
+    cast = np.asarray(env.camera_image(sizes, poses, env.default_params(), jax.random.key(0)))
+    drawn, recoloured = renderer.image(data), CameraRenderer(model, CAMERAS, 64)
+    renderer.close()
+    as_dressed = recoloured.image(data)
+    recoloured.close()
+    segment = mujoco.Renderer(model, 64, 64)
+    segment.enable_segmentation_rendering()
+    segment.update_scene(data, camera=CAMERAS[0])
+    on_object = np.isin(segment.render()[..., 0], ids.object_geom[0])
+    segment.close()
+    assert on_object.sum() >= 20, "the scene camera sees the cube"
+    # Medians: a 21-pixel cube is mostly edges, where the two sample differently (edge pixels differ by 8-37).
+    assert np.median(np.abs(drawn[..., 0].astype(int) - cast[..., 0])[on_object]) <= 1
+    assert np.median(np.abs(as_dressed[..., 0].astype(int) - cast[..., 0])[on_object]) > 20  # its video colour
