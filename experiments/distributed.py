@@ -10,6 +10,8 @@ every GPU's memory: GPUs are counted with `nvidia-smi`, never through JAX.
 """
 
 import argparse
+import atexit
+import contextlib
 import ctypes
 import itertools
 import os
@@ -20,10 +22,12 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
-from typing import NoReturn
+from typing import NoReturn, TextIO
 
 import jax
+from jax._src import distributed as jax_distributed
 from jax._src import xla_bridge
+from jax.experimental import multihost_utils
 
 from jaxarm.envs.panda.mjx_impl import Impl
 
@@ -34,6 +38,9 @@ POLL_S = 0.2
 MAX_PORT = 65535
 PR_SET_PDEATHSIG = 1
 """prctl's option (linux/prctl.h) that sends a process a signal when the thread that forked it ends."""
+WAIT_FOR_PEERS_S = 900
+"""How long a process waits for the others at the start (their imports and compiles) and at the end (JAX's shutdown
+barrier, while process 0 writes the last files): minutes on a loaded CPU, where JAX's default of 300 s was near."""
 PEER_LOST = ("Gloo", "coordination service", "Connection reset by peer", "DEADLINE_EXCEEDED")
 """Words of JAX's errors in a process whose peers have gone (their collectives or its coordination service)."""
 
@@ -165,17 +172,52 @@ def local_process_count(given: int | None, joined: bool, spreads: bool, gpus: in
 
 
 def join(args: argparse.Namespace) -> None:
-    """Joins the other processes (`jax.distributed.initialize`); ValueError in one line where that fails."""
+    """Joins the other processes (`jax.distributed.initialize`) and opens the collectives between them
+    (`open_collectives`); ValueError in one line where that fails."""
     try:
         jax.distributed.initialize(
-            coordinator_address=args.coordinator, num_processes=args.num_processes, process_id=args.process_id
+            coordinator_address=args.coordinator,
+            num_processes=args.num_processes,
+            process_id=args.process_id,
+            initialization_timeout=WAIT_FOR_PEERS_S,
+            shutdown_timeout_seconds=WAIT_FOR_PEERS_S,
         )
     except (ValueError, RuntimeError) as error:
-        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
         raise ValueError(
-            f"--distributed could not join the other processes ({first_line}); outside SLURM give --coordinator "
+            f"--distributed could not join the other processes ({first_line(error)}); outside SLURM give --coordinator "
             "HOST:PORT, --num-processes N and --process-id I"
         ) from None
+    atexit.register(shut_down)
+    open_collectives()
+
+
+def open_collectives() -> None:
+    """Opens the connections of the collectives between the processes once all have come here (a barrier of JAX's
+    coordination service, which waits WAIT_FOR_PEERS_S). JAX would open them at the first collective, where gloo
+    (the CPU's) gives the other processes 30 s to come: a process still compiling on a loaded CPU came later, and
+    the first failed ("Gloo context initialization failed: ... GetKeyValue() timed out", a sweep of 2 processes on
+    2 cores at load 6). Once open, a collective waited 60 s for a late peer there and went on. Gloo's line on
+    opening them ("[Gloo] Rank 0 is connected to 1 peer ranks ...", on the C++ stdout) is kept off the console."""
+    client = jax_distributed.global_state.client  # JAX has no public word for its barrier
+    assert client is not None, "open_collectives follows jax.distributed.initialize"
+    client.wait_at_barrier("jaxarm: collectives", WAIT_FOR_PEERS_S * 1000)
+    with c_output_hidden(sys.stdout):
+        multihost_utils.sync_global_devices("jaxarm: collectives")
+
+
+@contextlib.contextmanager
+def c_output_hidden(stream: TextIO):
+    """Sends what C and C++ libraries write to `stream`'s file descriptor to /dev/null inside the block."""
+    stream.flush()
+    saved = os.dup(stream.fileno())
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), stream.fileno())
+        yield
+    finally:
+        stream.flush()
+        os.dup2(saved, stream.fileno())
+        os.close(saved)
 
 
 def free_port() -> int:
@@ -240,7 +282,7 @@ def spawn(main: Callable[[list[str]], int], argv: Sequence[str], count: int, res
     for index, gpu in enumerate(gpus):
         pid = os.fork()
         if pid == 0:
-            _run_forked(main, [*base, "--process-id", str(index)], gpu, launcher, resume)
+            _run_forked(main, [*base, "--process-id", str(index)], gpu, launcher)
         children.append(pid)
     return _wait(children, resume)
 
@@ -301,20 +343,36 @@ def _die_with_parent(launcher: int) -> None:
         os.kill(os.getpid(), signal.SIGTERM)
 
 
+def first_line(error: BaseException) -> str:
+    """The first line of `error`'s message (JAX's run to dozens), at most 200 characters; its type where empty."""
+    text = str(error).strip()
+    return text.splitlines()[0][:200] if text else type(error).__name__
+
+
 def peer_lost_message(error: BaseException, index: int, resume: str) -> str | None:
     """One line for process `index` stopped by `error`, where JAX's words say its peers have gone (`PEER_LOST`);
     None for any other error."""
     text = str(error)
     if not any(words in text for words in PEER_LOST):
         return None
-    first_line = text.strip().splitlines()[0][:200]
     return (
         f"error: process {index} stopped: another process of the job has gone ({type(error).__name__}: "
-        f"{first_line}){f'; continue with: {resume}' if resume else ''}"
+        f"{first_line(error)}){f'; continue with: {resume}' if resume else ''}"
     )
 
 
-def _run_forked(main: Callable[[list[str]], int], argv: list[str], gpu: str, launcher: int, resume: str) -> NoReturn:
+def stop_for_lost_peers(error: jax.errors.JaxRuntimeError, resume: str) -> NoReturn:
+    """Ends this process in one line where `error` says its peers have gone (`peer_lost_message`), ending with
+    `resume`: at once (`_leave`, exit status 1), as JAX's exit hook would wait for the gone peers at its shutdown
+    barrier. Raises `error` again where it says something else."""
+    message = peer_lost_message(error, jax.process_index(), resume)
+    if message is None:
+        raise error
+    print(message, file=sys.stderr)
+    _leave(1)
+
+
+def _run_forked(main: Callable[[list[str]], int], argv: list[str], gpu: str, launcher: int) -> NoReturn:
     """The body of one forked process: `main(argv)` on GPU `gpu`, then out at once with its exit code."""
     code = 1
     try:
@@ -326,12 +384,8 @@ def _run_forked(main: Callable[[list[str]], int], argv: list[str], gpu: str, lau
         code = main(argv)
     except SystemExit as exit_:
         code = exit_code(exit_.code)
-    except BaseException as error:
-        message = peer_lost_message(error, int(argv[argv.index("--process-id") + 1]), resume)
-        if message is None:
-            traceback.print_exc()
-        else:
-            print(message, file=sys.stderr)
+    except BaseException:
+        traceback.print_exc()
     finally:
         _leave(code)
 
@@ -347,15 +401,29 @@ def exit_code(code: object) -> int:
 
 
 def _leave(code: int) -> NoReturn:
-    """Ends a forked process once the others have reached their end too (`jax.distributed.shutdown`'s barrier),
-    without the interpreter's teardown: JAX's own exit hook collects garbage four times and closes every device
-    before that barrier, and nothing of this process is left to write (a 4-GPU sorter run's processes took ~5 s
-    from their last output to their exit, ~1 s this way; H200s, 2026-11-27)."""
+    """Ends a forked process once the others have reached their end too (`shut_down`), without the interpreter's
+    teardown: JAX's own exit hook collects garbage four times and closes every device before that barrier, and
+    nothing of this process is left to write (a 4-GPU sorter run's processes took ~5 s from their last output to
+    their exit, ~1 s this way; H200s, 2026-11-27). A failed process leaves at once: its peers may have gone, and
+    the barrier would wait for them."""
     sys.stdout.flush()
     sys.stderr.flush()
-    if code == 0:  # a failed process leaves at once: its peers may have gone, and the barrier would wait for them
-        try:
-            jax.distributed.shutdown()
-        except Exception as error:  # a peer that died first: leave anyway
-            print(f"jax.distributed could not shut down cleanly ({error})", file=sys.stderr, flush=True)
+    if code == 0:
+        shut_down()
     os._exit(code)
+
+
+def shut_down() -> None:
+    """Leaves the job once every process has come to its end (`jax.distributed.shutdown`'s barrier), in one line
+    where that fails: a process that came there has done and written its work. What JAX and gRPC print meanwhile
+    is kept off the console: the tasks' teardown as process 0 stops the coordination service ("WatchTasksAsync
+    failed ... Connection refused", 4 H200s), or the barrier's own error block. Registered by `join` to run at exit
+    before JAX's own hook, which would shut down again, but without the line."""
+    try:
+        with c_output_hidden(sys.stderr):
+            jax.distributed.shutdown()
+    except Exception as error:  # a peer that died first: leave anyway
+        print(
+            f"note: this process's work is done, but JAX could not shut down cleanly ({first_line(error)})",
+            file=sys.stderr,
+        )

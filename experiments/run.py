@@ -21,6 +21,8 @@ import logging
 import math
 import pathlib
 
+import jax
+
 from experiments import configs, distributed
 from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
@@ -218,6 +220,8 @@ def _main(argv) -> int:
         print(cli_message(error), file=sys.stderr)
         quiet_libraries()
         return 130
+    except jax.errors.JaxRuntimeError as error:  # raised again unless its peers have gone
+        distributed.stop_for_lost_peers(error, resume_command(args.resume or args.out))
     if not processes.is_primary():
         return 0
     print(

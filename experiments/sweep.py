@@ -49,6 +49,7 @@ from jaxarm.agents.common.sharding import ENV_AXIS, gathered, members_mesh, over
 from jaxarm.agents.common.trainer import Trainer, run_updates
 from jaxarm.runner import learners, plots, processes, provenance, rundir, signals
 from jaxarm.runner.cache import enable_compilation_cache
+from jaxarm.runner.progress import explain_gspmd
 from jaxarm.runner.stats import confidence_halfwidth
 
 SWEEP_FILE = "sweep.json"
@@ -142,6 +143,8 @@ def run_group(
     mesh = members_mesh(len(members))
     if mesh is not None:
         progress(f"  {len(members)} runs shared over {mesh.devices.size} devices")
+        if processes.is_primary():
+            explain_gspmd(mesh.devices.size)
     base = config.hparams()
     hparams = jax.tree.map(
         lambda *leaves: jnp.stack(leaves),
@@ -394,6 +397,8 @@ def main(argv=None) -> int:
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
+    except jax.errors.JaxRuntimeError as error:  # raised again unless its peers have gone
+        distributed.stop_for_lost_peers(error, resume_command(out))
     except OSError as error:
         print(f"error: {rundir.os_error_message(error, out)}{resumable(out)}", file=sys.stderr)
         quiet_libraries()

@@ -19,7 +19,7 @@ import pytest
 
 from experiments import configs, distributed, run, sweep
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import load_run, read_metrics, rundir
+from jaxarm.runner import load_run, progress, read_metrics, rundir
 
 OVERRIDES = [
     "num_envs=16",
@@ -68,6 +68,16 @@ def assert_codes(results: list[subprocess.CompletedProcess], code: int) -> None:
         assert result.returncode == code, result.stderr[-3000:]
 
 
+NOISE = ("Traceback", "[Gloo]", "WatchTasksAsync", "coordination service", "Check failure")
+"""Words of what JAX, gloo and gRPC print where processes do not start or end cleanly."""
+
+
+def assert_quiet(result: subprocess.CompletedProcess) -> None:
+    """Fails where `result`'s output holds any of NOISE: a clean start and finish of several processes print none."""
+    for words in NOISE:
+        assert words not in result.stdout + result.stderr, result.stdout[-3000:] + result.stderr[-3000:]
+
+
 def params_gap(run_a, run_b) -> float:
     (_, a), (_, b) = load_run(run_a), load_run(run_b)
     return max(
@@ -77,6 +87,7 @@ def params_gap(run_a, run_b) -> float:
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("loaded_cpu")
 def test_two_processes_compute_one_process_run_and_resume_across(tmp_path):
     one = tmp_path / "one"
     assert_codes(run_processes(1, ["--config", "ppo_arm2d", "--out", str(one), *OVERRIDES]), 0)
@@ -86,6 +97,8 @@ def test_two_processes_compute_one_process_run_and_resume_across(tmp_path):
     stop_first = ["--stop-after-minutes", "0"]
     results = run_processes(2, ["--config", "ppo_arm2d", "--out", str(two_then_one), *OVERRIDES], stop_first)
     assert_codes(results, 0)
+    for result in results:
+        assert_quiet(result)
     assert "success_rate" in results[0].stdout and "success_rate" not in results[1].stdout  # process 0 reports
     assert [row["updates"] for row in read_metrics(two_then_one)] == [1, 2]  # written once, by process 0
     assert_codes(run_processes(1, ["--resume", str(two_then_one)]), 0)
@@ -133,6 +146,7 @@ def test_local_processes_are_checked_and_leave_the_children_their_arguments(monk
     assert result.returncode == 2 and "--local-processes takes a count of 1 or more" in result.stderr
 
 
+@pytest.mark.usefixtures("loaded_cpu")
 def test_non_dividing_num_envs_stop_local_processes_with_one_clear_error(tmp_path):
     result = subprocess.run(
         [sys.executable, "-m", "experiments.run", "--config", "ppo_arm2d", "--local-processes", "2"]
@@ -294,12 +308,15 @@ def sweep_results(out, device_count: int, stopped: bool = False, processes: int 
     for each in commands:
         result = subprocess.run(each, capture_output=True, text=True, timeout=600, env=env)
         assert result.returncode == 0, result.stderr[-3000:]
+        assert_quiet(result)
+        assert result.stderr.count(progress.GSPMD_NOTE) == (device_count * processes > 1), result.stderr[-3000:]
     assert (f"4 runs shared over {device_count * processes} devices" in result.stdout) == (device_count * processes > 1)
     with (out / "results.csv").open() as handle:
         return [{key: value for key, value in row.items() if key != "group_wall_s"} for row in csv.DictReader(handle)]
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("loaded_cpu")
 def test_a_sweep_shared_over_devices_computes_what_one_device_does(tmp_path):
     one, four = sweep_results(tmp_path / "one", 1), sweep_results(tmp_path / "four", 4)
     assert sweep_results(tmp_path / "resumed", 4, stopped=True) == four  # its members restored onto their devices
@@ -331,6 +348,7 @@ SORTER_START = textwrap.dedent("""
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("loaded_cpu")
 def test_every_process_of_a_sorter_run_holds_its_own_mjx_model(tmp_path):
     # MJX puts a model on jax.devices()[0] unless told: process 0's device, which process 1 cannot close over.
     coordinator = f"127.0.0.1:{free_port()}"
@@ -439,6 +457,7 @@ def test_a_jax_error_of_a_lost_peer_is_one_line():
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("loaded_cpu")
 @pytest.mark.parametrize("victim", ["process 1", "launcher"])
 def test_a_run_of_two_local_processes_ends_in_one_line_when_one_or_its_launcher_is_killed(tmp_path, victim):
     run_dir = tmp_path / "run"
