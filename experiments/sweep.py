@@ -54,6 +54,9 @@ from jaxarm.runner.stats import confidence_halfwidth
 
 SWEEP_FILE = "sweep.json"
 """What the sweep was asked (preset, seeds, assignments), written before it trains: `--resume` reads it."""
+RESULTS_FILE = "results.md"
+"""The results table, a sweep's last file, written whole or not at all: a sweep holding it has finished, and one
+without it resumes (a full disk at its figure left a sweep that `--resume` refused and no figure)."""
 GROUP_FILE = "group.json"
 CURVES_FILE = "curves.npz"
 """A finished group's results rows and curves, in its folder group-<k>/ of the sweep directory."""
@@ -311,11 +314,16 @@ def shared_changes(grid: Grid, base: RunConfig) -> list[str]:
     return [item for item in each[0] if all(item in items for items in each[1:])] if len(each) > 1 else []
 
 
-def write_tables(rows: list[dict], out: pathlib.Path, shared: list[str]) -> None:
+def write_csv(rows: list[dict], out: pathlib.Path) -> None:
+    """results.csv: one row of `rows` per setting."""
     with (out / "results.csv").open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
+
+
+def results_table(rows: list[dict], shared: list[str]) -> str:
+    """RESULTS_FILE's text: the changes every setting makes (`shared`), then a markdown row per setting."""
     lines = [f"Every setting: {' '.join(shared)}", ""] if shared else []
     lines += [
         "| setting | seeds | success (mean ± 95% CI) | worst seed's success | return (mean ± 95% CI) | group wall s |",
@@ -327,7 +335,7 @@ def write_tables(rows: list[dict], out: pathlib.Path, shared: list[str]) -> None
         f"{row['return_mean']:.2f} ± {row['return_ci95']:.2f} | {row['group_wall_s']} |"
         for row in rows
     ]
-    (out / "results.md").write_text("\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
@@ -454,7 +462,7 @@ def continue_with(out: pathlib.Path | None) -> str:
 def resumable(out: pathlib.Path | None) -> str:
     """`continue_with(out)` where `out` holds a sweep that `--resume` takes (its sweep.json, no results yet), else
     nothing."""
-    if out is None or not (out / SWEEP_FILE).exists() or (out / "results.md").exists():
+    if out is None or not (out / SWEEP_FILE).exists() or (out / RESULTS_FILE).exists():
         return ""
     return continue_with(out)
 
@@ -465,8 +473,8 @@ def read_sweep(directory: pathlib.Path) -> dict:
     path = directory / SWEEP_FILE
     if not path.exists():
         raise ValueError(f"{directory} holds no sweep to resume (no {SWEEP_FILE})")
-    if (directory / "results.md").exists():
-        raise ValueError(f"the sweep in {directory} has finished: its results are in {directory / 'results.md'}")
+    if (directory / RESULTS_FILE).exists():
+        raise ValueError(f"the sweep in {directory} has finished: its results are in {directory / RESULTS_FILE}")
     try:
         asked = json.loads(path.read_text())
         check_asked(asked)
@@ -564,9 +572,10 @@ def sweep(
         curves.update(finished[1])
     if not primary:
         return
-    write_tables(rows, out, shared)
+    write_csv(rows, out)
     plots.sweep_curves(curves, out / "curves.png", title="\n".join([title, *textwrap.wrap(" ".join(shared), 110)]))
-    print((out / "results.md").read_text())
+    rundir.write_text(out / RESULTS_FILE, results_table(rows, shared))
+    print((out / RESULTS_FILE).read_text())
     print(f"wrote {out}/results.csv, results.md, curves.png")
 
 

@@ -299,10 +299,15 @@ def finished_evaluation(run_dir: pathlib.Path, config: RunConfig) -> dict | None
 
 
 def write_json(path: pathlib.Path, data: dict) -> None:
-    """Writes `data` to `path` whole or not at all (a temporary file renamed over it): a process killed while
-    writing leaves the previous file."""
+    """Writes `data` to `path` as JSON, whole or not at all (`write_text`)."""
+    write_text(path, json.dumps(data, indent=2))
+
+
+def write_text(path: pathlib.Path, text: str) -> None:
+    """Writes `text` to `path` whole or not at all (a temporary file renamed over it): a process killed while
+    writing, or a full disk, leaves the previous file."""
     temporary = path.with_name(f".{path.name}.tmp")
-    temporary.write_text(json.dumps(data, indent=2))
+    temporary.write_text(text)
     temporary.replace(path)
 
 

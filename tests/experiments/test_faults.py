@@ -23,7 +23,7 @@ from experiments import compare, configs, export, run, sweep
 from experiments import eval as eval_cli
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import loop, metrics_log, rundir, sinks
+from jaxarm.runner import loop, metrics_log, plots, rundir, sinks
 from tests.experiments.test_run import SMALL
 from tests.experiments.test_rundir import assert_same_learner, run_cli, snapshot
 
@@ -275,6 +275,24 @@ def test_a_full_disk_at_a_sweeps_checkpoint_is_one_line_and_the_sweep_resumes(tm
     monkeypatch.undo()
     assert sweep.main(["--resume", str(out)]) == 0, "space freed: the sweep goes on"
     assert (out / "results.csv").exists() and checkpoint.half_written(saves) == []
+
+
+def test_a_full_disk_at_a_sweeps_figure_is_one_line_and_the_resume_makes_it(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "sweep"
+
+    def full_disk(curves, path, title):
+        path.write_bytes(b"\x89PNG")  # what a figure cut short by a full disk leaves
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(plots, "sweep_curves", full_disk)
+    assert sweep.main(["--config", "ppo_arm2d_fixed", "--seeds", "1", *SWEEP, "--out", str(out)]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith(f"error: {out / 'curves.png'}: No space left on device; the disk is full"), line
+    assert line.endswith(f"; continue with: python -m experiments.sweep --resume {out}"), line
+    monkeypatch.undo()
+    assert sweep.main(["--resume", str(out)]) == 0, "space freed: the finished groups make the tables and figure"
+    assert (out / "curves.png").stat().st_size > 1000 and (out / sweep.RESULTS_FILE).exists()
+    assert sweep.main(["--resume", str(out)]) == 2 and "has finished" in capsys.readouterr().err
 
 
 def test_eval_of_the_best_and_of_the_latest_checkpoint_write_different_files(reference, capsys):
