@@ -361,15 +361,19 @@ def peer_lost_message(error: BaseException, index: int, resume: str) -> str | No
     )
 
 
-def stop_for_lost_peers(error: jax.errors.JaxRuntimeError, resume: str) -> NoReturn:
-    """Ends this process in one line where `error` says its peers have gone (`peer_lost_message`), ending with
-    `resume`: at once (`_leave`, exit status 1), as JAX's exit hook would wait for the gone peers at its shutdown
-    barrier. Raises `error` again where it says something else."""
-    message = peer_lost_message(error, jax.process_index(), resume)
-    if message is None:
-        raise error
-    print(message, file=sys.stderr)
-    _leave(1)
+def leave_if_peers_lost(error: BaseException, resume: str) -> None:
+    """Ends this process of a job in one line where `error` says its peers have gone (`peer_lost_message`), ending
+    with `resume`: at once (`_leave`, exit status 1), as JAX's exit hook would wait for the gone peers at its
+    shutdown barrier. Returns where `error` says something else, or this process joined no job."""
+    message = peer_lost_message(error, jax.process_index(), resume) if joined() else None
+    if message is not None:
+        print(message, file=sys.stderr)
+        _leave(1)
+
+
+def joined() -> bool:
+    """Whether this process has joined others (`join`)."""
+    return jax_distributed.global_state.client is not None
 
 
 def _run_forked(main: Callable[[list[str]], int], argv: list[str], gpu: str, launcher: int) -> NoReturn:

@@ -209,6 +209,7 @@ def _main(argv) -> int:
         enable_compilation_cache()
         run_dir, result = train_or_resume(args, options)
     except (ValueError, checkpoint.CheckpointError, loop.TrainingDiverged) as error:
+        distributed.leave_if_peers_lost(error, resume_command(args.resume or args.out))  # a checkpoint's, say
         print(f"error: {cli_message(error)}", file=sys.stderr)
         quiet_libraries()
         return 2
@@ -220,8 +221,9 @@ def _main(argv) -> int:
         print(cli_message(error), file=sys.stderr)
         quiet_libraries()
         return 130
-    except jax.errors.JaxRuntimeError as error:  # raised again unless its peers have gone
-        distributed.stop_for_lost_peers(error, resume_command(args.resume or args.out))
+    except jax.errors.JaxRuntimeError as error:  # a collective's, where a peer has gone
+        distributed.leave_if_peers_lost(error, resume_command(args.resume or args.out))
+        raise
     if not processes.is_primary():
         return 0
     print(

@@ -399,14 +399,16 @@ def main(argv=None) -> int:
         quiet_libraries()
         return 130
     except checkpoint.CheckpointError as error:  # a group's checkpoint could not be written (a full disk)
+        distributed.leave_if_peers_lost(error, resume_command(out))  # or a peer gone while it was written
         print(f"error: {error}{resumable(out)}", file=sys.stderr)
         quiet_libraries()
         return 2
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    except jax.errors.JaxRuntimeError as error:  # raised again unless its peers have gone
-        distributed.stop_for_lost_peers(error, resume_command(out))
+    except jax.errors.JaxRuntimeError as error:  # a collective's, where a peer has gone
+        distributed.leave_if_peers_lost(error, resume_command(out))
+        raise
     except OSError as error:
         print(f"error: {rundir.os_error_message(error, out)}{resumable(out)}", file=sys.stderr)
         quiet_libraries()

@@ -18,8 +18,10 @@ import numpy as np
 import pytest
 
 from experiments import configs, distributed, run, sweep
+from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.runner import load_run, progress, read_metrics, rundir
+from tests.experiments.test_rundir import assert_same_learner
 
 OVERRIDES = [
     "num_envs=16",
@@ -40,14 +42,12 @@ def free_port() -> int:
         return probe.getsockname()[1]
 
 
-def run_processes(count: int, args: list[str], first_only: list[str] = ()) -> list[subprocess.CompletedProcess]:
-    """Runs `experiments.run ARGS` as `count` processes of one run (each with one CPU device); `first_only`
-    arguments go to process 0 alone."""
+def start_processes(count: int, args: list[str], first_only: list[str] = ()) -> list[subprocess.Popen]:
+    """Starts `experiments.run ARGS` as `count` processes of one run joined by `--distributed` (each with one CPU
+    device); `first_only` arguments go to process 0 alone."""
     command = [sys.executable, "-m", "experiments.run", *args]
-    if count == 1:
-        return [subprocess.run(command, capture_output=True, text=True, timeout=600)]
     joining = ["--distributed", "--coordinator", f"127.0.0.1:{free_port()}", "--num-processes", str(count)]
-    children = [
+    return [
         subprocess.Popen(
             [*command, *joining, "--process-id", str(index), *(first_only if index == 0 else [])],
             stdout=subprocess.PIPE,
@@ -56,8 +56,16 @@ def run_processes(count: int, args: list[str], first_only: list[str] = ()) -> li
         )
         for index in range(count)
     ]
+
+
+def run_processes(count: int, args: list[str], first_only: list[str] = ()) -> list[subprocess.CompletedProcess]:
+    """Runs `experiments.run ARGS` as `count` processes of one run (each with one CPU device); `first_only`
+    arguments go to process 0 alone."""
+    if count == 1:
+        command = [sys.executable, "-m", "experiments.run", *args]
+        return [subprocess.run(command, capture_output=True, text=True, timeout=600)]
     results = []
-    for child in children:
+    for child in start_processes(count, args, first_only):
         out, err = child.communicate(timeout=600)
         results.append(subprocess.CompletedProcess(child.args, child.returncode, out, err))
     return results
@@ -333,7 +341,8 @@ SORTER_START = textwrap.dedent("""
     jax.config.update("jax_cpu_collectives_implementation", "gloo")
     jax.distributed.initialize(coordinator_address=sys.argv[1], num_processes=2, process_id=int(sys.argv[2]))
     from experiments import configs
-    from jaxarm.agents.common.config import apply_overrides
+    from jaxarm.agents.common import checkpoint
+from jaxarm.agents.common.config import apply_overrides
     from jaxarm.agents.common.sharding import data_mesh, envs_split_over
     from jaxarm.runner import learners
 
@@ -468,10 +477,7 @@ def test_a_run_of_two_local_processes_ends_in_one_line_when_one_or_its_launcher_
         stderr=subprocess.PIPE,
         text=True,
     )
-    metrics, start = run_dir / "metrics.jsonl", time.monotonic()
-    while not (metrics.exists() and metrics.read_text().count("\n") >= 4):  # two chunks done
-        assert launcher.poll() is None and time.monotonic() - start < 300
-        time.sleep(0.2)
+    wait_for_chunks(run_dir, 2, launcher)
     children = [
         int(pid) for pid in pathlib.Path(f"/proc/{launcher.pid}/task/{launcher.pid}/children").read_text().split()
     ]
@@ -489,6 +495,29 @@ def test_a_run_of_two_local_processes_ends_in_one_line_when_one_or_its_launcher_
     else:  # each process checkpoints and says so
         assert len(lines) == 2 and all(line.startswith("interrupted: checkpoint at update ") for line in lines), err
         assert all(line.endswith(resume) for line in lines)
+
+
+def wait_for_chunks(run_dir: pathlib.Path, count: int, running: subprocess.Popen) -> None:
+    """Returns once the run in `run_dir` has logged `count` chunks of OVERRIDES (2 updates each), `running` alive."""
+    metrics, start = run_dir / "metrics.jsonl", time.monotonic()
+    while not (metrics.exists() and metrics.read_text().count("\n") >= 2 * count):
+        assert running.poll() is None and time.monotonic() - start < 300, running.communicate()[1][-3000:]
+        time.sleep(0.2)
+
+
+@pytest.mark.slow
+@pytest.mark.usefixtures("loaded_cpu")
+def test_a_distributed_process_whose_peer_is_killed_ends_in_one_line(tmp_path):
+    run_dir = tmp_path / "run"
+    long_run = [*OVERRIDES[:-5], "total_env_steps=1000000", *OVERRIDES[-4:]]
+    first, second = start_processes(2, ["--config", "ppo_arm2d", "--out", str(run_dir), *long_run])
+    wait_for_chunks(run_dir, 2, first)
+    second.kill()
+    second.communicate()
+    _, err = first.communicate(timeout=120)  # its next collective finds its peer gone
+    assert first.returncode == 1 and "Traceback" not in err, err[-3000:]
+    assert err.strip().splitlines()[-1].startswith("error: process 0 stopped: another process of the job has gone")
+    assert err.strip().endswith(f"; continue with: python -m experiments.run --resume {run_dir}")
 
 
 def test_local_processes_are_forked_only_before_jax_starts_its_backend():
@@ -529,3 +558,95 @@ def test_the_joining_options_are_checked_before_jax_reads_them(capsys):
         distributed.check_arguments(
             parser, parser.parse_args(["--distributed", "--coordinator", f"localhost:{taken}", "--process-id", "1"])
         )
+
+
+HELD_AT_A_CHECKPOINT = textwrap.dedent("""
+    import os, pathlib, sys, time
+    import orbax.checkpoint as ocp
+    from experiments import run
+
+    marks = pathlib.Path(sys.argv[1])
+    finalize = ocp.StandardCheckpointHandler.finalize
+    calls = []
+
+    def held(handler, directory):
+        # Process 0 commits each checkpoint that both wrote, process 1 waiting for it in orbax's barrier: the
+        # second is held there, whole in its temporary folder but not committed, until the test releases it.
+        calls.append(directory)
+        if len(calls) == 2:
+            (marks / "held").write_text(str(os.getpid()))
+            while not (marks / "released").exists():
+                time.sleep(0.05)
+        finalize(handler, directory)
+
+    ocp.StandardCheckpointHandler.finalize = held
+    sys.exit(run.main(sys.argv[2:]))
+""")
+CHECKPOINTED = [*OVERRIDES, "checkpoint_every_updates=2"]
+"""OVERRIDES with a checkpoint at every chunk end: at updates 2, 4, 6 and 8."""
+
+
+@pytest.fixture(scope="module")
+def two_processes_uninterrupted(tmp_path_factory) -> pathlib.Path:
+    """A run of CHECKPOINTED by two local processes, from start to end."""
+    run_dir = tmp_path_factory.mktemp("uninterrupted") / "run"
+    args = ["--config", "ppo_arm2d", "--local-processes", "2", "--out", str(run_dir), *CHECKPOINTED]
+    assert_codes(run_processes(1, args), 0)
+    return run_dir
+
+
+def alive(pid: int) -> bool:
+    """Whether process `pid` runs (not ended, nor a zombie waiting for its parent)."""
+    try:
+        return pathlib.Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.slow
+@pytest.mark.usefixtures("loaded_cpu")
+@pytest.mark.parametrize("victim", ["process 0", "process 1", "launcher"])
+def test_a_kill_while_two_processes_write_a_checkpoint_is_one_line_and_resumes_bit_identically(
+    tmp_path, victim, two_processes_uninterrupted
+):
+    run_dir = tmp_path / "run"
+    launcher = subprocess.Popen(
+        [sys.executable, "-c", HELD_AT_A_CHECKPOINT, str(tmp_path), "--config", "ppo_arm2d"]
+        + ["--local-processes", "2", "--out", str(run_dir), *CHECKPOINTED],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    start = time.monotonic()
+    while not (tmp_path / "held").exists():
+        assert launcher.poll() is None and time.monotonic() - start < 300, launcher.communicate()[1][-3000:]
+        time.sleep(0.1)
+    assert checkpoint.half_written(run_dir / "checkpoints"), "checkpoint 4 is being written"
+    children = [
+        int(pid) for pid in pathlib.Path(f"/proc/{launcher.pid}/task/{launcher.pid}/children").read_text().split()
+    ]
+    pid = {"process 0": children[0], "process 1": children[1], "launcher": launcher.pid}[victim]
+    os.kill(pid, signal.SIGKILL)
+    (tmp_path / "released").write_text("")
+    _, err = launcher.communicate(timeout=180)  # the pipes close once every process has gone
+    assert not any(alive(child) for child in children), "a process of the run was left behind"
+    if victim == "process 0":
+        # Process 1 loses JAX's coordination service with it, and JAX aborts it after its own block of C++ logs.
+        assert "Traceback" not in err, err[-3000:]
+    else:
+        assert_quiet(subprocess.CompletedProcess(launcher.args, launcher.returncode, "", err))
+    lines = [line for line in err.splitlines() if line.startswith(("error:", "interrupted:"))]
+    resume = f"continue with: python -m experiments.run --resume {run_dir}"
+    if victim == "launcher":  # each process checkpoints and says so
+        assert len(lines) == 2 and all(line.startswith("interrupted: checkpoint at update ") for line in lines), err
+        assert all(line.endswith(resume) for line in lines)
+    else:
+        assert launcher.returncode == 128 + signal.SIGKILL
+        index = victim.split()[1]
+        killed = f"error: process {index} (pid {pid}) was killed by SIGKILL; the others are told to stop; {resume}"
+        assert killed in lines and len(lines) <= 2, err
+        # The survivor's own line, where its checkpoint met the loss before the launcher's SIGTERM ended it.
+        assert all("another process of the job has gone" in line for line in lines if line != killed), err
+    assert_codes(run_processes(1, ["--resume", str(run_dir), "--local-processes", "2"]), 0)
+    assert [row["updates"] for row in read_metrics(run_dir)] == list(range(1, 9))
+    assert_same_learner(run_dir, two_processes_uninterrupted)
