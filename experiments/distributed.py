@@ -22,7 +22,7 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
-from typing import NoReturn, TextIO
+from typing import NoReturn
 
 import jax
 from jax._src import distributed as jax_distributed
@@ -201,22 +201,25 @@ def open_collectives() -> None:
     client = jax_distributed.global_state.client  # JAX has no public word for its barrier
     assert client is not None, "open_collectives follows jax.distributed.initialize"
     client.wait_at_barrier("jaxarm: collectives", WAIT_FOR_PEERS_S * 1000)
-    with c_output_hidden(sys.stdout):
+    with c_output_hidden(1):
         multihost_utils.sync_global_devices("jaxarm: collectives")
 
 
 @contextlib.contextmanager
-def c_output_hidden(stream: TextIO):
-    """Sends what C and C++ libraries write to `stream`'s file descriptor to /dev/null inside the block."""
-    stream.flush()
-    saved = os.dup(stream.fileno())
+def c_output_hidden(fd: int):
+    """Sends what C and C++ libraries write to file descriptor `fd` (1: stdout, 2: stderr) to /dev/null inside the
+    block; Python's streams are flushed on both sides."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = os.dup(fd)
     try:
         with open(os.devnull, "w") as devnull:
-            os.dup2(devnull.fileno(), stream.fileno())
+            os.dup2(devnull.fileno(), fd)
         yield
     finally:
-        stream.flush()
-        os.dup2(saved, stream.fileno())
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os.dup2(saved, fd)
         os.close(saved)
 
 
@@ -424,7 +427,7 @@ def shut_down() -> None:
     failed ... Connection refused", 4 H200s), or the barrier's own error block. Registered by `join` to run at exit
     before JAX's own hook, which would shut down again, but without the line."""
     try:
-        with c_output_hidden(sys.stderr):
+        with c_output_hidden(2):
             jax.distributed.shutdown()
     except Exception as error:  # a peer that died first: leave anyway
         print(

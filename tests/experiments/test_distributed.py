@@ -465,6 +465,32 @@ def test_a_jax_error_of_a_lost_peer_is_one_line():
     assert distributed.peer_lost_message(RuntimeError("out of memory"), 0, "") is None
 
 
+def test_a_process_whose_peers_are_gone_leaves_at_once_in_one_line(monkeypatch, capsys):
+    lost = RuntimeError("UNKNOWN: Gloo AllGather failed: Connection reset by peer\nmore")
+    distributed.leave_if_peers_lost(lost, "RESUME")  # one process alone: its caller says the error
+    left = []
+    monkeypatch.setattr(distributed, "joined", lambda: True)
+    monkeypatch.setattr(distributed, "_leave", left.append)
+    distributed.leave_if_peers_lost(RuntimeError("out of memory"), "RESUME")
+    assert left == [] and capsys.readouterr().err == ""
+    distributed.leave_if_peers_lost(lost, "RESUME")
+    assert left == [1]  # at once: JAX's exit hook would wait for the gone peers at its shutdown barrier
+    assert capsys.readouterr().err == f"{distributed.peer_lost_message(lost, 0, 'RESUME')}\n"
+
+
+def test_a_failed_shutdown_of_a_finished_process_is_one_line(monkeypatch, capfd):
+    def barrier_failed():
+        os.write(2, b"E1128 coordination_service.cc:1520] Shutdown barrier in coordination service has failed\n")
+        raise RuntimeError("INTERNAL: Shutdown barrier has failed.\nBarrier result: 'DEADLINE_EXCEEDED'")
+
+    monkeypatch.setattr(jax.distributed, "shutdown", barrier_failed)
+    distributed.shut_down()
+    assert capfd.readouterr().err == (
+        "note: this process's work is done, but JAX could not shut down cleanly (INTERNAL: Shutdown barrier has "
+        "failed.)\n"
+    )
+
+
 @pytest.mark.slow
 @pytest.mark.usefixtures("loaded_cpu")
 @pytest.mark.parametrize("victim", ["process 1", "launcher"])
