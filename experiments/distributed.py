@@ -39,8 +39,9 @@ MAX_PORT = 65535
 PR_SET_PDEATHSIG = 1
 """prctl's option (linux/prctl.h) that sends a process a signal when the thread that forked it ends."""
 WAIT_FOR_PEERS_S = 900
-"""How long a process waits for the others at the start (their imports and compiles) and at the end (JAX's shutdown
-barrier, while process 0 writes the last files): minutes on a loaded CPU, where JAX's default of 300 s was near."""
+"""How long a process that joined waits for the others to open the collectives (their backends starting) and at the
+end (JAX's shutdown barrier, while process 0 writes the last files): minutes on a loaded CPU, where JAX's default
+of 300 s was near. Joining itself keeps JAX's 300 s: a process whose peers never start should not wait longer."""
 PEER_LOST = ("Gloo", "coordination service", "Connection reset by peer", "DEADLINE_EXCEEDED")
 """Words of JAX's errors in a process whose peers have gone (their collectives or its coordination service)."""
 
@@ -179,7 +180,6 @@ def join(args: argparse.Namespace) -> None:
             coordinator_address=args.coordinator,
             num_processes=args.num_processes,
             process_id=args.process_id,
-            initialization_timeout=WAIT_FOR_PEERS_S,
             shutdown_timeout_seconds=WAIT_FOR_PEERS_S,
         )
     except (ValueError, RuntimeError) as error:
@@ -422,7 +422,7 @@ def _leave(code: int) -> NoReturn:
 
 def shut_down() -> None:
     """Leaves the job once every process has come to its end (`jax.distributed.shutdown`'s barrier), in one line
-    where that fails: a process that came there has done and written its work. What JAX and gRPC print meanwhile
+    where that fails: a process that came there has written what it had to. What JAX and gRPC print meanwhile
     is kept off the console: the tasks' teardown as process 0 stops the coordination service ("WatchTasksAsync
     failed ... Connection refused", 4 H200s), or the barrier's own error block. Registered by `join` to run at exit
     before JAX's own hook, which would shut down again, but without the line."""
@@ -431,6 +431,6 @@ def shut_down() -> None:
             jax.distributed.shutdown()
     except Exception as error:  # a peer that died first: leave anyway
         print(
-            f"note: this process's work is done, but JAX could not shut down cleanly ({first_line(error)})",
+            f"note: JAX could not shut this process down cleanly ({first_line(error)}); what it wrote is kept",
             file=sys.stderr,
         )

@@ -486,8 +486,8 @@ def test_a_failed_shutdown_of_a_finished_process_is_one_line(monkeypatch, capfd)
     monkeypatch.setattr(jax.distributed, "shutdown", barrier_failed)
     distributed.shut_down()
     assert capfd.readouterr().err == (
-        "note: this process's work is done, but JAX could not shut down cleanly (INTERNAL: Shutdown barrier has "
-        "failed.)\n"
+        "note: JAX could not shut this process down cleanly (INTERNAL: Shutdown barrier has failed.); what it wrote "
+        "is kept\n"
     )
 
 
