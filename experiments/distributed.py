@@ -407,15 +407,21 @@ def exit_code(code: object) -> int:
     return 1
 
 
+ENDED_TOGETHER = (0, 130)
+"""Exit statuses of a process that ended where every process of its job ends: finished, or stopped at a chunk end
+all agreed on (a signal passed on to all, 130). Such a process waits for the others at JAX's shutdown barrier."""
+
+
 def _leave(code: int) -> NoReturn:
     """Ends a forked process once the others have reached their end too (`shut_down`), without the interpreter's
     teardown: JAX's own exit hook collects garbage four times and closes every device before that barrier, and
     nothing of this process is left to write (a 4-GPU sorter run's processes took ~5 s from their last output to
     their exit, ~1 s this way; H200s, 2026-11-27). A failed process leaves at once: its peers may have gone, and
-    the barrier would wait for them."""
+    the barrier would wait for them. A stopped one waits too: process 0, gone first, took JAX's coordination
+    service with it, and JAX aborted process 1 with a block of C++ logs (launcher killed, 1 of 2 loaded runs)."""
     sys.stdout.flush()
     sys.stderr.flush()
-    if code == 0:
+    if code in ENDED_TOGETHER:
         shut_down()
     os._exit(code)
 
