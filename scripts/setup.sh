@@ -22,6 +22,7 @@ fi
 "$venv/bin/python" -m pip install -q -c constraints.txt -e ".[test]"
 # MuJoCo Playground, so that tests/interop/test_playground.py runs its adapter: without the warp-lang it requires,
 # which would switch on tests/envs/test_warp.py's Warp runs (minutes each on a CPU); Playground's MJX-JAX path
-# imports neither it nor mediapy. 23 MB, installed in ~1.3 s from the local package index (2026-11-28). The whole
-# extra: `pip install -c constraints.txt -e ".[playground]"`.
-"$venv/bin/python" -m pip install -q --no-deps -c constraints.txt playground lxml
+# imports neither it nor mediapy; it does import tqdm, which nothing else installs in a fresh venv. 23 MB, installed
+# in ~1.3 s from the local package index (2026-11-28). The whole extra: `pip install -c constraints.txt -e
+# ".[playground]"`.
+"$venv/bin/python" -m pip install -q --no-deps -c constraints.txt playground lxml tqdm
