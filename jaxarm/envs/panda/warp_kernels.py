@@ -5,8 +5,9 @@ MuJoCo Warp makes many of its kernels while it steps (builders specialise them t
 options). So the first physics step on a machine with an empty kernel cache compiles ~40 modules one after
 another on one core: ~60 s of the sorter's first step on a fresh H200 host with warp-lang 1.19 (2026-11-28;
 178 s with 1.18 on another). `start_preload` finds the modules a scene's step launches by running MuJoCo Warp's step
-once on a one-world copy of the scene on the CPU with its launches recorded instead of run, then compiles them
-for the GPU on a thread per core, on a background thread, while XLA compiles the program that will step them.
+once on a one-world copy of the scene on the CPU with its launches recorded instead of run (about a second), then
+compiles them for the GPU on a thread per core, on a background thread, while XLA compiles the program that will
+step them.
 They go to Warp's on-disk kernel cache, where the step's own first launch finds them and loads them in
 milliseconds (as every later process does).
 
@@ -122,34 +123,35 @@ def compile_variants(variants: set[Variant], device: str, workers: int) -> int:
         return sum(pool.map(compiled, variants))
 
 
-def preload(mj_model: mujoco.MjModel, device: str, workers: int | None = None) -> tuple[int, float]:
-    """Compiles the modules one Warp step of `mj_model` launches, for `device`: (how many, seconds)."""
-    start = time.perf_counter()
-    compiled = compile_variants(step_variants(mj_model), device, workers or os.cpu_count() or 1)
-    return compiled, time.perf_counter() - start
-
-
-def _preload_into(results: dict, key: tuple[str, int], mj_model: mujoco.MjModel, device: str) -> None:
+def _compile_into(key: tuple[str, int], variants: set[Variant], device: str) -> None:
     # A failure here is only a lost head start: the step compiles what it needs, and reports its own errors.
+    began = time.perf_counter()
     with contextlib.suppress(Exception):
-        results[key] = preload(mj_model, device)
+        _RESULTS[key] = compile_variants(variants, device, os.cpu_count() or 1), time.perf_counter() - began
 
 
 def start_preload(mj_model: mujoco.MjModel, device: str) -> None:
-    """Starts `preload` on a background (daemon) thread, once per scene and device per process; returns at once."""
+    """Records what one Warp step of `mj_model` launches, here (about a second), then compiles it for `device` on a
+    background (daemon) thread; once per scene and device per process.
+
+    The record runs on the calling thread because it makes the CPU Warp's default device for its length, and that
+    default is one for the whole process: on a thread of its own it could meet, and undo, a scope of the caller's.
+    """
     key = (device, id(mj_model))
     if key in _STARTED:
         return
-    thread = threading.Thread(
-        target=_preload_into, args=(_RESULTS, key, mj_model, device), name="warp-preload", daemon=True
-    )
+    try:
+        variants = step_variants(mj_model)
+    except Exception:  # as in _compile_into: the step compiles what it needs
+        return
+    thread = threading.Thread(target=_compile_into, args=(key, variants, device), name="warp-preload", daemon=True)
     _STARTED[key] = thread
     thread.start()
 
 
 def finish_preloads() -> list[tuple[int, float] | None]:
-    """Waits for every preload this process started; each one's (modules compiled, seconds), None where it
-    failed."""
+    """Waits for every preload this process started; each one's (modules compiled, seconds), None where its
+    compile failed."""
     for thread in _STARTED.values():
         thread.join()
     return [_RESULTS.get(key) for key in _STARTED]
