@@ -342,7 +342,7 @@ SORTER_START = textwrap.dedent("""
     jax.distributed.initialize(coordinator_address=sys.argv[1], num_processes=2, process_id=int(sys.argv[2]))
     from experiments import configs
     from jaxarm.agents.common import checkpoint
-from jaxarm.agents.common.config import apply_overrides
+    from jaxarm.agents.common.config import apply_overrides
     from jaxarm.agents.common.sharding import data_mesh, envs_split_over
     from jaxarm.runner import learners
 
