@@ -1,16 +1,13 @@
 """`python -m experiments.rehearse`: an exported sorter policy rehearsed in real time against MuJoCo in its own
 process. The episodes' starts come from the env's reset (one MJX program: marked mjx)."""
 
-import dataclasses
 import json
 
 import numpy as np
 import pytest
 
-from experiments import configs, rehearse
-from experiments.benchmarks.deploy import random_policy
-from jaxarm.export import origin
-from jaxarm.runner import rundir
+from experiments import rehearse
+from tests.deploy.exported import export_random_policy, sorter_run
 
 STEPS = 10
 
@@ -18,16 +15,10 @@ STEPS = 10
 @pytest.mark.mjx
 @pytest.mark.slow
 def test_the_rehearsal_cli_reports_placements_jitter_and_misses(tmp_path, capsys):
-    config = configs.get("ppo_sorter_dr")
-    config = dataclasses.replace(config, env_params=(*config.env_params, ("max_episode_steps", STEPS)))
-    rundir.write_config(tmp_path, config, "ppo_sorter_dr")
+    config = sorter_run(tmp_path, STEPS)
     assert rehearse.main([str(tmp_path)]) == 2
     assert "export the run first" in capsys.readouterr().err
-    env, _ = config.make_eval_env()
-    policy = random_policy(config, env.spec.observation_shape[0], env.spec.action_shape[0], np.random.default_rng(0))
-    (tmp_path / "export").mkdir()
-    policy.save(tmp_path / "export" / "policy.npz")
-    rundir.write_json(tmp_path / "export" / origin.FILE, origin.record("24"))
+    export_random_policy(tmp_path, config, "24")
     assert rehearse.main([str(tmp_path), "--episodes", "2"]) == 0
     result = json.loads((tmp_path / "rehearse-2-12345-24-20ms.json").read_text())
     assert result["episodes"] == 2 and result["ticks"] == 2 * STEPS and result["faults"] == ["ended", "ended"]

@@ -30,6 +30,7 @@ from jaxarm.envs.peg_insert.params import RUNNING_TARGET_MAX_LEAD
 from jaxarm.export import origin
 from jaxarm.export.numpy_policy import EXPORT_AGAIN
 from jaxarm.runner import rundir
+from tests.deploy.exported import export_random_policy, sorter_run
 
 
 def test_both_pandas_have_the_same_kinematics_and_the_stock_solver():
@@ -136,16 +137,10 @@ def test_a_scripted_peg_inserts_in_stock_mujoco_with_both_pandas(running_target)
 @pytest.mark.mjx
 @pytest.mark.slow
 def test_the_transfer_cli_runs_an_exported_sorter_policy_on_both_pandas(tmp_path, capsys):
-    config = configs.get("ppo_sorter_dr")
-    config = dataclasses.replace(config, env_params=(*config.env_params, ("max_episode_steps", 20)))
-    rundir.write_config(tmp_path, config, "ppo_sorter_dr")
+    config = sorter_run(tmp_path, 20)
     assert transfer.main([str(tmp_path)]) == 2
     assert "export the run first" in capsys.readouterr().err
-    env, _ = config.make_eval_env()
-    policy = random_policy(config, env.spec.observation_shape[0], env.spec.action_shape[0], np.random.default_rng(0))
-    (tmp_path / "export").mkdir()
-    policy.save(tmp_path / "export" / "policy.npz")
-    rundir.write_json(tmp_path / "export" / origin.FILE, origin.record("24"))
+    export_random_policy(tmp_path, config, "24")
     for name in transfer.MODELS:
         assert transfer.main([str(tmp_path), "--model", name, "--episodes", "2"]) == 0
         result = json.loads((tmp_path / f"transfer-{name}-2-12345-24.json").read_text())
