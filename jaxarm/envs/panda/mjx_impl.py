@@ -158,7 +158,8 @@ def put_scene(
 
     Both live on this process's first device: MJX's default, `jax.devices()[0]`, is process 0's device in every
     process of a run of several (`--distributed`), where no other process's program may close over them. On a
-    CUDA GPU, Warp's kernels for the scene start compiling in the background (`warp_kernels.start_preload`)."""
+    CUDA GPU, Warp's kernels for the scene start compiling in the background (`warp_kernels.start_preload`), and
+    Warp's wrappers of JAX's stream are counted (`warp_streams`)."""
     device = jax.local_devices()[0]
     if impl == Impl.JAX:
         return mjx.put_model(mj_model, device, impl="jax"), mjx.make_data(mj_model, device, impl="jax")
@@ -173,8 +174,9 @@ def put_scene(
         njmax=constraint_capacity(mj_model, contacts_per_env),
     )
     if device in _cuda_devices():
-        from jaxarm.envs.panda import warp_kernels  # imports warp: only where Warp steps
+        from jaxarm.envs.panda import warp_kernels, warp_streams  # import warp: only where Warp steps
 
+        warp_streams.count_foreign_stream_wrappers()
         warp_kernels.start_preload(mj_model, f"cuda:{device.local_hardware_id}")
     return model, data
 
