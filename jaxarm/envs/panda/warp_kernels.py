@@ -127,7 +127,7 @@ def _compile_into(key: tuple[str, int], variants: set[Variant], device: str) -> 
     # A failure here is only a lost head start: the step compiles what it needs, and reports its own errors.
     began = time.perf_counter()
     with contextlib.suppress(Exception):
-        _RESULTS[key] = compile_variants(variants, device, os.cpu_count() or 1), time.perf_counter() - began
+        _RESULTS[key] = compile_variants(variants, device, len(os.sched_getaffinity(0))), time.perf_counter() - began
 
 
 def start_preload(mj_model: mujoco.MjModel, device: str) -> None:
