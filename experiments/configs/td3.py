@@ -187,8 +187,9 @@ def td3_sorter() -> TD3Config:
         tau=0.1,
         exploration_noise=0.4,
         mixed_exploration_noise=True,
-        # ~2.9e5 env steps/s on Warp with C51 critics: about 17 minutes; it is solved long before.
-        total_env_steps=300_000_000,
+        # ~3.1e5 env steps/s on an H200 (Warp, C51 critics): ~11 minutes, inside the 15 of BENCHMARKS.md#td3-sorter.
+        # At 100M env steps (7.5 min) one seed of five placed 67%; at 180M the worst placed 97.9%.
+        total_env_steps=200_000_000,
         updates_per_chunk=100,
         checkpoint_every_updates=500,
         eval_episodes=1000,
