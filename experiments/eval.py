@@ -8,7 +8,8 @@ result and writes it to its own file, eval-<episodes>-<seed>-<update>.json (eval
 With --video it writes video.gif or video.mp4 of a few episodes drawn without a window. With --perturb it evaluates
 the policy under changes of the eval env's params instead: NAME=V1,V2 changes one param to each value in turn (all
 values in one compiled program), NAME=V+NAME=V changes several together; --randomized-ends adds each param the run
-randomises at both ends of its range. Beside the nominal params, it writes a robustness table and plot
+randomises at both ends of its range, and --worst-corner (which implies it) then every such param at once at the end
+that hurt the policy more. Beside the nominal params, it writes a robustness table and plot
 (robustness-<episodes>-<seed>-<update|best>-<digest of the perturbations>.json, .md and .png).
 The run directory is locked while this writes.
 
@@ -57,12 +58,19 @@ def main(argv=None) -> int:
         action="store_true",
         help="also evaluate each env param the run randomises at both ends of its range",
     )
+    parser.add_argument(
+        "--worst-corner",
+        action="store_true",
+        help="with --randomized-ends (implied): then every randomised param at once, each at the end of its range "
+        "where it alone placed less (ties: the lower return)",
+    )
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     began = time.perf_counter()
     run_dir = pathlib.Path(args.run_dir)
     try:
+        ends_flag = "--worst-corner" if args.worst_corner else "--randomized-ends" if args.randomized_ends else None
         problem = (gl_problem(run_dir) if args.video else None) or (
-            ends_problem(run_dir) if args.randomized_ends else None
+            ends_problem(run_dir, ends_flag) if ends_flag else None
         )
         if problem is None:
             return evaluate_run(run_dir, args, began)
@@ -82,13 +90,14 @@ def saved_config(run_dir: pathlib.Path) -> dict | None:
     return saved if isinstance(saved, dict) else None
 
 
-def ends_problem(run_dir: pathlib.Path) -> str | None:
-    """Why `--randomized-ends` has nothing to evaluate in the run in `run_dir` (it randomises no env param), found
-    before the seconds of imports an evaluation takes; None where it has, or the config is for `evaluate_run`."""
+def ends_problem(run_dir: pathlib.Path, flag: str) -> str | None:
+    """Why `flag` (--randomized-ends or --worst-corner) has nothing to evaluate in the run in `run_dir` (it
+    randomises no env param), found before the seconds of imports an evaluation takes; None where it has, or the
+    config is for `evaluate_run`."""
     saved = saved_config(run_dir)
     if saved is None or saved.get("randomize"):
         return None
-    return "--randomized-ends: the run randomises no env param"
+    return f"{flag}: the run randomises no env param"
 
 
 def gl_problem(run_dir: pathlib.Path) -> str | None:
@@ -140,7 +149,7 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
             clock = time.perf_counter()
             state = learners.restore_state(run_dir, trainer, config, best=args.best, acting=True)
             phases["checkpoint"] = time.perf_counter() - clock
-            if args.perturb or args.randomized_ends:
+            if args.perturb or args.randomized_ends or args.worst_corner:
                 write_robustness(run_dir, config, trainer, state, args)
                 return 0
             start = time.perf_counter()
@@ -180,16 +189,17 @@ def checkpoint_name(state, best: bool) -> str:
 
 
 def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> None:
-    """Evaluates `state` under `args.perturb` and `args.randomized_ends`, prints the table and writes it with its rows
-    and plot."""
+    """Evaluates `state` under `args.perturb`, `args.randomized_ends` and `args.worst_corner`, prints the table and
+    writes it with its rows and plot."""
     import jax
 
     from jaxarm.runner import robustness, rundir
 
     env, env_params = config.make_eval_env()
-    perturbations: dict[str, list[float]] = {}
-    if args.randomized_ends:  # a run that randomises nothing was refused before the imports (ends_problem)
-        perturbations = robustness.range_ends(dict(config.randomize), env_params)
+    ends: dict[str, list[float]] = {}
+    if args.randomized_ends or args.worst_corner:  # a run that randomises nothing was refused before (ends_problem)
+        ends = robustness.range_ends(dict(config.randomize), env_params)
+    perturbations = dict(ends)
     try:  # the library's words for a perturbation it refuses, under the flag that asked for it
         combined = [robustness.parse_combined(text) for text in args.perturb if "+" in text]
         for text in args.perturb:
@@ -201,11 +211,18 @@ def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> Non
         rows = robustness.evaluate_perturbations(
             env, env_params, trainer.act, state, key, args.episodes, perturbations, combined
         )
+        if args.worst_corner:
+            corner = robustness.worst_corner(rows, ends)
+            (row,) = robustness.evaluate_perturbations(
+                env, env_params, trainer.act, state, key, args.episodes, {}, [corner], with_nominal=False
+            )
+            rows.append({**row, "param": f"{robustness.WORST_CORNER}: {row['param']}"})
     except robustness.PerturbationError as error:
         raise ValueError(f"--perturb: {error}") from None
     text = robustness.table(rows)
     print(f"{text}\n({args.episodes} episodes a row, {time.perf_counter() - start:.1f} s with compilation)")
-    request = [*args.perturb, *(["--randomized-ends"] if args.randomized_ends else [])]
+    flags = {"--randomized-ends": args.randomized_ends, "--worst-corner": args.worst_corner}
+    request = [*args.perturb, *(flag for flag, asked in flags.items() if asked)]
     stem = rundir.robustness_stem(run_dir, args.episodes, args.seed, checkpoint_name(state, args.best), request)
     rundir.write_json(
         stem.with_suffix(".json"), {"device": jax.devices()[0].device_kind, "perturb": request, "rows": rows}

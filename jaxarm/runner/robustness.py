@@ -3,7 +3,8 @@
 A perturbation changes one param (each of several values) or several params together (one combined change).
 `evaluate_perturbations` runs, for each perturbed param, every value in one compiled program (the episodes of all
 values vmapped together), and all combined changes in one more, beside the nominal params; `table` and `plot`
-write what it found. `range_ends` turns a run's randomisation into the single changes that test its edges.
+write what it found. `range_ends` turns a run's randomisation into the single changes that test its edges, and
+`worst_corner` those edges' rows into one combined change: every randomised param at its harder edge.
 """
 
 import ast
@@ -71,6 +72,24 @@ def range_ends(randomize: Mapping[str, str], env_params) -> dict[str, list[float
     return ends
 
 
+WORST_CORNER = "worst corner"
+"""How a table labels the combined change `worst_corner` finds (its params follow, as `combined_label` gives them)."""
+
+
+def worst_corner(rows: Sequence[dict], ends: Mapping[str, Sequence[float]]) -> dict[str, float]:
+    """{param: its harder end}: for each param of `ends` (as `range_ends` gives them), the end whose single-change
+    row in `rows` (as `evaluate_perturbations` gives them) succeeded less, the lower return breaking a tie. "Harder"
+    is measured, one param at a time with the others nominal, on the same episodes: which end of a range hurts (a
+    lighter or a heavier object, more or less friction) depends on the policy, not only on the param."""
+    corner = {}
+    for name, values in ends.items():
+        edge_rows = [row for row in rows if row["param"] == name and row["value"] in values]
+        if len(edge_rows) < len(values):
+            raise PerturbationError(f"{name}: no row at each end of its range {list(values)}")
+        corner[name] = min(edge_rows, key=lambda row: (row["success_rate"], row["return_mean"]))["value"]
+    return corner
+
+
 def check_perturbations(env_params, perturbations: Mapping[str, Sequence[float]]) -> None:
     """PerturbationError for a name that is not an env param, a value outside its declared range, or a param that
     sets the rollout's length (all of a run's rows share one length)."""
@@ -95,11 +114,12 @@ def evaluate_perturbations(
     episodes: int,
     perturbations: Mapping[str, Sequence[float]],
     combined: Sequence[Mapping[str, float]] = (),
+    with_nominal: bool = True,
 ) -> list[dict]:
     """Rows {"param", "value", success_rate, return_mean, final_info/...}: the nominal params first ("param"
-    "nominal"), then each value of each perturbed param with every other param nominal, then each `combined`
-    change ("param" its `combined_label`, "value" None). `act(state, obs)` is the deterministic policy; every row
-    evaluates the same `episodes` episodes (same key)."""
+    "nominal"; left out without `with_nominal`), then each value of each perturbed param with every other param
+    nominal, then each `combined` change ("param" its `combined_label`, "value" None). `act(state, obs)` is the
+    deterministic policy; every row evaluates the same `episodes` episodes (same key)."""
     check_perturbations(env_params, perturbations)
     for change in combined:
         check_perturbations(env_params, {name: [value] for name, value in change.items()})
@@ -108,8 +128,10 @@ def evaluate_perturbations(
         params = env_params.replace(**values)
         return evaluate(env, params, lambda obs: act(learner, obs), key, episodes)
 
-    nominal = jax.jit(lambda learner: at_values(learner, {}))
-    rows = [{"param": "nominal", "value": None, **nominal(state).summary()}]
+    rows = []
+    if with_nominal:
+        nominal = jax.jit(lambda learner: at_values(learner, {}))
+        rows.append({"param": "nominal", "value": None, **nominal(state).summary()})
     batches: list[tuple[str | None, Sequence[Mapping[str, float]]]] = [
         (name, [{name: value} for value in values]) for name, values in perturbations.items()
     ]

@@ -308,13 +308,52 @@ def test_a_runs_randomised_ranges_give_their_ends():
     assert ends == {"action_latency": [0, 2], "mass_scale": [0.5, 3.0]}
 
 
+def test_the_worst_corner_takes_each_params_end_that_placed_less():
+    rows = [
+        {"param": "nominal", "value": None, "success_rate": 0.9, "return_mean": 5.0},
+        {"param": "mass_scale", "value": 0.5, "success_rate": 0.8, "return_mean": 4.0},
+        {"param": "mass_scale", "value": 3.0, "success_rate": 0.6, "return_mean": 4.0},
+        {"param": "friction", "value": 0.6, "success_rate": 0.7, "return_mean": 2.0},
+        {"param": "friction", "value": 1.4, "success_rate": 0.7, "return_mean": 3.0},  # a tie: the lower return
+        {"param": "friction", "value": 1.0, "success_rate": 0.1, "return_mean": 0.0},  # not an end
+    ]
+    ends = {"mass_scale": [0.5, 3.0], "friction": [0.6, 1.4]}
+    assert robustness.worst_corner(rows, ends) == {"mass_scale": 3.0, "friction": 0.6}
+    with pytest.raises(robustness.PerturbationError, match="goal_size"):
+        robustness.worst_corner(rows, {"goal_size": [1.0, 2.0]})
+
+
+def test_the_worst_corner_of_a_randomised_run_is_evaluated_as_that_change_together(tmp_path):
+    run_dir = tmp_path / "randomised"
+    ranges = ["randomize.action_scale=0.002..0.1", "randomize.goal_size=10..40"]
+    assert run_cli(*SMALL, *ranges, "--out", str(run_dir)) == 0
+    assert eval_cli.main([str(run_dir), "--episodes", "12", "--worst-corner"]) == 0
+    stem = robustness_stem(run_dir, 12, ["--worst-corner"])
+    rows = json.loads(stem.with_suffix(".json").read_text())["rows"]
+    assert [(row["param"], row["value"]) for row in rows[:5]] == [
+        ("nominal", None),
+        ("action_scale", 0.002),
+        ("action_scale", 0.1),
+        ("goal_size", 10.0),
+        ("goal_size", 40.0),
+    ]
+    corner = robustness.worst_corner(rows[:5], {"action_scale": [0.002, 0.1], "goal_size": [10.0, 40.0]})
+    label = robustness.combined_label(corner)
+    assert rows[5]["param"] == f"{robustness.WORST_CORNER}: {label}" and len(rows) == 6
+    # The same change asked for by hand evaluates the same episodes to the same figures.
+    assert eval_cli.main([str(run_dir), "--episodes", "12", "--perturb", label]) == 0
+    by_hand = json.loads(robustness_stem(run_dir, 12, [label]).with_suffix(".json").read_text())["rows"][1]
+    assert (by_hand["success_rate"], by_hand["return_mean"]) == (rows[5]["success_rate"], rows[5]["return_mean"])
+
+
 def test_the_ends_of_no_randomisation_are_refused_before_the_checkpoint_loads(finished_run, capsys, monkeypatch):
     def never(*args, **kwargs):
         raise AssertionError("evaluated a run before checking that it randomises anything")
 
     monkeypatch.setattr(eval_cli, "evaluate_run", never)
-    assert eval_cli.main([str(finished_run), "--episodes", "4", "--randomized-ends"]) == 2
-    assert capsys.readouterr().err == "error: --randomized-ends: the run randomises no env param\n"
+    for flag in ("--randomized-ends", "--worst-corner"):
+        assert eval_cli.main([str(finished_run), "--episodes", "4", flag]) == 2
+        assert capsys.readouterr().err == f"error: {flag}: the run randomises no env param\n"
 
 
 @pytest.mark.parametrize(
