@@ -3,8 +3,12 @@
 `Randomized(env, ranges)` keeps the wrapped env's contract. Each reset draws the named params from their
 ranges (uniform, or log-uniform; integers uniformly over the whole numbers in the range) on top of the params
 it is given and keeps them in the state for the episode, so under `AutoReset` and `VmapEnv` every env of a
-batch runs its own physics and every new episode new physics. Everything else (the time limit, statistics) reads
-the params the caller passes: `max_episode_steps` is refused, since a range of it would change nothing.
+batch runs its own physics and every new episode new physics. With `corner_fraction`, that fraction of episodes
+instead takes a corner of the box: every param at an end of its range, each end by a fair coin. Uniform draws
+put several params near their edges together rarely (all of 8 within the outer tenth of their ranges: 0.2^8,
+one episode in 390,000), and a policy trained on them alone fell to 37.8% at its box's worst corner. Everything
+else (the time limit, statistics) reads the params the caller passes: `max_episode_steps` is refused, since a range
+of it would change nothing.
 """
 
 import dataclasses
@@ -68,6 +72,14 @@ class ParamRange:
         if not declared.admits(drawn):
             raise ValueError(f"{text} draws values {name} may not take: it must be {declared.describe()}")
 
+    def end(self, high: jax.Array, like: jax.Array) -> jax.Array:
+        """The range's high end where `high` (bool []), else its low end, in `like`'s shape and dtype (integers: the
+        whole numbers `sample` draws at the ends)."""
+        low, top = self.low, self.high
+        if jnp.issubdtype(like.dtype, jnp.integer):
+            low, top = float(np.ceil(low)), float(np.floor(top))
+        return jnp.broadcast_to(jnp.where(high, top, low), like.shape).astype(like.dtype)
+
     def sample(self, key: jax.Array, like: jax.Array) -> jax.Array:
         """A value of `like`'s shape and dtype from the range (integers: each whole number in it equally likely)."""
         if jnp.issubdtype(like.dtype, jnp.integer):
@@ -89,6 +101,10 @@ def parse_ranges(pairs: Mapping[str, Any]) -> dict[str, ParamRange]:
     return parsed
 
 
+_CORNER_STREAM = 0x636F726E
+"""Folded into an episode's params key for its corner draws ("corn")."""
+
+
 class RandomizedSim(struct.PyTreeNode, Generic[Sim]):
     """The wrapped env's sim and the params drawn for its episode."""
 
@@ -104,7 +120,7 @@ class Randomized(Env):
     int32, or no whole number for an integer param).
     """
 
-    def __init__(self, env: Env, ranges: Mapping[str, ParamRange]):
+    def __init__(self, env: Env, ranges: Mapping[str, ParamRange], corner_fraction: float = 0.0):
         defaults = env.default_params()
         fields = {field.name: field for field in dataclasses.fields(defaults)}
         unknown = sorted(set(ranges) - set(fields))
@@ -120,8 +136,11 @@ class Randomized(Env):
             )
         for name, drawn in ranges.items():
             drawn.check_within(name, fields[name], np.asarray(getattr(defaults, name)))
+        if not 0 <= corner_fraction <= 1:
+            raise ValueError(f"randomize_corners must be a fraction in [0, 1], got {corner_fraction}")
         self.env = env
         self.ranges = dict(ranges)
+        self.corner_fraction = corner_fraction
         self.spec = env.spec
         self.cpu_max_envs = env.cpu_max_envs
         self.uses_mjx = env.uses_mjx
@@ -143,12 +162,22 @@ class Randomized(Env):
         return self.env.default_params()
 
     def episode_params(self, key: jax.Array, params):
-        """`params` with every randomised field drawn from its range."""
+        """`params` with every randomised field drawn from its range (at a corner of the ranges' box in
+        `corner_fraction` of episodes)."""
         keys = jax.random.split(key, max(len(self.ranges), 1))
         drawn = {
             name: allowed.sample(each, getattr(params, name))
             for each, (name, allowed) in zip(keys, sorted(self.ranges.items()), strict=False)
         }
+        if self.corner_fraction > 0:
+            # Keys of their own, folded from `key`: without corners, the draws above are those of before.
+            corner_key, ends_key = jax.random.split(jax.random.fold_in(key, _CORNER_STREAM))
+            at_corner = jax.random.uniform(corner_key) < self.corner_fraction
+            highs = jax.random.bernoulli(ends_key, 0.5, (len(drawn),))
+            drawn = {
+                name: jnp.where(at_corner, self.ranges[name].end(high, value), value)
+                for high, (name, value) in zip(highs, sorted(drawn.items()), strict=True)
+            }
         return params.replace(**drawn)
 
     def _reset(self, key: jax.Array, params) -> tuple[RandomizedSim, jax.Array, Any]:

@@ -69,6 +69,32 @@ def test_a_randomised_env_steps_as_the_plain_env_at_the_drawn_params():
     assert float(stepped.reward) == float(reference.reward)
 
 
+def test_a_fraction_of_episodes_take_corners_of_the_box_and_none_change_the_other_draws():
+    ranges = {"goal_size": ParamRange(0.05, 0.2), "hold_steps": ParamRange(1.5, 6.5)}
+    plain, cornered = (Randomized(envs.make("arm2d"), ranges, fraction) for fraction in (0.0, 0.25))
+    params = plain.default_params()
+    keys = jax.random.split(jax.random.key(0), 4000)
+    drawn = jax.jit(jax.vmap(cornered.episode_params, in_axes=(0, None)))(keys, params)
+    before = jax.jit(jax.vmap(plain.episode_params, in_axes=(0, None)))(keys, params)
+    sizes, holds = np.asarray(drawn.goal_size), np.asarray(drawn.hold_steps)
+    at_ends = np.isin(sizes, np.float32([0.05, 0.2])) & np.isin(holds, [2, 6])
+    assert 0.22 < at_ends.mean() < 0.28  # a quarter, each param at an end together
+    for values in (sizes[at_ends], holds[at_ends]):  # each end by a fair coin
+        assert 0.4 < np.mean(values == values.max()) < 0.6
+    np.testing.assert_array_equal(sizes[~at_ends], np.asarray(before.goal_size)[~at_ends])
+    np.testing.assert_array_equal(holds[~at_ends], np.asarray(before.hold_steps)[~at_ends])
+    assert holds.dtype == np.asarray(params.hold_steps).dtype
+
+
+def test_corners_need_ranges_and_a_fraction():
+    with pytest.raises(ValueError, match="randomize_corners=0.5 needs randomize"):
+        apply_overrides(PPOConfig(env="arm2d"), ["randomize_corners=0.5"]).validate()
+    with pytest.raises(ValueError, match="randomize_corners"):
+        apply_overrides(PPOConfig(env="arm2d"), ["randomize_corners=2"])
+    config = apply_overrides(PPOConfig(env="arm2d"), ["randomize.goal_size=0.05..0.2", "randomize_corners=0.5"])
+    assert config.make_env()[0].corner_fraction == 0.5
+
+
 def test_an_unknown_param_is_refused_by_name():
     with pytest.raises(ValueError, match="no_such_param"):
         Randomized(envs.make("arm2d"), {"no_such_param": ParamRange(0.0, 1.0)})

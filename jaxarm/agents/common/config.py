@@ -98,6 +98,9 @@ class RunConfig:
       randomize: env params drawn afresh per env at every training reset, as (name, range) pairs: "LOW..HIGH"
         uniform, "log:LOW..HIGH" log-uniform, integers over the whole numbers in range (domain randomisation,
         `jaxarm.envs.randomize`). Evaluations run the nominal params; the final one also the randomised ones.
+      randomize_corners: fraction of training episodes whose `randomize` params all sit at ends of their ranges
+        (each end by a fair coin) instead of being drawn within them: the box's corners, where harder edges
+        combine and uniform draws seldom go. 0 draws as before, bit for bit.
       num_envs: envs stepped in parallel.
       total_env_steps: training budget in env steps, rounded up to whole updates and then to whole chunks
         (`num_updates`), so that every chunk is the same compiled program: a shorter last chunk would compile
@@ -119,6 +122,7 @@ class RunConfig:
     env_params: Pairs = ()
     eval_env_params: Pairs = ()
     randomize: Pairs = ()
+    randomize_corners: float = static(0.0, ranges.UNIT_INTERVAL)
     num_envs: int = static(256, ranges.AT_ONCE)
     total_env_steps: int = static(1_000_000, ranges.HOST_COUNT)
     updates_per_chunk: int = static(10, COUNT)
@@ -178,6 +182,8 @@ class RunConfig:
                 f"total_env_steps={self.total_env_steps:,} needs {self.num_updates:,} updates, more than the learners' "
                 f"int32 update counter holds ({ranges.INT32.max:,}): collect more env steps per update"
             )
+        if self.randomize_corners > 0 and not self.randomize:
+            raise ValueError(f"randomize_corners={self.randomize_corners:g} needs randomize.NAME=LOW..HIGH ranges")
         try:
             self.make_eval_env(randomized=True)
         except (KeyError, ValueError, TypeError) as error:
@@ -189,7 +195,7 @@ class RunConfig:
         env = envs.make(self.env, **dict(self.env_kwargs))
         params = envs.override_params(env.default_params(), dict(self.env_params), prefix="env_params.")
         if randomized and self.randomize:
-            env = Randomized(env, parse_ranges(dict(self.randomize)))
+            env = Randomized(env, parse_ranges(dict(self.randomize)), self.randomize_corners)
         return env, params
 
     def make_eval_env(self, randomized: bool = False):
