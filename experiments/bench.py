@@ -9,7 +9,19 @@ import sys
 
 from jaxarm.runner.cache import enable_compilation_cache
 
-SUITES = ("arm2d", "panda_sort", "training", "scaling", "devices", "ceilings", "profile", "learner", "camera", "deploy")
+SUITES = (
+    "arm2d",
+    "panda_sort",
+    "training",
+    "scaling",
+    "devices",
+    "ceilings",
+    "profile",
+    "learner",
+    "camera",
+    "deploy",
+    "playground",
+)
 
 
 def suite_summary(name: str) -> str:

@@ -406,3 +406,9 @@ PLAYGROUND_PICK_PPO = PPOConfig(
 @preset("PPO on MuJoCo Playground's PandaPickCube, Playground's recipe (one GPU; the playground extra)")
 def ppo_playground_pick() -> PPOConfig:
     return PLAYGROUND_PICK_PPO
+
+
+@preset("PPO on MuJoCo Playground's PandaPickCubeOrientation, Playground's recipe (one GPU; the playground extra)")
+def ppo_playground_pick_orientation() -> PPOConfig:
+    # Playground's recipe for PandaPickCube* is one for both tasks (manipulation_params.py), and so is ours.
+    return dataclasses.replace(PLAYGROUND_PICK_PPO, env="playground:PandaPickCubeOrientation")
