@@ -13,6 +13,7 @@ compile the way that suits them.
 
 import importlib.metadata
 import os
+import sys
 
 from jaxarm.headless import GL_HINT, GLImportError
 
@@ -91,3 +92,14 @@ def import_mjx_quietly() -> None:
             raise
         reason = " ".join(f"{type(error).__name__}: {error}".split())
         raise GLImportError(f"mujoco cannot load MUJOCO_GL={gl} ({reason}); {GL_HINT}") from None
+    quiet_warp()
+
+
+def quiet_warp() -> None:
+    """Turns Warp's informational lines off where mujoco.mjx imported it, its warnings and errors kept: its start-up
+    banner and a line per kernel module loaded, ~40 per process at the first step and again at each new batch size
+    (~300 lines in a run of 4 GPUs, 2026-11-28). The kernel preload says in one line what it compiled
+    (`jaxarm.envs.panda.warp_kernels`). `warp.config.log_level = warp.LOG_INFO` turns them back on."""
+    warp = sys.modules.get("warp")
+    if warp is not None and hasattr(warp, "LOG_WARNING"):
+        warp.config.log_level = max(warp.config.log_level, warp.LOG_WARNING)

@@ -22,6 +22,7 @@ missed (a few kernels are chosen per device) is compiled at its first launch, as
 import concurrent.futures
 import contextlib
 import os
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -90,15 +91,16 @@ def step_variants(mj_model: mujoco.MjModel) -> set[Variant]:
     return variants
 
 
-def _compile(variant: Variant, device: wp.Device) -> None:
+def _compile(variant: Variant, device: wp.Device) -> bool:
     """Compiles one variant for the GPU `device` into the kernel cache, under the name `Module.load` looks for,
-    without loading it (Warp's public `compile_aot_module` compiles the module's default block size only)."""
+    without loading it (Warp's public `compile_aot_module` compiles the module's default block size only); False
+    where the cache held it already."""
     module, asked = variant
     # A CPU launch asks for one thread per block where the GPU's asks for the default: compile the GPU's.
     block_dim = asked if asked is not None and asked > 1 else module.options["block_dim"]
     module.get_module_hash(block_dim)  # resolves the variant's options
     # Warp's own build step, as Module.load calls it (private: warp-lang is pinned in constraints.txt).
-    module._compile(
+    return module._compile(
         device,
         os.path.join(wp.config.kernel_cache_dir, module.get_module_identifier(block_dim)),
         module._get_compile_output_name(device, block_dim=block_dim),
@@ -108,16 +110,15 @@ def _compile(variant: Variant, device: wp.Device) -> None:
 
 
 def compile_variants(variants: set[Variant], device: str, workers: int) -> int:
-    """Compiles `variants` for `device`, `workers` at a time (NVRTC releases the GIL); how many compiled (a
-    variant that fails is left to its first launch, which reports the error)."""
+    """Compiles `variants` for `device`, `workers` at a time (NVRTC releases the GIL); how many compiled (not those
+    the cache held; a variant that fails is left to its first launch, which reports the error)."""
     target = wp.get_device(device)
 
     def compiled(variant: Variant) -> bool:
         try:
-            _compile(variant, target)
+            return _compile(variant, target)
         except Exception:
             return False
-        return True
 
     with concurrent.futures.ThreadPoolExecutor(max_workers=workers) as pool:
         return sum(pool.map(compiled, variants))
@@ -125,9 +126,17 @@ def compile_variants(variants: set[Variant], device: str, workers: int) -> int:
 
 def _compile_into(key: tuple[str, int], variants: set[Variant], device: str) -> None:
     # A failure here is only a lost head start: the step compiles what it needs, and reports its own errors.
-    began = time.perf_counter()
+    began, workers = time.perf_counter(), len(os.sched_getaffinity(0))
     with contextlib.suppress(Exception):
-        _RESULTS[key] = compile_variants(variants, device, len(os.sched_getaffinity(0))), time.perf_counter() - began
+        compiled = compile_variants(variants, device, workers)
+        _RESULTS[key] = compiled, time.perf_counter() - began
+        if compiled:  # Warp's own line per module is off (jaxarm._runtime.quiet_warp): one line for them all
+            print(
+                f"Warp: compiled {compiled} of the scene's {len(variants)} kernel modules for {device} in "
+                f"{time.perf_counter() - began:.0f} s on {workers} threads, into {wp.config.kernel_cache_dir}",
+                file=sys.stderr,
+                flush=True,
+            )
 
 
 def start_preload(mj_model: mujoco.MjModel, device: str) -> None:
