@@ -3,10 +3,10 @@
 
 The "robot" is the task's scene in MuJoCo's C engine (`mujoco.mj_step`: the scene's timestep, MuJoCo's default
 constraint solver), with jaxarm's own Panda (`--model jaxarm`) or MuJoCo Menagerie's (`--model menagerie`, same
-kinematics, its own inertials, actuators, gains and gripper, stepped at its own timestep, `MENAGERIE_TIMESTEP`, where
-the scene's is longer). Between the policy and the robot runs only the
-deployment loop (`jaxarm.deploy`): the robot's reading -> the env's observation -> RUN/export/policy.npz (written
-by `python -m experiments.export RUN`) -> the env's controller in numpy -> servo targets within Franka's speed and
+kinematics, its own inertials, actuators, gains and gripper, stepped at its own timestep,
+`PANDA.menagerie_timestep`, where the scene's is longer). Between the policy and the robot runs only the deployment
+loop (`jaxarm.deploy`): the robot's reading -> the env's observation -> RUN/export/policy.npz (written by
+`python -m experiments.export RUN`) -> the env's controller in numpy -> servo targets within Franka's speed and
 acceleration limits (clipped, and each clip counted; `--no-clip` only counts). Each episode starts where the run's
 eval env would start one (its reset, drawn by JAX); from there no jaxarm env code runs, and success and return are
 recomputed from MuJoCo's state in numpy (`jaxarm.deploy.scoring`). Writes
@@ -35,8 +35,8 @@ from jaxarm.deploy.loop import Controller, DeploymentLoop, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
 from jaxarm.envs.observation import actor_observation
 from jaxarm.envs.panda.base import CONTROL_DT
-from jaxarm.envs.panda.robot import MENAGERIE_PANDA_XML, MENAGERIE_TIMESTEP
 from jaxarm.export import numpy_policy, origin
+from jaxarm.robots import PANDA
 from jaxarm.runner import rundir, video
 
 MODELS = ("jaxarm", "menagerie")
@@ -49,11 +49,11 @@ def plant_model(env, params, model_name: str) -> mujoco.MjModel:
     if model_name == "jaxarm":
         model = copy.copy(env.mj_model)
     else:
-        model = copy.copy(deployable.entry(env).scene(env, params, MENAGERIE_PANDA_XML))
+        model = copy.copy(deployable.entry(env).scene(env, params, PANDA.menagerie_xml))
     if model_name == "menagerie":
         # At the scenes' 0.01 s its wrist servos chatter: a numerical artefact, no property of the robot, that cut
         # ppo_sorter_dr's placements from 98.5% (at 0.002 s) to 33.5% (200 episodes each).
-        model.opt.timestep = min(model.opt.timestep, MENAGERIE_TIMESTEP)
+        model.opt.timestep = min(model.opt.timestep, PANDA.menagerie_timestep)
     if model.nq != env.mj_model.nq:
         raise ValueError(f"{model_name}'s scene has {model.nq} positions, the env's {env.mj_model.nq}")
     stock_solver(model)

@@ -1,4 +1,4 @@
-"""The Panda's forward kinematics and tool Jacobian with MuJoCo's C library: what the deployment loop's controller
+"""A robot arm's forward kinematics and tool Jacobian with MuJoCo's C library: what the deployment loop's controller
 and observation read of the arm's posture. Imports numpy and mujoco alone (no JAX)."""
 
 from typing import NamedTuple
@@ -6,8 +6,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-ARM_JOINTS = tuple(f"joint{k}" for k in range(1, 8))
-"""The arm's joint names in jaxarm's Panda models."""
+from jaxarm.robots import PANDA, RobotDescription
 
 
 class ArmPose(NamedTuple):
@@ -29,24 +28,28 @@ class ArmPose(NamedTuple):
 
 
 class ArmKinematics:
-    """Poses a Panda model (any MjModel with jaxarm's joint, `hand` body and `tcp` site names) at arm postures.
+    """Poses a robot's model (any MjModel with the names of its description) at arm postures.
 
     Only the arm's joints are set; the model's other joints stay at its qpos0 (nothing of the arm's kinematics
     depends on them). One MjData is reused, so an instance is not thread-safe.
+
+    Args:
+      model: the model posed.
+      robot: the description of the robot in it.
 
     Attributes:
       model: the model posed.
       arm_limits: [7, 2] the arm joints' ranges.
     """
 
-    def __init__(self, model: mujoco.MjModel):
+    def __init__(self, model: mujoco.MjModel, robot: RobotDescription = PANDA):
         self.model = model
         self._data = mujoco.MjData(model)
-        joints = [model.joint(name) for name in ARM_JOINTS]
+        joints = [model.joint(name) for name in robot.arm_joints]
         self._arm_qpos = np.array([joint.qposadr[0] for joint in joints])
         self._arm_dof = np.array([joint.dofadr[0] for joint in joints])
-        self._tcp_site = model.site("tcp").id
-        self._hand_body = model.body("hand").id
+        self._tcp_site = model.site(robot.tcp_site).id
+        self._hand_body = model.body(robot.hand_body).id
         self.arm_limits = np.stack([joint.range for joint in joints])
         self._jacp, self._jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
 

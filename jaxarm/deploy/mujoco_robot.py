@@ -8,12 +8,9 @@ The scene keeps its own timestep, integrator and contact settings; the constrain
 import mujoco
 import numpy as np
 
-from jaxarm.deploy.kinematics import ARM_JOINTS
 from jaxarm.deploy.reading import ArmReading
+from jaxarm.robots import PANDA, RobotDescription
 
-FINGER_JOINTS = ("finger_left", "finger_right")
-FINGER_ACTUATORS = (("finger_left", "finger_right"), ("fingers",))
-"""A Panda model's gripper drive: one position servo per finger (jaxarm's), or one for both (menagerie's)."""
 SOLVER_OPTIONS = ("solver", "iterations", "ls_iterations", "tolerance", "ls_tolerance", "noslip_iterations")
 
 
@@ -29,27 +26,29 @@ class MujocoRobot:
     """A Panda scene in MuJoCo C, driven one control period at a time (a `loop.Robot`).
 
     Args:
-      model: the scene (a Panda with jaxarm's joint and actuator names; its gripper one of `FINGER_ACTUATORS`).
+      model: the scene (a robot with its description's joint and actuator names; its gripper one of the
+        description's `finger_drives`).
       period: seconds per control tick; the scene steps `period / timestep` times per tick.
+      robot: the description of the robot in the scene.
 
     Attributes:
       model, data: the scene and its state.
       substeps: physics steps per tick.
     """
 
-    def __init__(self, model: mujoco.MjModel, period: float):
+    def __init__(self, model: mujoco.MjModel, period: float, robot: RobotDescription = PANDA):
         self.model = model
         self.data = mujoco.MjData(model)
         self.substeps = int(round(period / model.opt.timestep))
-        joints = [model.joint(name) for name in (*ARM_JOINTS, *FINGER_JOINTS)]
+        joints = [model.joint(name) for name in (*robot.arm_joints, *robot.finger_joints)]
         self._qpos = np.array([joint.qposadr[0] for joint in joints])
         self._dof = np.array([joint.dofadr[0] for joint in joints])
-        self._arm_actuators = np.array([model.actuator(name).id for name in ARM_JOINTS])
+        self._arm_actuators = np.array([model.actuator(name).id for name in robot.arm_actuators])
         names = {model.actuator(k).name for k in range(model.nu)}
-        drive = next(drive for drive in FINGER_ACTUATORS if set(drive) <= names)
+        drive = next(drive for drive in robot.finger_drives if set(drive) <= names)
         self._finger_actuators = np.array([model.actuator(name).id for name in drive])
         # Command units per metre of finger opening: 1 for a finger's own servo, 255 / 0.04 for menagerie's.
-        travel = model.joint(FINGER_JOINTS[0]).range[1]
+        travel = model.joint(robot.finger_joints[0]).range[1]
         self._finger_scale = model.actuator_ctrlrange[self._finger_actuators, 1] / travel
 
     def now(self) -> float:

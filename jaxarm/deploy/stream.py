@@ -12,7 +12,8 @@ from typing import NamedTuple
 import numpy as np
 import ruckig
 
-from jaxarm.deploy.limits import ARM_ACCELERATION_LIMITS, ARM_JERK_LIMITS, ARM_SPEED_LIMITS
+from jaxarm.robots import PANDA
+from jaxarm.robots.description import JointLimits
 
 JOINTS = 7
 
@@ -36,18 +37,22 @@ class ServoStream:
       position: [7] where the arm is, at rest.
       servo_period: seconds between setpoints (0.001: Franka's 1 kHz).
       arrival: seconds after a target is given that the stream reaches it, at the earliest (`wire.Timing.arrival`).
+      limits: the arm's joint limits.
 
     Attributes:
       holding: whether `hold` was called: the stream brakes to rest and takes no more targets.
     """
 
-    def __init__(self, position: np.ndarray, servo_period: float, arrival: float):
+    def __init__(
+        self, position: np.ndarray, servo_period: float, arrival: float, limits: JointLimits = PANDA.joint_limits
+    ):
         self._generator = ruckig.Ruckig(JOINTS, servo_period)
         self._input = ruckig.InputParameter(JOINTS)
         self._output = ruckig.OutputParameter(JOINTS)
-        self._input.max_velocity = ARM_SPEED_LIMITS.astype(np.float64)
-        self._input.max_acceleration = ARM_ACCELERATION_LIMITS.astype(np.float64)
-        self._input.max_jerk = ARM_JERK_LIMITS.astype(np.float64)
+        self._speed_limits = limits.speed.astype(np.float64)
+        self._input.max_velocity = self._speed_limits
+        self._input.max_acceleration = limits.acceleration.astype(np.float64)
+        self._input.max_jerk = limits.jerk.astype(np.float64)
         self._input.current_position = np.asarray(position, np.float64)
         self._input.target_position = np.asarray(position, np.float64)
         self._input.minimum_duration = arrival
@@ -61,7 +66,7 @@ class ServoStream:
             return
         self._input.target_position = np.asarray(target, np.float64)
         # Ruckig refuses a target speed at the limit's float rounding; 1e-9 below it changes nothing measurable.
-        speed = ARM_SPEED_LIMITS.astype(np.float64) * (1 - 1e-9)
+        speed = self._speed_limits * (1 - 1e-9)
         self._input.target_velocity = np.clip(velocity, -speed, speed)
 
     def hold(self) -> None:
@@ -89,12 +94,14 @@ class ServoStream:
         )
 
 
-def limit_ratios(velocity: np.ndarray, acceleration: np.ndarray, servo_period: float) -> dict[str, np.ndarray]:
+def limit_ratios(
+    velocity: np.ndarray, acceleration: np.ndarray, servo_period: float, limits: JointLimits = PANDA.joint_limits
+) -> dict[str, np.ndarray]:
     """[7] each joint's largest speed, acceleration and jerk over setpoints' `velocity` and `acceleration` [T, 7]
-    (the jerk from successive accelerations), as fractions of Franka's limits: 1 is at a limit."""
+    (the jerk from successive accelerations), as fractions of the arm's `limits`: 1 is at a limit."""
     jerk = np.diff(acceleration, axis=0) / servo_period
     return {
-        "speed": np.abs(velocity).max(0) / ARM_SPEED_LIMITS,
-        "acceleration": np.abs(acceleration).max(0) / ARM_ACCELERATION_LIMITS,
-        "jerk": np.abs(jerk).max(0, initial=0.0) / ARM_JERK_LIMITS,
+        "speed": np.abs(velocity).max(0) / limits.speed,
+        "acceleration": np.abs(acceleration).max(0) / limits.acceleration,
+        "jerk": np.abs(jerk).max(0, initial=0.0) / limits.jerk,
     }

@@ -28,12 +28,13 @@ from jaxarm.deploy.loop import DeploymentLoop
 from jaxarm.deploy.mujoco_robot import MujocoRobot
 from jaxarm.deploy.reading import HoleEstimate
 from jaxarm.envs.panda.base import CAMERAS, CONTROL_DT, PandaOptions
-from jaxarm.envs.panda.robot import resolve_panda_ids
+from jaxarm.envs.panda.robot import resolve_robot_ids
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.panda_sort.layout import SHAPE_CUBE
 from jaxarm.envs.panda_sort.render import dress_objects
 from jaxarm.envs.peg_insert import PegInsert
 from jaxarm.envs.peg_insert.model import HOLE_NOMINAL
+from jaxarm.robots import PANDA
 
 RESOLUTION = 32
 
@@ -86,7 +87,7 @@ def test_the_loop_drives_a_camera_policy_with_either_pandas_scene(model_name):
     env = PegInsert(options=PandaOptions(obs_mode="pixels+proprio", resolution=16))
     params = env.default_params()
     robot = MujocoRobot(plant_model(env, params, model_name), CONTROL_DT)
-    robot.data.qpos[resolve_panda_ids(robot.model).arm_qpos] = env.start_qpos
+    robot.data.qpos[resolve_robot_ids(robot.model, PANDA).arm_qpos] = env.start_qpos
     mujoco.mj_forward(robot.model, robot.data)
     camera = deployable.camera_renderer(env, robot.model)
     controller = deployable.camera_controller(env, params, camera, robot.data)

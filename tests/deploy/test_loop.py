@@ -1,5 +1,6 @@
 """The deployment loop's JAX-free import, Franka's limits and the tick's bookkeeping (no MJX)."""
 
+import inspect
 import subprocess
 import sys
 
@@ -12,9 +13,10 @@ from jaxarm.deploy import limits
 from jaxarm.deploy.loop import DeploymentLoop, Robot, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot
 from jaxarm.deploy.reading import ArmReading
-from jaxarm.envs.panda import robot
+from jaxarm.envs.panda.base import PandaBase
 from jaxarm.envs.panda_sort import model as sort_model
 from jaxarm.envs.panda_sort.layout import make_layout
+from jaxarm.robots import PANDA
 
 
 def test_the_deployment_package_imports_no_jax():
@@ -24,10 +26,11 @@ def test_the_deployment_package_imports_no_jax():
     assert result.stdout.strip() == "[]"
 
 
-def test_the_envs_read_the_datasheets_speed_limits():
-    assert robot.ARM_SPEED_LIMITS is limits.ARM_SPEED_LIMITS
-    np.testing.assert_allclose(limits.ARM_SPEED_LIMITS, [2.175] * 4 + [2.61] * 3, rtol=1e-7)
-    np.testing.assert_array_equal(limits.ARM_ACCELERATION_LIMITS, [15, 7.5, 10, 12.5, 15, 20, 20])
+def test_the_envs_and_the_loop_read_the_datasheets_limits():
+    loop_limits = inspect.signature(limits.limit_targets).parameters["limits"].default
+    assert PandaBase.robot.joint_limits is loop_limits is PANDA.joint_limits
+    np.testing.assert_allclose(PANDA.joint_limits.speed, [2.175] * 4 + [2.61] * 3, rtol=1e-7)
+    np.testing.assert_array_equal(PANDA.joint_limits.acceleration, [15, 7.5, 10, 12.5, 15, 20, 20])
 
 
 def test_targets_are_clipped_to_the_limits():
@@ -35,11 +38,11 @@ def test_targets_are_clipped_to_the_limits():
     previous, velocity = np.zeros(7), np.zeros(7)
     # From rest, a 0.1 rad step: every joint's speed is held to its acceleration limit times the period.
     limited = limits.limit_targets(np.full(7, 0.1), previous, velocity, period)
-    np.testing.assert_allclose(limited.velocity, limits.ARM_ACCELERATION_LIMITS * period)
+    np.testing.assert_allclose(limited.velocity, PANDA.joint_limits.acceleration * period)
     np.testing.assert_allclose(limited.targets, limited.velocity * period)
     assert limited.acceleration_clipped.all() and not limited.speed_clipped.any()
     # Already at the speed limit, asked for more: the speed limit holds it; a small change passes untouched.
-    at_limit = limits.ARM_SPEED_LIMITS.astype(np.float64)
+    at_limit = PANDA.joint_limits.speed.astype(np.float64)
     limited = limits.limit_targets(at_limit * period * 1.05, previous, at_limit, period)
     np.testing.assert_allclose(limited.velocity, at_limit)
     assert limited.speed_clipped.all() and not limited.acceleration_clipped.any()
@@ -87,8 +90,8 @@ def test_the_loop_clips_and_counts():
         speed = np.diff(np.stack([np.zeros(7), *targets]), axis=0) / 0.04
         assert len(loop.tick_seconds) == 20
         if clip:
-            assert np.all(np.abs(speed) <= limits.ARM_SPEED_LIMITS * (1 + 1e-6))
-            np.testing.assert_allclose(speed[-1], limits.ARM_SPEED_LIMITS, rtol=1e-6)
+            assert np.all(np.abs(speed) <= PANDA.joint_limits.speed * (1 + 1e-6))
+            np.testing.assert_allclose(speed[-1], PANDA.joint_limits.speed, rtol=1e-6)
         else:
             np.testing.assert_allclose(speed, 5.0)
         # 5 rad/s is beyond every joint's speed limit, reached from rest beyond every acceleration limit.

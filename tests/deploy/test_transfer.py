@@ -22,13 +22,14 @@ from experiments.configs.td3 import td3_peg
 from jaxarm import deployable, headless
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.deployable import panda_sort
-from jaxarm.envs.panda.robot import MENAGERIE_PANDA_XML, MENAGERIE_TIMESTEP, resolve_panda_ids, tcp_pose_at
+from jaxarm.envs.panda.robot import resolve_robot_ids, tcp_pose_at
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.panda_sort import model as sort_model
 from jaxarm.envs.peg_insert.env import PegInsert
 from jaxarm.envs.peg_insert.params import RUNNING_TARGET_MAX_LEAD
 from jaxarm.export import origin
 from jaxarm.export.numpy_policy import EXPORT_AGAIN
+from jaxarm.robots import PANDA
 from jaxarm.runner import rundir
 from tests.deploy.exported import export_random_policy, sorter_run
 
@@ -40,14 +41,14 @@ def test_both_pandas_have_the_same_kinematics_and_the_stock_solver():
     default = mujoco.MjModel.from_xml_string("<mujoco/>").opt
     assert all(model.opt.iterations == default.iterations for model in models)
     jaxarm, menagerie = models
-    assert jaxarm.opt.timestep == env.mj_model.opt.timestep and menagerie.opt.timestep == MENAGERIE_TIMESTEP
+    assert jaxarm.opt.timestep == env.mj_model.opt.timestep and menagerie.opt.timestep == PANDA.menagerie_timestep
     # Menagerie's own dynamics: another gripper drive, other link inertias.
     assert menagerie.nu == jaxarm.nu - 1
     assert not np.allclose(menagerie.body("link1").inertia, jaxarm.body("link1").inertia)
     rng = np.random.default_rng(0)
     for _ in range(5):
         arm_q = env.start_qpos + rng.uniform(-0.5, 0.5, 7)
-        (tcp_a, rotation_a), (tcp_b, rotation_b) = (tcp_pose_at(m, resolve_panda_ids(m), arm_q) for m in models)
+        (tcp_a, rotation_a), (tcp_b, rotation_b) = (tcp_pose_at(m, resolve_robot_ids(m, PANDA), arm_q) for m in models)
         np.testing.assert_allclose(tcp_a, tcp_b, atol=1e-9)
         np.testing.assert_allclose(rotation_a, rotation_b, atol=1e-6)
 
@@ -63,7 +64,7 @@ def test_an_env_transfer_does_not_run_is_named_with_those_it_runs(tmp_path, caps
 def wrist_step_response(model: mujoco.MjModel, start_qpos: np.ndarray, seconds: float) -> np.ndarray:
     """Joint 7's angle [T] after each physics step of `seconds`, its target stepped 0.1 rad from rest at
     `start_qpos` [7] (the other joints held)."""
-    ids = resolve_panda_ids(model)
+    ids = resolve_robot_ids(model, PANDA)
     data = mujoco.MjData(model)
     data.qpos[ids.arm_qpos] = start_qpos
     data.ctrl[ids.arm_actuators] = start_qpos
@@ -82,7 +83,7 @@ def test_menageries_wrist_follows_a_target_step_at_the_plants_timestep():
     np.testing.assert_allclose(angle[-1], 0.1, rtol=0.05)
     # No chatter between its force limits: the joint turns one way, as jaxarm's wrist does at the scene's 0.01 s.
     assert np.all(np.diff(angle) > -1e-5)
-    # The scene's timestep is what its servos can not take (the reason for MENAGERIE_TIMESTEP).
+    # The scene's timestep is what its servos can not take (the reason for `menagerie_timestep`).
     model.opt.timestep = env.mj_model.opt.timestep
     assert wrist_step_response(model, env.start_qpos, 0.4)[-1] < 0.08
 
@@ -109,7 +110,7 @@ def test_each_pandas_scene_gets_the_episodes_objects_on_its_own_bodies():
 def test_the_tossers_scene_with_another_panda_keeps_its_firm_grip():
     for tosser in (False, True):
         env = PandaSort(tosser=tosser)
-        scene = deployable.entry(env).scene(env, env.default_params(), MENAGERIE_PANDA_XML)
+        scene = deployable.entry(env).scene(env, env.default_params(), PANDA.menagerie_xml)
         assert (scene.opt.timestep == sort_model.FIRM_GRIP_TIMESTEP) == tosser
         assert scene.opt.timestep == env.mj_model.opt.timestep
 

@@ -1,5 +1,5 @@
-"""The Panda's `dynamics="franka"` option: the compiled arm carries Franka's table (`FRANKA_LINKS`), its joint-space
-inertia is the one that table implies, and nothing but the dynamics changed.
+"""The Panda's `dynamics="franka"` option: the compiled arm carries Franka's table (`PANDA.identified_links`), its
+joint-space inertia is the one that table implies, and nothing but the dynamics changed.
 
 MuJoCo C models only (the builders cache them) and no MJX program: the whole file runs in seconds on a CPU.
 """
@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from jaxarm import envs
-from jaxarm.envs.panda.franka_dynamics import FRANKA, FRANKA_LINKS, NOMINAL
-from jaxarm.envs.panda.robot import ARM_JOINTS, FINGER_JOINTS
+from jaxarm.envs.panda.franka_dynamics import FRANKA, NOMINAL
 from jaxarm.envs.panda_sort.layout import make_layout
 from jaxarm.envs.panda_sort.model import build_model as build_sorter
 from jaxarm.envs.peg_insert.model import build_model as build_peg
+from jaxarm.robots import PANDA
 
 SCENES: dict[str, Callable[[str], mujoco.MjModel]] = {
     "panda_sort": lambda dynamics: build_sorter(1, make_layout(), dynamics),
@@ -59,11 +59,11 @@ def models(request) -> tuple[mujoco.MjModel, mujoco.MjModel]:
 
 
 def link_bodies(model: mujoco.MjModel) -> list[int]:
-    """Body ids of links 1..7, in `FRANKA_LINKS` order: each is the body its arm joint moves."""
-    return [int(model.jnt_bodyid[model.joint(name).id]) for name in ARM_JOINTS]
+    """Body ids of links 1..7, in `PANDA.identified_links` order: each is the body its arm joint moves."""
+    return [int(model.jnt_bodyid[model.joint(name).id]) for name in PANDA.arm_joints]
 
 
-def arm_dofs(model: mujoco.MjModel, joints=ARM_JOINTS) -> np.ndarray:
+def arm_dofs(model: mujoco.MjModel, joints=PANDA.arm_joints) -> np.ndarray:
     return np.array([model.joint(name).dofadr[0] for name in joints])
 
 
@@ -82,14 +82,14 @@ def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
 
 def random_postures(model: mujoco.MjModel, count: int, seed: int = 0) -> np.ndarray:
     """[count, 7] arm postures drawn uniformly within the joint limits."""
-    limits = model.jnt_range[[model.joint(name).id for name in ARM_JOINTS]]
-    return np.random.default_rng(seed).uniform(limits[:, 0], limits[:, 1], size=(count, len(ARM_JOINTS)))
+    limits = model.jnt_range[[model.joint(name).id for name in PANDA.arm_joints]]
+    return np.random.default_rng(seed).uniform(limits[:, 0], limits[:, 1], size=(count, len(PANDA.arm_joints)))
 
 
 def posed(model: mujoco.MjModel, arm_q: np.ndarray, forward: bool = False) -> mujoco.MjData:
     """MjData with the arm at `arm_q` [7], after mj_kinematics (or mj_forward when `forward`)."""
     data = mujoco.MjData(model)
-    data.qpos[[model.joint(name).qposadr[0] for name in ARM_JOINTS]] = arm_q
+    data.qpos[[model.joint(name).qposadr[0] for name in PANDA.arm_joints]] = arm_q
     (mujoco.mj_forward if forward else mujoco.mj_kinematics)(model, data)
     return data
 
@@ -118,13 +118,13 @@ def arm_inertia(model: mujoco.MjModel, arm_q: np.ndarray) -> np.ndarray:
 
 
 def table_arm_inertia(model: mujoco.MjModel, arm_q: np.ndarray) -> np.ndarray:
-    """[7, 7] joint-space inertia of the bare arm computed here from `FRANKA_LINKS` and the joints' world axes and
-    anchors alone: the sum over links of m Jvᵀ Jv + Jωᵀ (R I Rᵀ) Jω, plus each joint's armature."""
+    """[7, 7] joint-space inertia of the bare arm computed here from `PANDA.identified_links` and the joints' world
+    axes and anchors alone: the sum over links of m Jvᵀ Jv + Jωᵀ (R I Rᵀ) Jω, plus each joint's armature."""
     data = posed(model, arm_q)
-    joints = [model.joint(name).id for name in ARM_JOINTS]
+    joints = [model.joint(name).id for name in PANDA.arm_joints]
     axes, anchors = data.xaxis[joints], data.xanchor[joints]
     inertia = np.diag(model.dof_armature[arm_dofs(model)])
-    for index, (link, body) in enumerate(zip(FRANKA_LINKS, link_bodies(model), strict=True)):
+    for index, (link, body) in enumerate(zip(PANDA.identified_links, link_bodies(model), strict=True)):
         rotation = data.xmat[body].reshape(3, 3)
         com = data.xpos[body] + rotation @ np.array(link.com)
         # A serial chain: the link moves with joints 1..index+1 and no others.
@@ -139,7 +139,7 @@ def table_arm_inertia(model: mujoco.MjModel, arm_q: np.ndarray) -> np.ndarray:
 
 def test_links_carry_the_published_mass_centre_of_mass_and_inertia(models):
     _, franka = models
-    for link, body in zip(FRANKA_LINKS, link_bodies(franka), strict=True):
+    for link, body in zip(PANDA.identified_links, link_bodies(franka), strict=True):
         assert franka.body_mass[body] == pytest.approx(link.mass, rel=1e-12)
         np.testing.assert_allclose(franka.body_ipos[body], link.com, atol=1e-12)
         # MuJoCo keeps a full tensor as principal moments and the rotation to their axes.
@@ -151,9 +151,9 @@ def test_links_carry_the_published_mass_centre_of_mass_and_inertia(models):
 def test_arm_joints_carry_the_identified_damping_and_friction_loss(models):
     nominal, franka = models
     dofs = arm_dofs(franka)
-    np.testing.assert_array_equal(franka.dof_damping[dofs], [link.damping for link in FRANKA_LINKS])
-    np.testing.assert_array_equal(franka.dof_frictionloss[dofs], [link.frictionloss for link in FRANKA_LINKS])
-    fingers = arm_dofs(franka, FINGER_JOINTS)
+    np.testing.assert_array_equal(franka.dof_damping[dofs], [link.damping for link in PANDA.identified_links])
+    np.testing.assert_array_equal(franka.dof_frictionloss[dofs], [link.frictionloss for link in PANDA.identified_links])
+    fingers = arm_dofs(franka, PANDA.finger_joints)
     np.testing.assert_array_equal(franka.dof_damping[fingers], nominal.dof_damping[fingers])
     np.testing.assert_array_equal(franka.dof_frictionloss[fingers], nominal.dof_frictionloss[fingers])
 
@@ -194,7 +194,7 @@ def test_joint_space_inertia_is_the_one_the_table_implies(models):
 def test_the_env_option_builds_its_scene_with_franka_dynamics_and_defaults_to_nominal(name):
     franka_env, default_env = envs.make(name, dynamics=FRANKA), envs.make(name)
     dofs = arm_dofs(franka_env.mj_model)
-    frictionloss = [link.frictionloss for link in FRANKA_LINKS]
+    frictionloss = [link.frictionloss for link in PANDA.identified_links]
     np.testing.assert_array_equal(franka_env.mj_model.dof_frictionloss[dofs], frictionloss)
     np.testing.assert_array_equal(default_env.mj_model.body_mass, SCENES[name](NOMINAL).body_mass)
     np.testing.assert_array_equal(default_env.mj_model.dof_frictionloss, 0.0)

@@ -16,7 +16,6 @@ import numpy as np
 import pytest
 
 from jaxarm import envs
-from jaxarm.envs.panda.robot import HOME_QPOS
 from jaxarm.envs.panda_sort import (
     IN_CORRECT_BIN,
     IN_PLAY,
@@ -29,6 +28,7 @@ from jaxarm.envs.panda_sort.curriculum import StartDraw, place_in_hand, pose_in_
 from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE
 from jaxarm.envs.panda_sort.reward import SHAPING_TERMS
 from jaxarm.envs.panda_sort.scripted import script_start, scripted_action
+from jaxarm.robots import PANDA
 from tests.envs.compiled import compiled, same_worker
 
 # Craig (modified) DH parameters of the Franka Panda as published by Franka Emika.
@@ -156,7 +156,7 @@ def scripted_pick_and_place(step, state, params, bin_xy, max_steps=300):
 @pytest.mark.parametrize(
     "q",
     [
-        HOME_QPOS,
+        PANDA.home_qpos,
         np.array([0.3, 0.2, -0.4, -1.5, 0.6, 2.0, -0.7]),
         np.array([-1.2, -0.9, 1.1, -2.6, -1.4, 0.8, 2.1]),
         np.array([2.0, 1.2, 0.5, -0.5, 2.5, 3.0, 0.3]),

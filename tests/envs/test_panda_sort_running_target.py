@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 
 from jaxarm.envs.panda.base import CONTROL_DT
-from jaxarm.envs.panda.robot import ARM_SPEED_LIMITS, wrapped_angle, yaw_of_quaternion
+from jaxarm.envs.panda.robot import wrapped_angle, yaw_of_quaternion
 from jaxarm.envs.panda_sort import MODE_JOINT, PandaSort
 from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE, SERVO_LEAD_OBS_SIZE, TOOL_OBS_SIZE
+from jaxarm.robots import PANDA
 from tests.envs.compiled import same_worker
 
 pytestmark = [pytest.mark.mjx, same_worker("panda_sort_running_target")]
@@ -69,7 +70,7 @@ def test_joint_actions_move_the_joint_by_joint_step_and_the_lead_stays_bounded()
     turn = np.diff(obs[:, arm][:, 0])
     # A unit action asks the base for joint_step per step, 2.5 rad/s; under way (from step 9, its acceleration
     # limit and its servo's lag behind) it turns at its speed limit.
-    asked = min(float(params.joint_step), float(ARM_SPEED_LIMITS[0]) * CONTROL_DT)
+    asked = min(float(params.joint_step), float(PANDA.joint_limits.speed[0]) * CONTROL_DT)
     assert np.allclose(turn[9:], asked, rtol=0.02), turn
     lead = obs[:, -SERVO_LEAD_OBS_SIZE:]
     assert np.all(np.abs(lead) <= float(params.max_joint_lead) + 1e-6)

@@ -11,12 +11,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxarm.deploy.limits import ARM_SPEED_LIMITS
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda.franka_dynamics import FRANKA
 from jaxarm.envs.panda.robot import yaw_of_quaternion
 from jaxarm.envs.panda_sort import MODE_JOINT, PandaSort
 from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE, SERVO_LEAD_OBS_SIZE
+from jaxarm.robots import PANDA
 from tests.envs.compiled import same_worker
 
 pytestmark = [pytest.mark.mjx, pytest.mark.slow, same_worker("panda_sort_servo_limits")]
@@ -103,6 +103,6 @@ def test_a_held_wrist_action_turns_the_joint_by_its_step_and_stops_where_told(jo
 def test_the_servos_targets_stay_within_franka_speed_limits(ee_rollouts, joint_rollouts):
     for obs in (ee_rollouts[1], joint_rollouts[2]):
         speeds = np.concatenate([commanded_speeds(episode) for episode in obs])
-        assert np.all(speeds <= ARM_SPEED_LIMITS * (1 + 1e-4)), speeds.max(0)
+        assert np.all(speeds <= PANDA.joint_limits.speed * (1 + 1e-4)), speeds.max(0)
     # The base, asked for more than its limit, moves at the limit: the limits, not the actions' size, hold it.
-    assert commanded_speeds(joint_rollouts[2][-1])[:, 0].max() > 0.99 * ARM_SPEED_LIMITS[0]
+    assert commanded_speeds(joint_rollouts[2][-1])[:, 0].max() > 0.99 * PANDA.joint_limits.speed[0]

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from jaxarm.envs.panda.base import CONTROL_DT
-from jaxarm.envs.panda.robot import ARM_SPEED_LIMITS
 from jaxarm.envs.panda_sort import MODE_JOINT, SHAPE_CUBE, SHAPE_SPHERE, PandaSort
 from jaxarm.envs.panda_sort.curriculum import wound_up_posture
 from jaxarm.envs.panda_sort.reward import FLOOR_Z, SHAPING_TERMS
 from jaxarm.envs.panda_sort.scripted_throw import aimed_throw, throw_action
+from jaxarm.robots import PANDA
 from tests.envs.compiled import compiled, same_worker
 from tests.envs.test_panda_sort import shaping_potential, with_object
 
@@ -194,7 +194,7 @@ def own_bins(states) -> np.ndarray:
 
 def scored_in_own_bin(scored, joint_speed) -> int:
     """How many of the batch's throws scored +500, asserting every arm joint stayed under Franka's limits."""
-    speed_fraction = np.abs(np.asarray(joint_speed)) / ARM_SPEED_LIMITS
+    speed_fraction = np.abs(np.asarray(joint_speed)) / PANDA.joint_limits.speed
     assert speed_fraction.max() <= 1.0, speed_fraction.max(axis=(0, 1))
     return int(np.sum(np.asarray(scored)[..., 0] == 500.0))
 

@@ -1,9 +1,9 @@
 """`PandaBase`: what every Panda task in MJX needs, once: its model on the device, ids, timing, IK, drawing.
 
-A task builds its scene (an MjModel with the Panda of `robot.py` in it) and resolves its ids, whose `robot`
-field holds the `PandaIds`; its env subclasses `PandaBase` and keeps only what is its own: the per-episode
-model (`episode_model`), reset, transition, observation and reward, and how its per-episode geometry is
-drawn (`_pose_for_drawing`). Nothing here knows about a task, and no task module is imported here.
+A task builds its scene (an MjModel with the robot `PandaBase.robot` describes in it) and resolves its ids, whose
+`robot` field holds the `RobotIds`; its env subclasses `PandaBase` and keeps only what is its own: the per-episode
+model (`episode_model`), reset, transition, observation and reward, and how its per-episode geometry is drawn
+(`_pose_for_drawing`). Nothing here knows about a task, and no task module is imported here.
 """
 
 import abc
@@ -31,8 +31,9 @@ from jaxarm.envs.panda.mjx_impl import (
     resolve_impl,
 )
 from jaxarm.envs.panda.render import Drawing
-from jaxarm.envs.panda.robot import HOME_QPOS, PandaIds, ik_arm_targets, solve_arm_posture, tcp_pose_at
+from jaxarm.envs.panda.robot import RobotIds, ik_arm_targets, solve_arm_posture, tcp_pose_at
 from jaxarm.envs.panda.sim_to_real import with_noise
+from jaxarm.robots import PANDA, RobotDescription
 
 CONTROL_DT = 0.04
 """Seconds of simulated time per env step, in every Panda task."""
@@ -114,7 +115,7 @@ class TaskIds(Protocol):
     """A task's ids: whatever it resolves for itself, with the robot's under `robot`."""
 
     @property
-    def robot(self) -> PandaIds: ...
+    def robot(self) -> RobotIds: ...
 
 
 class RestingPhysics(NamedTuple):
@@ -192,18 +193,20 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       options: the construction choices every task shares (`PandaOptions`).
 
     Attributes:
+      robot: the description of the robot every Panda task is built on (its home posture, joint limits, gripper).
       mj_model: the compiled scene as built (drawing poses a copy of it).
       ids: the task's ids; `ids.robot` the robot's.
       impl: the MJX implementation in use (`Impl.JAX` or `Impl.WARP`).
       substeps: physics steps per env step (`CONTROL_DT` over the model's timestep, at most `WARP_TIMESTEP` on Warp).
       mjx_model: `mj_model` on the device; tasks replace its per-episode fields in `episode_model`.
-      home_tcp_rotation: [3, 3] tool-centre orientation at HOME_QPOS (pointing down, yaw 0).
+      home_tcp_rotation: [3, 3] tool-centre orientation at the robot's `home_qpos` (pointing down, yaw 0).
       start_qpos: [7] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
       obs_mode, resolution, max_action_latency, privileged: as in `options`.
       cameras: the `camera.Camera`s of `cameras`, resolved once (none in "state" mode).
       camera_names: their names in the MJCF (what a renderer outside JAX draws, `jaxarm.deploy.camera`).
     """
 
+    robot: RobotDescription = PANDA
     uses_mjx = True
     draws_with_gl = True
 
@@ -236,12 +239,14 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         self.ids = ids
         self.substeps = int(round(CONTROL_DT / mj_model.opt.timestep))
         self.mjx_model, self._data0 = put_scene(mj_model, self.impl, options.max_envs, options.contacts_per_env)
-        self.home_tcp_rotation = tcp_pose_at(mj_model, ids.robot, HOME_QPOS)[1]
+        self.home_tcp_rotation = tcp_pose_at(mj_model, ids.robot, self.robot.home_qpos)[1]
         self.start_qpos = self.solve_posture(start_tcp)
 
     def solve_posture(self, tcp_position: np.ndarray) -> np.ndarray:
         """Outside jit: [7] arm joints putting the tool centre at `tcp_position` [3] in `home_tcp_rotation`."""
-        return solve_arm_posture(self.mj_model, self.ids.robot, tcp_position, self.home_tcp_rotation)
+        return solve_arm_posture(
+            self.mj_model, self.ids.robot, self.robot.home_qpos, tcp_position, self.home_tcp_rotation
+        )
 
     @abc.abstractmethod
     def episode_model(self, sim: SimT, params: ParamsT) -> mjx.Model:
@@ -350,9 +355,9 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
 
     def limited_ctrl(self, ctrl: jax.Array, sim: SimT) -> tuple[jax.Array, jax.Array]:
         """Asked servo targets `ctrl` [9] -> (the targets sent [9], the arm's [7] rate of change, rad/s): the arm's
-        path from the sim's targets kept within Franka's speed and acceleration limits (`limit_targets`, which the
-        deployment loop applies to the same commands); the fingers' as asked."""
-        limited = limit_targets(ctrl[:7], sim.ctrl[:7], sim.target_velocity, CONTROL_DT)
+        path from the sim's targets kept within the robot's joint speed and acceleration limits (`limit_targets`, which
+        the deployment loop applies to the same commands); the fingers' as asked."""
+        limited = limit_targets(ctrl[:7], sim.ctrl[:7], sim.target_velocity, CONTROL_DT, self.robot.joint_limits)
         return ctrl.at[:7].set(limited.targets), limited.velocity
 
     def ik_targets(

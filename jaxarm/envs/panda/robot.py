@@ -1,8 +1,9 @@
-"""The Franka Panda shared by the MJX arm envs: its model file, ids, and end-effector control by IK.
+"""A robot arm in a task's scene, read from its `RobotDescription`: the scene with the robot's model file, its ids,
+and end-effector control by IK.
 
-`assets/panda.xml` is included by each env's scene. Control here is pure JAX on mjx.Data: damped
-least-squares IK of the tool centre (position and a held orientation) with a null-space pull towards the
-home posture, turned into joint position targets for the arm's servos. Nothing here knows about a task.
+The robot's model file (the Panda's `assets/panda.xml`) is included by each env's scene. Control here is pure JAX on
+mjx.Data: damped least-squares IK of the tool centre (position and a held orientation) with a null-space pull
+towards the home posture, turned into joint position targets for the arm's servos. Nothing here knows about a task.
 """
 
 import dataclasses
@@ -14,31 +15,11 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-# Declared in the JAX-free deployment package, which reads them too.
-from jaxarm.deploy.kinematics import ARM_JOINTS
-from jaxarm.deploy.limits import ARM_SPEED_LIMITS as ARM_SPEED_LIMITS
-
-PANDA_XML = Path(__file__).parent / "assets" / "panda.xml"
-MENAGERIE_PANDA_XML = Path(__file__).parent / "assets" / "menagerie" / "panda.xml"
-"""MuJoCo Menagerie's Panda with the names the scenes use (assets/menagerie/README.md): a robot jaxarm did not write."""
-MENAGERIE_TIMESTEP = 0.002
-"""The physics timestep menagerie's Panda is simulated at: its panda.xml sets none, so MuJoCo's default. Its wrist
-servos (kp 2000, kv 200, clamped at 12 N·m) need it: at the scenes' 0.01 s a clamped servo's damping acts
-explicitly (200 · 0.01 / ~0.11 kg·m², beyond the stable 2), and in MuJoCo C the wrist chattered between its force
-limits, ending a 0.1 rad target step at 56% after 0.4 s (at 0.002 s: 98%, as jaxarm's wrist at 0.01 s)."""
-SCENE_INCLUDE = 'file="../../panda/assets/panda.xml"'
-"""How each task's scene.xml includes the Panda."""
-FINGER_JOINTS = ("finger_left", "finger_right")
-HOME_QPOS = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], np.float32)
-"""Arm posture of the Panda's "ready" pose: tool centre 0.49 m above the table, pointing down."""
-FINGER_OPEN = 0.04
-"""Finger joint travel when fully open (each finger; the gap is twice this)."""
-PAD_ABOVE_TCP = 0.003
-"""The finger pads' centre is this far above the tool centre."""
+from jaxarm.robots import RobotDescription
 
 
 @dataclasses.dataclass(frozen=True)
-class PandaIds:
+class RobotIds:
     """Indices of the robot in a compiled scene, resolved once (numpy ints / arrays, static under jit).
 
     Attributes:
@@ -58,31 +39,31 @@ class PandaIds:
     arm_actuators: np.ndarray
 
 
-def scene_spec(scene_xml: Path, robot_xml: Path = PANDA_XML) -> mujoco.MjSpec:
-    """The MjSpec of a task's `scene_xml`, with `robot_xml` (a Panda with panda.xml's names) included in place of
-    panda.xml."""
-    if robot_xml == PANDA_XML:
+def scene_spec(scene_xml: Path, robot: RobotDescription, robot_xml: Path) -> mujoco.MjSpec:
+    """The MjSpec of a task's `scene_xml`, which includes `robot`'s `model_xml`, with `robot_xml` (that model or
+    another with the names of `robot`'s description) included in its place."""
+    if robot_xml == robot.model_xml:
         return mujoco.MjSpec.from_file(str(scene_xml))
     text = scene_xml.read_text()
-    if SCENE_INCLUDE not in text:
-        raise ValueError(f"{scene_xml} does not include the Panda as {SCENE_INCLUDE}")
-    return mujoco.MjSpec.from_string(text.replace(SCENE_INCLUDE, f'file="{robot_xml.resolve()}"'))
+    if robot.scene_include not in text:
+        raise ValueError(f"{scene_xml} does not include the {robot.name} as {robot.scene_include}")
+    return mujoco.MjSpec.from_string(text.replace(robot.scene_include, f'file="{robot_xml.resolve()}"'))
 
 
-def resolve_panda_ids(model: mujoco.MjModel) -> PandaIds:
-    """Looks up the robot's ids in `model` by name."""
+def resolve_robot_ids(model: mujoco.MjModel, robot: RobotDescription) -> RobotIds:
+    """Looks up the ids of `robot` in `model` by the names of its description."""
     joint = model.joint
-    return PandaIds(
-        arm_qpos=np.array([joint(name).qposadr[0] for name in ARM_JOINTS]),
-        finger_qpos=np.array([joint(name).qposadr[0] for name in FINGER_JOINTS]),
-        hand_body=model.body("hand").id,
-        tcp_site=model.site("tcp").id,
-        arm_limits=np.stack([joint(name).range for name in ARM_JOINTS]),
-        arm_actuators=np.array([model.actuator(name).id for name in ARM_JOINTS]),
+    return RobotIds(
+        arm_qpos=np.array([joint(name).qposadr[0] for name in robot.arm_joints]),
+        finger_qpos=np.array([joint(name).qposadr[0] for name in robot.finger_joints]),
+        hand_body=model.body(robot.hand_body).id,
+        tcp_site=model.site(robot.tcp_site).id,
+        arm_limits=np.stack([joint(name).range for name in robot.arm_joints]),
+        arm_actuators=np.array([model.actuator(name).id for name in robot.arm_actuators]),
     )
 
 
-def tcp_pose_at(model: mujoco.MjModel, ids: PandaIds, arm_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def tcp_pose_at(model: mujoco.MjModel, ids: RobotIds, arm_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Forward kinematics outside jit: [7] arm joints -> (tool centre position [3], rotation [3, 3])."""
     data = mujoco.MjData(model)
     data.qpos[ids.arm_qpos] = arm_q
@@ -91,16 +72,21 @@ def tcp_pose_at(model: mujoco.MjModel, ids: PandaIds, arm_q: np.ndarray) -> tupl
 
 
 def solve_arm_posture(
-    model: mujoco.MjModel, ids: PandaIds, tcp_position: np.ndarray, rotation: np.ndarray, iterations: int = 200
+    model: mujoco.MjModel,
+    ids: RobotIds,
+    home_qpos: np.ndarray,
+    tcp_position: np.ndarray,
+    rotation: np.ndarray,
+    iterations: int = 200,
 ) -> np.ndarray:
-    """Outside jit: [7] arm joints, from HOME_QPOS, putting the tool centre at `tcp_position` with `rotation`.
+    """Outside jit: [7] arm joints, from `home_qpos` [7], putting the tool centre at `tcp_position` with `rotation`.
 
     Raises ValueError if the IK does not reach the pose within 0.1 mm (out of reach or at a joint limit).
     Its steps run on the CPU backend whatever the default device: on a GPU each of them would be a launch and
     two copies, and its compile one more kernel build, in every process that builds the env.
     """
     data = mujoco.MjData(model)
-    arm_q = HOME_QPOS.astype(np.float64)
+    arm_q = home_qpos.astype(np.float64)
     jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
     with jax.default_device(host_device()):
         for _ in range(iterations):
@@ -191,7 +177,7 @@ def rotation_about_z(angle: jax.Array) -> jax.Array:
     return jnp.stack([jnp.stack([c, -s, zero]), jnp.stack([s, c, zero]), jnp.stack([zero, zero, one])])
 
 
-def tcp_jacobian(model: mjx.Model, data: mjx.Data, ids: PandaIds) -> jax.Array:
+def tcp_jacobian(model: mjx.Model, data: mjx.Data, ids: RobotIds) -> jax.Array:
     """[6, nv] Jacobian of the tool centre: linear rows, then angular rows. `data` needs com_pos."""
     jacp, jacr = mjx.jac(model, data, data.site_xpos[ids.tcp_site], ids.hand_body)
     return jnp.concatenate([jacp.T, jacr.T])
@@ -200,7 +186,7 @@ def tcp_jacobian(model: mjx.Model, data: mjx.Data, ids: PandaIds) -> jax.Array:
 def ik_arm_targets(
     model: mjx.Model,
     data: mjx.Data,
-    ids: PandaIds,
+    ids: RobotIds,
     tcp_target: jax.Array,
     tcp_rotation: jax.Array | np.ndarray,
     damping,

@@ -11,7 +11,7 @@ from flax import struct
 from mujoco import mjx
 
 from jaxarm.envs.panda.camera import PoseOffset
-from jaxarm.envs.panda.robot import PandaIds
+from jaxarm.envs.panda.robot import RobotIds
 from jaxarm.ranges import NON_NEGATIVE, POSITIVE, Range, ranged
 
 CONTROL_PERIOD_SCALES = Range(ge=0.5, le=1.5)
@@ -83,7 +83,7 @@ class RobotParams:
         )
 
 
-def with_robot_params(model: mjx.Model, robot: PandaIds, params: RobotParams) -> mjx.Model:
+def with_robot_params(model: mjx.Model, robot: RobotIds, params: RobotParams) -> mjx.Model:
     """`model` with `params`' robot randomisation applied: servo gains and damping (`with_servo_scales`), the
     arm joints' friction loss and servo force limits scaled, and the timestep scaled by `control_period_scale`.
     Each is a model field replaced per env, as MJX-JAX and Warp both batch them."""
@@ -96,7 +96,7 @@ def with_robot_params(model: mjx.Model, robot: PandaIds, params: RobotParams) ->
     )
 
 
-def with_servo_scales(model: mjx.Model, robot: PandaIds, gain_scale: jax.Array, damping_scale: jax.Array) -> mjx.Model:
+def with_servo_scales(model: mjx.Model, robot: RobotIds, gain_scale: jax.Array, damping_scale: jax.Array) -> mjx.Model:
     """`model` with the arm servos' stiffness kp times `gain_scale` and their kv and the arm joints' passive
     damping times `damping_scale` (a position servo's force is kp · ctrl − kp · q − kv · qdot)."""
     actuators, dofs = robot.arm_actuators, robot.arm_qpos

@@ -16,11 +16,12 @@ import numpy as np
 from mujoco import mjx
 from mujoco.mjx._src import math as mjx_math
 
-from jaxarm.envs.panda.robot import FINGER_OPEN, PAD_ABOVE_TCP, yaw_of_quaternion, yaw_of_rotation
+from jaxarm.envs.panda.robot import yaw_of_quaternion, yaw_of_rotation
 from jaxarm.envs.panda_sort.model import ModelIds
 from jaxarm.envs.panda_sort.objects import GRIP_HALF_WIDTH
 from jaxarm.envs.panda_sort.params import PandaSortParams
 from jaxarm.envs.panda_sort.sim import PandaSortSim
+from jaxarm.robots import PANDA
 
 WIND_UP_POSTURE = np.array([0.0, -1.5, 0.0, -0.35, 0.0, 3.4, -0.785], np.float32)
 """Joints 2-7 of the throw's wind-up (joint 1 faces the bin): upper arm leaning back, hand raised behind, the
@@ -97,7 +98,7 @@ def pose_in_hand(ids: ModelIds, model: mjx.Model, data: mjx.Data) -> jax.Array:
     robot = ids.robot
     z_axis = data.site_xmat[robot.tcp_site].reshape(3, 3)[:, 2]
     site_quat = mjx_math.quat_mul(data.xquat[model.site_bodyid[robot.tcp_site]], model.site_quat[robot.tcp_site])
-    centre = data.site_xpos[robot.tcp_site] - PAD_ABOVE_TCP * z_axis
+    centre = data.site_xpos[robot.tcp_site] - PANDA.pad_above_tcp * z_axis
     return jnp.concatenate([centre, mjx_math.quat_mul(site_quat, jnp.asarray(FLIP_ABOUT_X))])
 
 
@@ -115,12 +116,12 @@ def place_in_hand(ids: ModelIds, sim: PandaSortSim, model: mjx.Model, data: mjx.
         start.hover, yaw_of_quaternion(own_quat), yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
     )
     tcp = data.site_xpos[robot.tcp_site]
-    height = jnp.where(held, tcp[2] + PAD_ABOVE_TCP, sim.size[focus] + 0.001)
+    height = jnp.where(held, tcp[2] + PANDA.pad_above_tcp, sim.size[focus] + 0.001)
     pose = jnp.concatenate([tcp[:2], height[None], jnp.stack([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])])
     pose = jnp.where(start.wound_up, pose_in_hand(ids, model, data), pose)
     grip = jnp.asarray(GRIP_HALF_WIDTH)[sim.shape[focus]] * sim.size[focus]
-    fingers = jnp.where(held, grip, FINGER_OPEN)
+    fingers = jnp.where(held, grip, PANDA.finger_open)
     qpos = sim.qpos.at[pose_idx].set(pose).at[robot.finger_qpos].set(fingers)
-    ctrl = sim.ctrl.at[7:].set(jnp.where(held, 0.0, FINGER_OPEN))
+    ctrl = sim.ctrl.at[7:].set(jnp.where(held, 0.0, PANDA.finger_open))
     moved = held | start.ready
     return sim.replace(qpos=jnp.where(moved, qpos, sim.qpos), ctrl=jnp.where(moved, ctrl, sim.ctrl))

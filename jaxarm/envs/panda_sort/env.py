@@ -34,7 +34,6 @@ from jaxarm.envs.panda.base import PandaBase, PandaOptions
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import overflow_bits, with_geom_sizes
 from jaxarm.envs.panda.robot import (
-    FINGER_OPEN,
     advanced_target,
     rotation_about_z,
     tcp_jacobian,
@@ -239,7 +238,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         return self.ik_targets(model, data, target, rotation, params)
 
     def _ctrl(self, model, data, action, params) -> jax.Array:
-        finger = (action[-1] + 1.0) * (FINGER_OPEN / 2)
+        finger = (action[-1] + 1.0) * (self.robot.finger_open / 2)
         return jnp.concatenate([self._arm_targets(model, data, action, params), jnp.stack([finger, finger])])
 
     # --- observation and shaping ----------------------------------------------------------------------
@@ -328,7 +327,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         own_bin = jnp.asarray(self.layout.bin_centers)[shape[start.focus]]
         wound_up = arm_q + start.wind_up * (wound_up_posture(own_bin) + noise - arm_q)
         arm_q = jnp.where(start.wound_up, wound_up, arm_q)
-        resting = self.resting(arm_q, FINGER_OPEN)
+        resting = self.resting(arm_q, self.robot.finger_open)
         qpos = resting.qpos.at[pose_index(ids)].set(pose)
         outcome = jnp.where(start.presorted, IN_CORRECT_BIN, IN_PLAY).astype(jnp.int32)
         qpos, qvel = park(ids, qpos, resting.qvel, outcome != IN_PLAY)
@@ -336,7 +335,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             qpos=qpos,
             qvel=qvel,
             qacc_warmstart=resting.qacc_warmstart,
-            ctrl=jnp.concatenate([arm_q, jnp.full((2,), FINGER_OPEN)]),
+            ctrl=jnp.concatenate([arm_q, jnp.full((2,), self.robot.finger_open)]),
             target_velocity=jnp.zeros(7),
             shape=shape,
             size=size,

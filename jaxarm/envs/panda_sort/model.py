@@ -27,8 +27,9 @@ import mujoco
 import numpy as np
 
 from jaxarm.envs.panda.franka_dynamics import NOMINAL, set_dynamics
-from jaxarm.envs.panda.robot import PANDA_XML, PandaIds, resolve_panda_ids, scene_spec
+from jaxarm.envs.panda.robot import RobotIds, resolve_robot_ids, scene_spec
 from jaxarm.envs.panda_sort.layout import Layout
+from jaxarm.robots import PANDA
 
 ASSETS = Path(__file__).parent / "assets"
 OBJECT_GEOMS = ("box", "box45", "sphere")
@@ -71,7 +72,7 @@ class ModelIds:
       object_pair: [Q] ids of the other pairs (their friction is OBJECT_FRICTION).
     """
 
-    robot: PandaIds
+    robot: RobotIds
     object_qpos: np.ndarray
     object_qvel: np.ndarray
     object_body: np.ndarray
@@ -154,13 +155,17 @@ def _add_pairs(spec: mujoco.MjSpec, objects_count: int, static: list[str], firm_
 
 
 def build_spec(
-    objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm_grip: bool = False, robot_xml: Path = PANDA_XML
+    objects_count: int,
+    layout: Layout,
+    dynamics: str = NOMINAL,
+    firm_grip: bool = False,
+    robot_xml: Path = PANDA.model_xml,
 ) -> mujoco.MjSpec:
     """The scene as an MjSpec: robot and table from assets/scene.xml with the robot's `dynamics`
     (`franka_dynamics.DYNAMICS`), the rest from `layout`; `firm_grip` sets FIRM_GRIP_TIMESTEP and
     FIRM_GRIP_SOLREF; `robot_xml` replaces jaxarm's Panda (`robot.scene_spec`)."""
-    spec = scene_spec(ASSETS / "scene.xml", robot_xml)
-    set_dynamics(spec, dynamics)
+    spec = scene_spec(ASSETS / "scene.xml", PANDA, robot_xml)
+    set_dynamics(spec, dynamics, PANDA)
     if firm_grip:
         spec.option.timestep = FIRM_GRIP_TIMESTEP
     static = _add_static(spec.worldbody, layout)
@@ -177,7 +182,11 @@ def build_spec(
 
 @functools.cache
 def build_model(
-    objects_count: int, layout: Layout, dynamics: str = NOMINAL, firm_grip: bool = False, robot_xml: Path = PANDA_XML
+    objects_count: int,
+    layout: Layout,
+    dynamics: str = NOMINAL,
+    firm_grip: bool = False,
+    robot_xml: Path = PANDA.model_xml,
 ) -> mujoco.MjModel:
     """Compiled model for `objects_count` object slots in `layout` with the robot's `dynamics`, with the firm grip
     of a thrower if `firm_grip` (FIRM_GRIP_TIMESTEP), the Panda of `robot_xml` (cached: every argument is
@@ -191,7 +200,7 @@ def resolve_ids(model: mujoco.MjModel, objects_count: int) -> ModelIds:
     gripper_geoms = {model.geom(name).id for name in ("left_pad", "right_pad", "hand")}
     is_finger_pair = np.array([int(model.pair_geom1[k]) in gripper_geoms for k in range(model.npair)])
     return ModelIds(
-        robot=resolve_panda_ids(model),
+        robot=resolve_robot_ids(model, PANDA),
         object_qpos=np.array([joint(f"object{k}").qposadr[0] for k in range(objects_count)], dtype=np.int64),
         object_qvel=np.array([joint(f"object{k}").dofadr[0] for k in range(objects_count)], dtype=np.int64),
         object_body=np.array([model.body(f"object{k}").id for k in range(objects_count)], dtype=np.int64),

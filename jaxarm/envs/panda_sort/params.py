@@ -11,6 +11,7 @@ from flax import struct
 
 from jaxarm.envs.panda.sim_to_real import RobotParams
 from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
+from jaxarm.robots import PANDA
 
 
 @struct.dataclass
@@ -106,8 +107,8 @@ class PandaSortParams(RobotParams):
     max_lead: jax.Array = ranged(0.08, POSITIVE)
     max_yaw_lead: jax.Array = ranged(0.8, POSITIVE)
     max_joint_lead: jax.Array = ranged(0.4, POSITIVE)
-    ik_damping: jax.Array = ranged(0.05, POSITIVE)
-    ik_posture_gain: jax.Array = ranged(0.05, UNIT_INTERVAL)
+    ik_damping: jax.Array = ranged(PANDA.ik_damping, POSITIVE)
+    ik_posture_gain: jax.Array = ranged(PANDA.ik_posture_gain, UNIT_INTERVAL)
     step_reward: jax.Array = ranged(-1.0)
     floor_reward: jax.Array = ranged(-50.0)
     wrong_bin_reward: jax.Array = ranged(200.0)
@@ -134,7 +135,7 @@ class PandaSortParams(RobotParams):
     mass_scale: jax.Array = ranged(1.0, POSITIVE)
     object_friction: jax.Array = ranged(0.8, NON_NEGATIVE)
     finger_friction: jax.Array = ranged(2.5, NON_NEGATIVE)
-    home_noise: jax.Array = ranged(0.02, NON_NEGATIVE)
+    home_noise: jax.Array = ranged(PANDA.home_noise, NON_NEGATIVE)
     obs_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
     object_pose_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
     object_pose_bias: jax.Array = ranged(0.0, NON_NEGATIVE)

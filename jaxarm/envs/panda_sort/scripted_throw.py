@@ -6,7 +6,7 @@ It starts from an episode with the object held (`held_start_prob` = 1); the toss
 script moves the joint targets the servos chase along a timed path: a smooth move from the start posture to a
 wind-up facing the aimed bin (upper arm leaning back, hand raised behind), then a swing in which the shoulder turns
 forward while the elbow and the wrist whip the hand over, each joint's target speeding up to a constant fraction of
-its limit (`ARM_SPEED_LIMITS`); at `release_step` the fingers open and the targets stop. The swing stays in the
+its speed limit (`PANDA.joint_limits`); at `release_step` the fingers open and the targets stop. The swing stays in the
 vertical plane through the base and the bin, so the release time alone sets the range: the caller chooses it (a
 landing moves 0.1-0.4 m per step of release, so a fractional `swing_start` times it finer). Pure JAX: `throw_action`
 jits and scans; it reads only the observation and the step count.
@@ -18,10 +18,10 @@ import numpy as np
 from flax import struct
 
 from jaxarm.envs.panda.base import CONTROL_DT
-from jaxarm.envs.panda.robot import ARM_SPEED_LIMITS
 from jaxarm.envs.panda_sort.curriculum import wound_up_posture
 from jaxarm.envs.panda_sort.env import SERVO_LEAD_OBS_SIZE
 from jaxarm.envs.panda_sort.params import PandaSortParams
+from jaxarm.robots import PANDA
 
 OPEN, CLOSED = 1.0, -1.0
 SWING_SPEEDS = np.array([0.0, 0.9, 0.0, -0.9, 0.0, -0.55, 0.0], np.float32)
@@ -66,7 +66,7 @@ def aimed_throw(start: np.ndarray, bin_xy: np.ndarray, swing_start: float, relea
     return Throw(
         start=jnp.asarray(start, jnp.float32),
         wind_up=wound_up_posture(jnp.asarray(bin_xy, jnp.float32)),
-        swing_velocity=jnp.asarray(SWING_SPEEDS * ARM_SPEED_LIMITS),
+        swing_velocity=jnp.asarray(SWING_SPEEDS * PANDA.joint_limits.speed),
         swing_start=jnp.float32(swing_start),
         release_step=jnp.int32(release_step),
     )

@@ -17,7 +17,8 @@ import mujoco
 import numpy as np
 
 from jaxarm.envs.panda.franka_dynamics import NOMINAL, set_dynamics
-from jaxarm.envs.panda.robot import PANDA_XML, PandaIds, resolve_panda_ids, scene_spec
+from jaxarm.envs.panda.robot import RobotIds, resolve_robot_ids, scene_spec
+from jaxarm.robots import PANDA
 
 ASSETS = Path(__file__).parent / "assets"
 PEG_RADIUS = 0.01
@@ -50,7 +51,7 @@ class PegIds:
       block_pairs: [5] ids of the peg-vs-block pairs.
     """
 
-    robot: PandaIds
+    robot: RobotIds
     peg_geom: int
     peg_tip: int
     table_geom: int
@@ -110,12 +111,12 @@ def _add_block(spec: mujoco.MjSpec, clearance: float) -> None:
         block.add_geom(name=name, pos=centre, size=half, **common)
 
 
-def build_spec(clearance: float, dynamics: str = NOMINAL, robot_xml: Path = PANDA_XML) -> mujoco.MjSpec:
+def build_spec(clearance: float, dynamics: str = NOMINAL, robot_xml: Path = PANDA.model_xml) -> mujoco.MjSpec:
     """The scene as an MjSpec: robot, table and camera from assets/scene.xml with the robot's `dynamics`
     (`franka_dynamics.DYNAMICS`), then the peg and the block; `robot_xml` replaces jaxarm's Panda
     (`robot.scene_spec`)."""
-    spec = scene_spec(ASSETS / "scene.xml", robot_xml)
-    set_dynamics(spec, dynamics)
+    spec = scene_spec(ASSETS / "scene.xml", PANDA, robot_xml)
+    set_dynamics(spec, dynamics, PANDA)
     _add_peg(spec)
     _add_block(spec, clearance)
     spec.add_pair(geomname1="table", geomname2="peg", condim=3, friction=PEG_FRICTION)
@@ -125,7 +126,7 @@ def build_spec(clearance: float, dynamics: str = NOMINAL, robot_xml: Path = PAND
 
 
 @functools.cache
-def build_model(clearance: float = 0.001, dynamics: str = NOMINAL, robot_xml: Path = PANDA_XML) -> mujoco.MjModel:
+def build_model(clearance: float = 0.001, dynamics: str = NOMINAL, robot_xml: Path = PANDA.model_xml) -> mujoco.MjModel:
     """Compiled model with the walls at `clearance` (the env replaces them per env from its params), the robot's
     `dynamics` and the Panda of `robot_xml` (cached: every argument is hashable)."""
     return build_spec(clearance, dynamics, robot_xml).compile()
@@ -135,7 +136,7 @@ def resolve_ids(model: mujoco.MjModel) -> PegIds:
     """Looks up every id the env uses, by name."""
     block_geoms = {model.geom(name).id for name in BLOCK_GEOMS}
     return PegIds(
-        robot=resolve_panda_ids(model),
+        robot=resolve_robot_ids(model, PANDA),
         peg_geom=model.geom("peg").id,
         peg_tip=model.site("peg_tip").id,
         table_geom=model.geom("table").id,

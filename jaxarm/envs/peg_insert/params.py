@@ -12,6 +12,7 @@ from flax import struct
 
 from jaxarm.envs.panda.sim_to_real import RobotParams
 from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
+from jaxarm.robots import PANDA
 
 RUNNING_TARGET_MAX_LEAD = 0.03
 """`max_lead` of a `running_target` peg (its presets set it; metres). The lead is what bounds the tool's speed: with
@@ -54,11 +55,11 @@ class PegInsertParams(RobotParams):
     max_episode_steps: jax.Array = ranged(100, COUNT)
     ee_step: jax.Array = ranged(0.005, POSITIVE)
     max_lead: jax.Array = ranged(0.01, POSITIVE)
-    ik_damping: jax.Array = ranged(0.05, POSITIVE)
-    ik_posture_gain: jax.Array = ranged(0.05, UNIT_INTERVAL)
+    ik_damping: jax.Array = ranged(PANDA.ik_damping, POSITIVE)
+    ik_posture_gain: jax.Array = ranged(PANDA.ik_posture_gain, UNIT_INTERVAL)
     clearance: jax.Array = ranged(0.001, POSITIVE)
     hole_shift: jax.Array = ranged(0.1, NON_NEGATIVE)
-    home_noise: jax.Array = ranged(0.02, NON_NEGATIVE)
+    home_noise: jax.Array = ranged(PANDA.home_noise, NON_NEGATIVE)
     progress_weight: jax.Array = ranged(1.0)
     success_bonus: jax.Array = ranged(0.1)
     insert_distance: jax.Array = ranged(0.01, POSITIVE)

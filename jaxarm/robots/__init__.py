@@ -1,0 +1,17 @@
+"""The robot arms jaxarm knows, each a `RobotDescription` declared once in its own module, by name.
+
+Imports numpy alone, so the JAX-free deployment package reads the same descriptions as the envs.
+"""
+
+from jaxarm.robots.description import RobotDescription
+from jaxarm.robots.panda import PANDA
+
+ROBOTS = {PANDA.name: PANDA}
+"""Every robot description, by name."""
+
+
+def robot(name: str) -> RobotDescription:
+    """The description of robot `name`; raises ValueError naming the known robots for any other."""
+    if name not in ROBOTS:
+        raise ValueError(f"unknown robot {name!r}; known: {', '.join(sorted(ROBOTS))}")
+    return ROBOTS[name]
