@@ -102,7 +102,8 @@ class CameraParams(Protocol):
 
 
 class IkParams(HasEpisodeLimit, CameraParams, Protocol):
-    """What `PandaBase` reads of a task's params (scalars): the time limit, the IK's settings and the cameras'."""
+    """What `PandaBase` reads of a task's params (scalars): the time limit, the IK's settings (`ArmParams`') and
+    the cameras'."""
 
     @property
     def ik_damping(self) -> jax.Array: ...

@@ -9,18 +9,17 @@ from typing import ClassVar
 import jax
 from flax import struct
 
-from jaxarm.envs.panda.sim_to_real import RobotParams
+from jaxarm.envs.panda.params import ArmParams
 from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
-from jaxarm.robots import PANDA
 
 
 @struct.dataclass
-class PandaSortParams(RobotParams):
+class PandaSortParams(ArmParams):
     """Task, action and randomisation parameters (scalars unless noted).
 
     Each field declares its default and allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all
-    are finite. The robot's own (action latency; servo gain, damping, friction, force limit and control period
-    scales) are `RobotParams`', documented there.
+    are finite. The robot's own (IK damping and posture gain, start noise, action latency; servo gain, damping,
+    friction, force limit and control period scales) are `ArmParams`', documented there.
 
     The shaping terms pay changes of potentials (see reward.py), so their weights set how strongly each stage
     pulls without creating any reward for lingering; by default one object's stages are worth 1 each.
@@ -42,8 +41,6 @@ class PandaSortParams(RobotParams):
         tool presses no harder than this lead makes its servos.
       max_yaw_lead: the same for the hand's yaw (radians).
       max_joint_lead: the same for each joint's target in `joint` mode (radians).
-      ik_damping: damping λ of the damped-least-squares IK (metres-radians).
-      ik_posture_gain: null-space pull of the arm towards its home posture per step (fraction of the error).
       step_reward: reward every step (a time cost).
       floor_reward: reward when an object falls below the table top.
       wrong_bin_reward: reward when an object enters a bin of another shape.
@@ -89,7 +86,6 @@ class PandaSortParams(RobotParams):
       mass_scale: factor on every object's mass and inertia.
       object_friction: sliding friction of objects against tables, bins, the blocker and each other.
       finger_friction: sliding friction between the gripper and objects.
-      home_noise: half-width of the uniform noise on the arm's initial joint angles (radians).
       obs_noise: standard deviation of Gaussian noise added to every observation entry each step (in its own
         units: metres, radians, m/s), as a sensor would.
       object_pose_noise: standard deviation of Gaussian noise on each object's observed position (metres), drawn
@@ -107,8 +103,6 @@ class PandaSortParams(RobotParams):
     max_lead: jax.Array = ranged(0.08, POSITIVE)
     max_yaw_lead: jax.Array = ranged(0.8, POSITIVE)
     max_joint_lead: jax.Array = ranged(0.4, POSITIVE)
-    ik_damping: jax.Array = ranged(PANDA.ik_damping, POSITIVE)
-    ik_posture_gain: jax.Array = ranged(PANDA.ik_posture_gain, UNIT_INTERVAL)
     step_reward: jax.Array = ranged(-1.0)
     floor_reward: jax.Array = ranged(-50.0)
     wrong_bin_reward: jax.Array = ranged(200.0)
@@ -135,7 +129,6 @@ class PandaSortParams(RobotParams):
     mass_scale: jax.Array = ranged(1.0, POSITIVE)
     object_friction: jax.Array = ranged(0.8, NON_NEGATIVE)
     finger_friction: jax.Array = ranged(2.5, NON_NEGATIVE)
-    home_noise: jax.Array = ranged(PANDA.home_noise, NON_NEGATIVE)
     obs_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
     object_pose_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
     object_pose_bias: jax.Array = ranged(0.0, NON_NEGATIVE)

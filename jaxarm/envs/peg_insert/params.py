@@ -10,9 +10,8 @@ from typing import ClassVar
 import jax
 from flax import struct
 
-from jaxarm.envs.panda.sim_to_real import RobotParams
-from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
-from jaxarm.robots import PANDA
+from jaxarm.envs.panda.params import ArmParams
+from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, ranged
 
 RUNNING_TARGET_MAX_LEAD = 0.03
 """`max_lead` of a `running_target` peg (its presets set it; metres). The lead is what bounds the tool's speed: with
@@ -22,23 +21,20 @@ joints damped x3 a held unit action moved the tool 1.2 mm per step at the defaul
 
 
 @struct.dataclass
-class PegInsertParams(RobotParams):
+class PegInsertParams(ArmParams):
     """Task, action and randomisation parameters (scalars, float32 unless noted).
 
     Each field declares its default and allowed values (`ranged`, checked by `jaxarm.envs.override_params`); all
-    are finite. The robot's own (action latency; servo gain, damping, friction, force limit and control period
-    scales) are `RobotParams`', documented there.
+    are finite. The robot's own (IK damping and posture gain, start noise, action latency; servo gain, damping,
+    friction, force limit and control period scales) are `ArmParams`', documented there.
 
     Attributes:
       max_episode_steps: time limit (truncation), int32, in env steps of 0.04 s.
       ee_step: tool displacement per unit action per axis (metres per step).
       max_lead: the tool target never leads the measured tool centre by more than this per axis (metres),
         which bounds the force the position servos can press with when the peg is blocked.
-      ik_damping: damping λ of the damped-least-squares IK (metres-radians).
-      ik_posture_gain: null-space pull of the arm towards its start posture per step (fraction of the error).
       clearance: gap between the peg and each wall of the square hole (metres).
       hole_shift: the hole is moved from its nominal place by U(−hole_shift, hole_shift) in x and in y.
-      home_noise: half-width of the uniform noise on the arm's initial joint angles (radians).
       progress_weight: reward weight of the progress term, (previous − current distance) / initial distance.
       success_bonus: reward per step while the peg tip is within `insert_distance` of the hole bottom.
       insert_distance: the peg counts as inserted within this distance of the hole bottom (metres).
@@ -55,11 +51,8 @@ class PegInsertParams(RobotParams):
     max_episode_steps: jax.Array = ranged(100, COUNT)
     ee_step: jax.Array = ranged(0.005, POSITIVE)
     max_lead: jax.Array = ranged(0.01, POSITIVE)
-    ik_damping: jax.Array = ranged(PANDA.ik_damping, POSITIVE)
-    ik_posture_gain: jax.Array = ranged(PANDA.ik_posture_gain, UNIT_INTERVAL)
     clearance: jax.Array = ranged(0.001, POSITIVE)
     hole_shift: jax.Array = ranged(0.1, NON_NEGATIVE)
-    home_noise: jax.Array = ranged(PANDA.home_noise, NON_NEGATIVE)
     progress_weight: jax.Array = ranged(1.0)
     success_bonus: jax.Array = ranged(0.1)
     insert_distance: jax.Array = ranged(0.01, POSITIVE)
