@@ -51,6 +51,7 @@ from jaxarm.runner import learners, plots, processes, provenance, rundir, signal
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.progress import explain_gspmd
 from jaxarm.runner.stats import confidence_halfwidth
+from jaxarm.runner.teacher import warm_start_preset
 
 SWEEP_FILE = "sweep.json"
 """What the sweep was asked (preset, seeds, assignments), written before it trains: `--resume` reads it."""
@@ -157,7 +158,13 @@ def run_group(
     start = time.perf_counter()
     state = init_members(trainer, keys, hparams, mesh)
     if config.init_from:
-        state = jax.jit(over_members(jax.vmap(learners.warm_starter(config)), mesh))(state)
+        if warm_start_preset(config):
+            raise ValueError(
+                f"init_from={config.init_from} trains a run of its own first: train it with experiments.run and give "
+                "init_from=RUN"
+            )
+        starter = learners.warm_starter(config, pathlib.Path(config.init_from))
+        state = jax.jit(over_members(jax.vmap(starter), mesh))(state)
     chunk = jax.jit(
         over_members(jax.vmap(lambda s, h: run_updates(trainer, s, h, config.chunk_updates)), mesh),
         compiler_options=trainer.compiler_options,

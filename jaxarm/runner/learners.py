@@ -62,11 +62,10 @@ def restore_state(
     return checkpoint.restore(directory, like, shardings=shardings, fresh=fresh, partial=acting)
 
 
-def warm_starter(config: RunConfig) -> Callable[[Any], Any]:
-    """fresh learner state -> the same warm-started from the latest checkpoint of the run in `config.init_from`,
-    by the learner's own warm start (`jaxarm.agents.registry.Learner.warm_start`). ValueError or CheckpointError
-    when that run cannot serve."""
-    source_dir = pathlib.Path(config.init_from)
+def warm_starter(config: RunConfig, source_dir: pathlib.Path) -> Callable[[Any], Any]:
+    """fresh learner state -> the same warm-started from the latest checkpoint of the run in `source_dir` (the one
+    `config.init_from` names), by the learner's own warm start (`jaxarm.agents.registry.Learner.warm_start`).
+    ValueError or CheckpointError when that run cannot serve."""
     source, _ = read_config(source_dir)
     learner = registry.learner_for(config)
     warm_start = learner.warm_start

@@ -101,12 +101,15 @@ def _train_locked(
     options: Options,
     overrides: Sequence[str] = (),
 ) -> dict:
-    """`train`, with the lock held: the run's learner (`_train_learner`), after the teacher stage where the
-    config names a teacher by preset (the teacher's evaluation is returned where a time limit stopped that
-    stage)."""
-    if teacher.teacher_preset(config):
+    """`train`, with the lock held: the run's learner (`_train_learner`), after its stages: the run it warm-starts
+    from and its teacher, where the config names them by preset (a stage's evaluation is returned where a time
+    limit stopped it)."""
+    # The run to warm-start from, then the teacher: where the config names them by preset.
+    stages = [teacher.train_warm_start] if teacher.warm_start_preset(config) else []
+    stages += [teacher.train_teacher] if teacher.teacher_preset(config) else []
+    for stage in stages:
         clock = time.perf_counter()
-        stopped = teacher.train_teacher(config, preset, run_dir, resuming, options, train=train, resume=resume)
+        stopped = stage(config, preset, run_dir, resuming, options, train=train, resume=resume)
         if stopped is not None:
             return stopped
         if options.stop_after_s is not None:
@@ -211,7 +214,8 @@ def _start(
         return Start(state, done_updates, wall_offset, best)
     state = jax.jit(trainer.init, out_shardings=shardings)(jax.random.PRNGKey(config.seed), config.hparams())
     if config.init_from:
-        state = jax.device_put(learners.warm_starter(config)(state), shardings)
+        source = teacher.warm_start_run(config, run_dir)
+        state = jax.device_put(learners.warm_starter(config, source)(state), shardings)
     if primary:
         # Written once the start state exists: a warm start that fails leaves no half-made run directory.
         rundir.write_config(run_dir, config, preset)

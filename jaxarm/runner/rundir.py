@@ -21,11 +21,13 @@ Layout of `runs/<config>-<timestamp>/`:
   export/          the policy exported by `experiments.export`, and export.json: the checkpoint it came from
   teacher/         the run of a teacher named by preset (`teacher=preset:NAME`), trained first; kept when the
                    student starts afresh
+  warm_start/      the run it warm-starts from, named by preset (`init_from=preset:NAME`), trained first; kept
+                   likewise
   .lock            held (flock) by the one process writing to the directory
 
-A directory becomes a run when its config.json is written (before its teacher stage, where it has one); until its
-first checkpoint, starting it again (or resuming it) starts it afresh, keeping a teacher/ it has. Nothing here
-deletes or overwrites a file that is not one of the above.
+A directory becomes a run when its config.json is written (before its stages, where it has them); until its first
+checkpoint, starting it again (or resuming it) starts it afresh, keeping the teacher/ and warm_start/ it has.
+Nothing here deletes or overwrites a file that is not one of the above.
 """
 
 import contextlib
@@ -60,7 +62,9 @@ RUN_FILES = (
 """What training writes; with `OUTPUT_FILES`, what a run directory may hold."""
 TEACHER_DIR = "teacher"
 """Where a run whose teacher is named by preset (`teacher=preset:NAME`) trains that teacher before itself."""
-OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock", TEACHER_DIR)
+WARM_START_DIR = "warm_start"
+"""Where a run that warm-starts from a preset (`init_from=preset:NAME`) trains that run before itself."""
+OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock", TEACHER_DIR, WARM_START_DIR)
 OUTPUT_PATTERNS = (
     "eval-*.json",
     "robustness-*.json",

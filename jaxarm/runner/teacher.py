@@ -1,9 +1,11 @@
-"""A run's teacher as the runner finds it (through the learner registry: `registry.teacher_of`), and the teacher
-stage of a run whose teacher is named by preset (`teacher=preset:NAME`): the teacher is trained (or resumed) into
-`<run dir>/teacher` before the student, by the run loop (loop.py), which calls this stage only for such a run.
-Nothing here builds the student's learner or runs its chunks.
+"""A run's teacher as the runner finds it (through the learner registry: `registry.teacher_of`), and the stages
+trained before a run's own learner: its teacher where named by preset (`teacher=preset:NAME`, into `<run
+dir>/teacher`), and the run it warm-starts from where named by preset (`init_from=preset:NAME`, into `<run
+dir>/warm_start`), each trained (or resumed) by the run loop (loop.py), which calls a stage only for such a run.
+Nothing here builds the run's learner or runs its chunks.
 """
 
+import dataclasses
 import pathlib
 import sys
 from collections.abc import Callable
@@ -47,49 +49,126 @@ def train_teacher(
     train: Callable[..., dict],
     resume: Callable[..., tuple[dict, RunConfig]],
 ) -> dict | None:
-    """Trains the teacher `config` names by preset into `run_dir/teacher`, or resumes it there, having first
-    written the student's config.json, so that a run stopped in this stage resumes as the student's. Returns None
-    once the teacher has finished (at once where it had), else its evaluation (stopped by `options.stop_after_s`).
-    Bad names and mismatches raise ValueError before anything is written. `train` and `resume` are the run
-    loop's (`jaxarm.runner.loop`), given by it: the teacher is a run of its own, in its own directory and lock,
-    and the loop, which calls this stage, is not imported here."""
-    name = teacher_preset(config)
-    teacher_dir = run_dir / rundir.TEACHER_DIR
-    if (teacher_dir / "config.json").exists():
-        teacher, trained_preset = rundir.read_config(teacher_dir)
+    """Trains the teacher `config` names by preset into `run_dir/teacher`, or resumes it there (`train_stage`)."""
+    stage = Stage("teacher", teacher_preset(config), run_dir / rundir.TEACHER_DIR)
+    return train_stage(stage, lambda: teacher_config(config, options.presets), config, preset, run_dir, resuming,
+                       options, train=train, resume=resume)  # fmt: skip
+
+
+def train_warm_start(
+    config: RunConfig,
+    preset: str,
+    run_dir: pathlib.Path,
+    resuming: bool,
+    options: Options,
+    *,
+    train: Callable[..., dict],
+    resume: Callable[..., tuple[dict, RunConfig]],
+) -> dict | None:
+    """Trains the run `config` warm-starts from, named by preset (`init_from=preset:NAME`), into
+    `run_dir/warm_start`, or resumes it there (`train_stage`)."""
+    stage = Stage("warm-start", warm_start_preset(config), run_dir / rundir.WARM_START_DIR)
+    return train_stage(stage, lambda: warm_start_config(config, options.presets), config, preset, run_dir, resuming,
+                       options, train=train, resume=resume)  # fmt: skip
+
+
+@dataclasses.dataclass(frozen=True)
+class Stage:
+    """A run trained before a run's own learner, in a directory of the run's: what it is for (its messages say
+    "<kind> stage"), its preset and its directory."""
+
+    kind: str
+    preset: str
+    directory: pathlib.Path
+
+
+def train_stage(
+    stage: Stage,
+    stage_config: Callable[[], RunConfig],
+    config: RunConfig,
+    preset: str,
+    run_dir: pathlib.Path,
+    resuming: bool,
+    options: Options,
+    *,
+    train: Callable[..., dict],
+    resume: Callable[..., tuple[dict, RunConfig]],
+) -> dict | None:
+    """Trains `stage`'s run (its config from `stage_config()`) into its directory, or resumes it there, having
+    first written the run's own config.json, so that a run stopped in this stage resumes as the run's. Returns None
+    once the stage has finished (at once where it had), else its evaluation (stopped by `options.stop_after_s`).
+    Bad names and mismatches raise ValueError before anything is written. `train` and `resume` are the run loop's
+    (`jaxarm.runner.loop`), given by it: the stage is a run of its own, in its own directory and lock, and the loop,
+    which calls this stage, is not imported here."""
+    name, directory = stage.preset, stage.directory
+    if (directory / "config.json").exists():
+        trained, trained_preset = rundir.read_config(directory)
         if trained_preset != name:
             raise rundir.RunDirError(
-                f"{teacher_dir} holds a teacher trained from preset {trained_preset!r}, not {name!r}; use another "
-                "run directory"
+                f"{directory} holds a {stage.kind} run trained from preset {trained_preset!r}, not {name!r}; use "
+                "another run directory"
             )
-        if rundir.finished_evaluation(teacher_dir, teacher) is not None:
+        if rundir.finished_evaluation(directory, trained) is not None:
             return None
-        if not resuming and rundir.any_checkpoint_files(teacher_dir):
+        if not resuming and rundir.any_checkpoint_files(directory):
             raise rundir.resumable(
-                rundir.RunDirError(f"{run_dir} already holds a run, in its teacher stage; resume it (resume=True)"),
+                rundir.RunDirError(
+                    f"{run_dir} already holds a run, in its {stage.kind} stage; resume it (resume=True)"
+                ),
                 run_dir,
             )
     else:
-        teacher = teacher_config(config, options.presets)
+        trained = stage_config()
     if processes.is_primary():
         if not (run_dir / "config.json").exists():
             rundir.write_config(run_dir, config, preset)
-        print(f"teacher stage: {name} into {teacher_dir}", file=sys.stderr)
+        print(f"{stage.kind} stage: {name} into {directory}", file=sys.stderr)
     try:
-        if (teacher_dir / "config.json").exists():
-            result, _ = resume(teacher_dir, options=options)
+        if (directory / "config.json").exists():
+            result, _ = resume(directory, options=options)
         else:
-            result = train(teacher, teacher_dir, preset=name, options=options)
+            result = train(trained, directory, preset=name, options=options)
     except Exception as error:
-        # Resuming the student's run goes on with its teacher, and then with the student: point there.
+        # Resuming the run goes on with its stage, and then with the run's own learner: point there.
         if getattr(error, "resume_dir", None) is not None:
             rundir.resumable(error, run_dir)
         raise
     if result["finished"]:
         return None
     if processes.is_primary():
-        print(f"stopped in the teacher stage; resume {run_dir} to go on", file=sys.stderr)
+        print(f"stopped in the {stage.kind} stage; resume {run_dir} to go on", file=sys.stderr)
     return result
+
+
+def warm_start_preset(config: RunConfig) -> str:
+    """The preset `config`'s warm start names (`init_from=preset:NAME`), or "" (a run directory, or none)."""
+    return teacher_preset_name(config.init_from) or ""
+
+
+def warm_start_run(config: RunConfig, run_dir: pathlib.Path) -> pathlib.Path:
+    """The run directory `config` warm-starts from: the one `init_from` names, or for a preset `run_dir/warm_start`."""
+    return run_dir / rundir.WARM_START_DIR if warm_start_preset(config) else pathlib.Path(config.init_from)
+
+
+def warm_start_config(config: RunConfig, presets: Callable[[str], RunConfig] | None) -> RunConfig:
+    """The config of the run `config` warm-starts from, named by preset, with `config`'s seed (each seed of the run
+    its own first stage); ValueError in one line for an unknown preset, or one with a preset stage of its own."""
+    name = warm_start_preset(config)
+    if presets is None:
+        raise ValueError(f"init_from=preset:{name}: give Options(presets=...) a lookup of presets")
+    try:
+        stage = apply_overrides(presets(name), [f"seed={config.seed}"])
+    except ValueError as error:
+        raise ValueError(f"init_from=preset:{name}: {error}") from None
+    if warm_start_preset(stage) or teacher_preset(stage):
+        raise ValueError(f"init_from=preset:{name} trains a stage of its own first; train it and give init_from=RUN")
+    learner = registry.learner_for(config)
+    if learner.warm_start is None or registry.learner_for(stage) is not learner:
+        raise ValueError(
+            f"init_from=preset:{name}: a {registry.name_of(config)} run warm-starts from a run of its own learner "
+            f"with a warm start, and {name} is {registry.name_of(stage)}"
+        )
+    return stage
 
 
 def teacher_config(config: RunConfig, presets: Callable[[str], RunConfig] | None) -> RunConfig:

@@ -1,5 +1,7 @@
 """The learner registry: learners by name and by config, and warm starts only where a learner has one."""
 
+import pathlib
+
 import jax
 import numpy as np
 import pytest
@@ -51,4 +53,4 @@ def test_a_warm_start_needs_a_learner_that_has_one_and_a_run_of_the_same(tmp_pat
     rundir.write_config(td3_run, TD3Config(), "td3_arm2d")
     for config in (PPOConfig(init_from=str(td3_run)), TD3Config(init_from=str(td3_run))):
         with pytest.raises(ValueError, match="warm starts exist for ppo only"):
-            learners.warm_starter(config)
+            learners.warm_starter(config, pathlib.Path(config.init_from))

@@ -217,7 +217,7 @@ def test_a_warm_start_begins_from_the_trained_networks_and_statistics(finished_r
     warm = dataclasses.replace(config, init_from=str(finished_run))
     trainer = learners.make_trainer(warm)
     fresh = jax.jit(trainer.init)(jax.random.PRNGKey(5), warm.hparams())
-    started = learners.warm_starter(warm)(fresh)
+    started = learners.warm_starter(warm, pathlib.Path(warm.init_from))(fresh)
     for copied, source in zip(
         jax.tree.leaves((started.params, started.normalizer)),
         jax.tree.leaves((trained.params, trained.normalizer)),

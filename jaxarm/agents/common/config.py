@@ -114,7 +114,8 @@ class RunConfig:
       seed: PRNG seed of the run.
       init_from: run directory whose latest checkpoint initialises the networks (a warm start, for learners
         that have one, see `jaxarm.agents.registry`; the env maps the old observation onto its own:
-        `Env.observation_source_index`); "" for none.
+        `Env.observation_source_index`); `preset:NAME` to train that preset (with this run's seed) into the run's
+        warm_start/ first, in the same command; "" for none.
     """
 
     env: str = "arm2d"
