@@ -51,9 +51,9 @@ def train(
     rundir.RunDirError (foreign files, in use, already a run), TrainingDiverged on NaN/inf, TrainingInterrupted
     after Ctrl-C or SIGTERM; with `options.stop_after_s`, the first chunk past it is checkpointed and the
     evaluation describes that state. With several processes (`jax.distributed`) every process calls this with
-    the same arguments; process 0 alone writes the directory (processes.py). A teacher named by preset
-    (`teacher=preset:NAME`, found through `options.presets`) is trained first, into `run_dir/teacher`
-    (teacher.py); a time limit counts both stages.
+    the same arguments; process 0 alone writes the directory (processes.py). A run to warm-start from and a teacher
+    named by preset (`init_from=preset:NAME`, `teacher=preset:NAME`, found through `options.presets`) are trained
+    first, into `run_dir/warm_start` and `run_dir/teacher` (teacher.py); a time limit counts every stage.
     """
     run_dir = pathlib.Path(run_dir)
     rundir.check_holds_a_run_or_nothing(run_dir)
@@ -104,12 +104,11 @@ def _train_locked(
     """`train`, with the lock held: the run's learner (`_train_learner`), after its stages: the run it warm-starts
     from and its teacher, where the config names them by preset (a stage's evaluation is returned where a time
     limit stopped it)."""
-    # The run to warm-start from, then the teacher: where the config names them by preset.
-    stages = [teacher.train_warm_start] if teacher.warm_start_preset(config) else []
-    stages += [teacher.train_teacher] if teacher.teacher_preset(config) else []
-    for stage in stages:
+    for stage, stage_config in teacher.stages(config, run_dir, options):
         clock = time.perf_counter()
-        stopped = stage(config, preset, run_dir, resuming, options, train=train, resume=resume)
+        stopped = teacher.train_stage(
+            stage, stage_config, config, preset, run_dir, resuming, options, train=train, resume=resume
+        )
         if stopped is not None:
             return stopped
         if options.stop_after_s is not None:

@@ -39,39 +39,6 @@ def teacher_run(config: RunConfig, run_dir: pathlib.Path | None) -> pathlib.Path
     return pathlib.Path(run_dir) / rundir.TEACHER_DIR
 
 
-def train_teacher(
-    config: RunConfig,
-    preset: str,
-    run_dir: pathlib.Path,
-    resuming: bool,
-    options: Options,
-    *,
-    train: Callable[..., dict],
-    resume: Callable[..., tuple[dict, RunConfig]],
-) -> dict | None:
-    """Trains the teacher `config` names by preset into `run_dir/teacher`, or resumes it there (`train_stage`)."""
-    stage = Stage("teacher", teacher_preset(config), run_dir / rundir.TEACHER_DIR)
-    return train_stage(stage, lambda: teacher_config(config, options.presets), config, preset, run_dir, resuming,
-                       options, train=train, resume=resume)  # fmt: skip
-
-
-def train_warm_start(
-    config: RunConfig,
-    preset: str,
-    run_dir: pathlib.Path,
-    resuming: bool,
-    options: Options,
-    *,
-    train: Callable[..., dict],
-    resume: Callable[..., tuple[dict, RunConfig]],
-) -> dict | None:
-    """Trains the run `config` warm-starts from, named by preset (`init_from=preset:NAME`), into
-    `run_dir/warm_start`, or resumes it there (`train_stage`)."""
-    stage = Stage("warm-start", warm_start_preset(config), run_dir / rundir.WARM_START_DIR)
-    return train_stage(stage, lambda: warm_start_config(config, options.presets), config, preset, run_dir, resuming,
-                       options, train=train, resume=resume)  # fmt: skip
-
-
 @dataclasses.dataclass(frozen=True)
 class Stage:
     """A run trained before a run's own learner, in a directory of the run's: what it is for (its messages say
@@ -80,6 +47,20 @@ class Stage:
     kind: str
     preset: str
     directory: pathlib.Path
+
+
+def stages(config: RunConfig, run_dir: pathlib.Path, options: Options) -> list[tuple[Stage, Callable[[], RunConfig]]]:
+    """The stages `config` trains before its own learner, in order, each with how its config is made: the run it
+    warm-starts from where named by preset (`init_from=preset:NAME`, into `run_dir/warm_start`), then its teacher
+    where named by preset (`teacher=preset:NAME`, into `run_dir/teacher`)."""
+    found = []
+    if warm_start_preset(config):
+        stage = Stage("warm-start", warm_start_preset(config), run_dir / rundir.WARM_START_DIR)
+        found.append((stage, lambda: warm_start_config(config, options.presets)))
+    if teacher_preset(config):
+        stage = Stage("teacher", teacher_preset(config), run_dir / rundir.TEACHER_DIR)
+        found.append((stage, lambda: teacher_config(config, options.presets)))
+    return found
 
 
 def train_stage(

@@ -81,7 +81,7 @@ def test_a_run_without_a_preset_teacher_reaches_its_learner_without_the_teacher_
     def never(*args, **kwargs):
         raise AssertionError("a run without a preset teacher entered the teacher stage")
 
-    monkeypatch.setattr(teacher, "train_teacher", never)
+    monkeypatch.setattr(teacher, "train_stage", never)
     monkeypatch.setattr(loop, "_train_learner", lambda config, *rest: {"learner of": config.env})
     assert loop.train(apply_overrides(configs.get("ppo_arm2d"), TINY), tmp_path / "run") == {"learner of": "arm2d"}
 
