@@ -324,6 +324,11 @@ def _failure(children: list[int], codes: dict[int, int], resume: str) -> int:
     signal N, which one line names, ending with `resume`."""
     failure = next(code for code in codes.values() if code != 0)
     killed = [(children.index(pid), pid, -code) for pid, code in codes.items() if code < 0]
+    if REPORTED_ERROR in codes.values() and all(number == signal.SIGABRT for *_, number in killed):
+        # JAX aborts a process whose coordination service left with the peer that hosted it: here a peer that
+        # stopped on an error it reported (a config every process refused, one of them first). That error is the
+        # failure (2-core CPU: 1 of 2 CI runs reported the abort instead).
+        return REPORTED_ERROR
     if killed:
         index, pid, number = killed[0]
         failure = 128 + number
@@ -407,6 +412,8 @@ def exit_code(code: object) -> int:
     return 1
 
 
+REPORTED_ERROR = 2
+"""The exit status of a command that stopped on an error it reported in one line (`experiments.run`)."""
 ENDED_TOGETHER = (0, 130)
 """Exit statuses of a process that ended where every process of its job ends: finished, or stopped at a chunk end
 all agreed on (a signal passed on to all, 130). Such a process waits for the others at JAX's shutdown barrier."""

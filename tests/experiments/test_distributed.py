@@ -167,6 +167,15 @@ def test_non_dividing_num_envs_stop_local_processes_with_one_clear_error(tmp_pat
     assert "error: num_envs=9 must divide by the 2 devices it is split over" in result.stderr, result.stderr[-3000:]
 
 
+def test_a_peer_jax_aborts_after_a_reported_error_leaves_that_error_as_the_failure(capsys):
+    # Process 0 refused the config and left first; JAX aborted process 1 (SIGABRT) as its service went with it.
+    assert distributed._failure([10, 11], {10: distributed.REPORTED_ERROR, 11: -signal.SIGABRT}, "RESUME") == 2
+    assert capsys.readouterr().err == ""
+    # A process killed from outside is named, whatever its peers reported after.
+    assert distributed._failure([10, 11], {10: 1, 11: -signal.SIGKILL}, "RESUME") == 128 + signal.SIGKILL
+    assert "error: process 1 (pid 11) was killed by SIGKILL" in capsys.readouterr().err
+
+
 H100 = "GPU {index}: NVIDIA H100 80GB HBM3 (UUID: GPU-{index}b4f-0e1c)"
 MIG = "  MIG 3g.40gb     Device  0: (UUID: MIG-9d1e-7a41)"
 
