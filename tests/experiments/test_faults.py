@@ -428,7 +428,12 @@ def test_a_second_ctrl_c_ends_the_process_at_once_with_130():
 def test_ctrl_c_during_start_up_imports_ends_the_run_at_once(tmp_path):
     command = [sys.executable, "-m", "experiments.run", "--config", "ppo_arm2d_fixed", "--out", str(tmp_path / "r")]
     process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
-    time.sleep(1.5)  # inside the imports (about 6 s on a 2-core CPU)
+    # Inside the imports: once jaxlib's library is mapped, with mujoco, flax and the presets still to come (a fixed
+    # 1.5 s wait landed after them on one CI run, the imports taking 1-6 s on a 2-core CPU).
+    maps = pathlib.Path(f"/proc/{process.pid}/maps")
+    deadline = time.monotonic() + (60 if maps.exists() else 1.5)  # without /proc (macOS): a wait
+    while time.monotonic() < deadline and not (maps.exists() and "jaxlib" in maps.read_text()):
+        time.sleep(0.005)
     process.send_signal(signal.SIGINT)
     _, err = process.communicate(timeout=120)
     assert process.returncode == 130 and "interrupted while starting: nothing was written" in err
