@@ -6,6 +6,7 @@ Nothing here builds the run's learner or runs its chunks.
 """
 
 import dataclasses
+import functools
 import pathlib
 import sys
 from collections.abc import Callable
@@ -53,14 +54,11 @@ def stages(config: RunConfig, run_dir: pathlib.Path, options: Options) -> list[t
     """The stages `config` trains before its own learner, in order, each with how its config is made: the run it
     warm-starts from where named by preset (`init_from=preset:NAME`, into `run_dir/warm_start`), then its teacher
     where named by preset (`teacher=preset:NAME`, into `run_dir/teacher`)."""
-    found = []
-    if warm_start_preset(config):
-        stage = Stage("warm-start", warm_start_preset(config), run_dir / rundir.WARM_START_DIR)
-        found.append((stage, lambda: warm_start_config(config, options.presets)))
-    if teacher_preset(config):
-        stage = Stage("teacher", teacher_preset(config), run_dir / rundir.TEACHER_DIR)
-        found.append((stage, lambda: teacher_config(config, options.presets)))
-    return found
+    candidates = [
+        (Stage("warm-start", warm_start_preset(config), run_dir / rundir.WARM_START_DIR), warm_start_config),
+        (Stage("teacher", teacher_preset(config), run_dir / rundir.TEACHER_DIR), teacher_config),
+    ]
+    return [(stage, functools.partial(make, config, options.presets)) for stage, make in candidates if stage.preset]
 
 
 def train_stage(

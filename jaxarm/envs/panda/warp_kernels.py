@@ -129,11 +129,12 @@ def _compile_into(key: tuple[str, int], variants: set[Variant], device: str) -> 
     began, workers = time.perf_counter(), len(os.sched_getaffinity(0))
     with contextlib.suppress(Exception):
         compiled = compile_variants(variants, device, workers)
-        _RESULTS[key] = compiled, time.perf_counter() - began
+        seconds = time.perf_counter() - began
+        _RESULTS[key] = compiled, seconds
         if compiled:  # Warp's own line per module is off (jaxarm._runtime.quiet_warp): one line for them all
             print(
                 f"Warp: compiled {compiled} of the scene's {len(variants)} kernel modules for {device} in "
-                f"{time.perf_counter() - began:.0f} s on {workers} threads, into {wp.config.kernel_cache_dir}",
+                f"{seconds:.0f} s on {workers} threads, into {wp.config.kernel_cache_dir}",
                 file=sys.stderr,
                 flush=True,
             )
