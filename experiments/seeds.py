@@ -184,12 +184,13 @@ def seed_result(out: pathlib.Path, seed: int, walls: Sequence[float]) -> SeedRes
 
 
 def next_command(protocol: Protocol, out: pathlib.Path, seed: int, stop_after: float | None) -> list[str] | None:
-    """The command that moves `seed` on: a resume of its run where that has a checkpoint, else a new run (into the
-    same directory: a run that died before its first checkpoint starts afresh), or None where it has finished."""
+    """The command that moves `seed` on: a resume of its run where that or a stage it trains first has a
+    checkpoint, else a new run (into the same directory: a run that died before its first checkpoint starts
+    afresh), or None where it has finished."""
     run_dir = seed_dir(out, seed)
     if seed_result(out, seed, []).finished:
         return None
-    if rundir.any_checkpoint_files(run_dir):
+    if rundir.any_stage_checkpoint_files(run_dir):
         command = ["python", "-m", "experiments.run", "--resume", str(run_dir)]
     else:
         command = protocol.run_command(seed, run_dir)

@@ -176,6 +176,12 @@ def any_checkpoint_files(run_dir: pathlib.Path) -> bool:
     return directory.is_dir() and any(path.name.isdigit() for path in directory.iterdir())
 
 
+def any_stage_checkpoint_files(run_dir: pathlib.Path) -> bool:
+    """Whether the run in `run_dir` or a stage it trains first (`TEACHER_DIR`, `WARM_START_DIR`) holds a checkpoint:
+    a run stopped in its first stage holds its progress there alone, and resumes from it."""
+    return any(any_checkpoint_files(path) for path in (run_dir, run_dir / TEACHER_DIR, run_dir / WARM_START_DIR))
+
+
 def _shown(names: list[str]) -> str:
     return ", ".join(names[:5]) + (", ..." if len(names) > 5 else "")
 

@@ -62,6 +62,21 @@ def test_a_damaged_study_file_is_named_in_one_line(tmp_path):
         seeds.read_study(tmp_path / "nothing")
 
 
+@pytest.mark.parametrize("stage", ["", rundir.TEACHER_DIR, rundir.WARM_START_DIR])
+def test_a_seed_stopped_in_any_stage_resumes_and_one_without_checkpoints_starts_again(tmp_path, stage):
+    protocol = seeds.Protocol("ppo_sorter3", (4,), 0.8, 15.0, ())
+    run_dir = seeds.seed_dir(tmp_path, 4)
+    (run_dir / stage / "checkpoints").mkdir(parents=True)
+    (run_dir / "config.json").write_text("{}")
+    assert seeds.next_command(protocol, tmp_path, 4, 9.0) == protocol.run_command(4, run_dir) + [
+        "--stop-after-minutes",
+        "9",
+    ]
+    (run_dir / stage / "checkpoints" / "80").mkdir()
+    resume = ["python", "-m", "experiments.run", "--resume", str(run_dir), "--stop-after-minutes", "9"]
+    assert seeds.next_command(protocol, tmp_path, 4, 9.0) == resume
+
+
 def computed(run_dir: pathlib.Path) -> tuple[list[dict], dict]:
     """A run's metrics rows and final evaluation less their clocks: what it computed."""
     rows = [
