@@ -2,11 +2,11 @@
 [--episodes N] [--seed S] [--video [gif|mp4]] [--no-clip]`.
 
 The "robot" is the task's scene in MuJoCo's C engine (`mujoco.mj_step`: the scene's timestep, MuJoCo's default
-constraint solver), with jaxarm's own Panda (`--model jaxarm`) or MuJoCo Menagerie's (`--model menagerie`, same
-kinematics, its own inertials, actuators, gains and gripper, stepped at its own timestep,
-`PANDA.menagerie_timestep`, where the scene's is longer). Between the policy and the robot runs only the deployment
-loop (`jaxarm.deploy`): the robot's reading -> the env's observation -> RUN/export/policy.npz (written by
-`python -m experiments.export RUN`) -> the env's controller in numpy -> servo targets within Franka's speed and
+constraint solver), with jaxarm's own model of the run's robot (`--model jaxarm`) or MuJoCo Menagerie's (`--model
+menagerie`, same kinematics, its own inertials, actuators and gains, stepped at its own timestep, the robot
+description's `menagerie_timestep`, where the scene's is longer). Between the policy and the robot runs only the
+deployment loop (`jaxarm.deploy`): the robot's reading -> the env's observation -> RUN/export/policy.npz (written by
+`python -m experiments.export RUN`) -> the env's controller in numpy -> servo targets within the robot's speed and
 acceleration limits (clipped, and each clip counted; `--no-clip` only counts). Each episode starts where the run's
 eval env would start one (its reset, drawn by JAX); from there no jaxarm env code runs, and success and return are
 recomputed from MuJoCo's state in numpy (`jaxarm.deploy.scoring`). Writes
@@ -36,7 +36,6 @@ from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
 from jaxarm.envs.observation import actor_observation
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.export import numpy_policy, origin
-from jaxarm.robots import PANDA
 from jaxarm.runner import rundir, video
 
 MODELS = ("jaxarm", "menagerie")
@@ -44,16 +43,16 @@ VIDEO_SIZE = (240, 320)
 
 
 def plant_model(env, params, model_name: str) -> mujoco.MjModel:
-    """A fresh copy of the task's scene with the Panda `model_name` names, MuJoCo's default solver; menagerie's
-    Panda at most at its own timestep."""
+    """A fresh copy of the task's scene with the env's robot as `model_name` names it, MuJoCo's default solver;
+    menagerie's robot at most at its own timestep."""
     if model_name == "jaxarm":
         model = copy.copy(env.mj_model)
     else:
-        model = copy.copy(deployable.entry(env).scene(env, params, PANDA.menagerie_xml))
+        model = copy.copy(deployable.entry(env).scene(env, params, env.robot.menagerie_xml))
     if model_name == "menagerie":
-        # At the scenes' 0.01 s its wrist servos chatter: a numerical artefact, no property of the robot, that cut
-        # ppo_sorter_dr's placements from 98.5% (at 0.002 s) to 33.5% (200 episodes each).
-        model.opt.timestep = min(model.opt.timestep, PANDA.menagerie_timestep)
+        # At the scenes' 0.01 s menagerie's Panda's wrist servos chatter: a numerical artefact, no property of the
+        # robot, that cut ppo_sorter_dr's placements from 98.5% (at 0.002 s) to 33.5% (200 episodes each).
+        model.opt.timestep = min(model.opt.timestep, env.robot.menagerie_timestep)
     if model.nq != env.mj_model.nq:
         raise ValueError(f"{model_name}'s scene has {model.nq} positions, the env's {env.mj_model.nq}")
     stock_solver(model)

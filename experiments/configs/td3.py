@@ -158,6 +158,25 @@ def td3_peg_pixels() -> TD3Config:
     )
 
 
+UR5E = (("robot", "ur5e"),)
+"""env_kwargs of a task on the UR5e (`jaxarm.robots.ur5e`) in place of the Panda."""
+
+
+@preset("TD3 inserting the peg with a UR5e, Universal Robots' link inertials (CPU or one GPU)")
+def td3_peg_ur5e() -> TD3Config:
+    # td3_peg on the arm of the tutorial the task comes from: the same task code, observation and actions (5 mm per
+    # step in x, y, z), the UR5e's model, limits and dynamics (`dynamics=franka` writes a robot's identified links).
+    peg = td3_peg()
+    return dataclasses.replace(peg, env_kwargs=(*peg.env_kwargs, *UR5E))
+
+
+@preset("TD3 inserting the peg with a UR5e from two 64x64 cameras (gray and depth) and the arm's state (one GPU)")
+def td3_peg_ur5e_pixels() -> TD3Config:
+    # td3_peg_pixels' learner on the UR5e: the scene camera and the camera on the UR5e's gripper.
+    pixels = td3_peg_pixels()
+    return dataclasses.replace(pixels, env_kwargs=(*pixels.env_kwargs, *UR5E))
+
+
 @preset("TD3 on the Panda sorter, 1 object, Franka's arm, C51 critics and a spread of exploration noise (one GPU)")
 def td3_sorter() -> TD3Config:
     # The env settings and training-only curricula of ppo_sorter (experiments/configs/ppo.py says why);

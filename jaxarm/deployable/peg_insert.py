@@ -1,5 +1,5 @@
 """The peg insertion as a deployable task: its `jaxarm.deploy.peg` controller and reward read from a `PegInsert` and
-its params; its scene with another Panda; one episode in stock MuJoCo, scored in numpy."""
+its params; its scene with another model of its robot; one episode in stock MuJoCo, scored in numpy."""
 
 from pathlib import Path
 
@@ -42,13 +42,12 @@ def controller(env: peg_env.PegInsert, params) -> peg.PegController:
 
 
 def scene(env: peg_env.PegInsert, params, robot_xml: Path) -> mujoco.MjModel:
-    """The env's scene with the Panda of `robot_xml`, its walls at the params' clearance."""
-    return peg_model.build_model(float(params.clearance), robot_xml=robot_xml)
+    """The env's scene with its robot's model `robot_xml`, its walls at the params' clearance."""
+    return peg_model.build_model(float(params.clearance), robot=env.robot.name, robot_xml=robot_xml)
 
 
-def set_walls(model: mujoco.MjModel, params) -> None:
-    """The peg block's walls at the params' clearance, as the env places them."""
-    ids = peg_model.resolve_ids(model)
+def set_walls(model: mujoco.MjModel, ids: peg_model.PegIds, params) -> None:
+    """The peg block's walls (`ids`' in `model`) at the params' clearance, as the env places them."""
     centres, halves = (np.asarray(array) for array in peg_model.hole_walls(np.float32(params.clearance)))
     model.geom_pos[ids.wall_geoms] = centres
     model.geom_size[ids.wall_geoms] = halves
@@ -57,9 +56,9 @@ def set_walls(model: mujoco.MjModel, params) -> None:
 def episode(robot: MujocoRobot, loop: DeploymentLoop, env: peg_env.PegInsert, params, sim, capture: Capture) -> dict:
     """One peg episode from `sim` (the env's reset); its success (inserted at any step), return and steps."""
     model, data = robot.model, robot.data
-    ids = peg_model.resolve_ids(model)
+    ids = peg_model.resolve_ids(model, env.robot.name)
     model.body_pos[ids.block_body] = [*sim.hole, 0.0]
-    set_walls(model, params)  # the env's own scene has them at the default clearance
+    set_walls(model, ids, params)  # the env's own scene has them at the default clearance
     mujoco.mj_resetData(model, data)
     data.qpos[:] = sim.qpos
     robot.command(sim.ctrl)

@@ -250,7 +250,14 @@ register(
 register(
     "peg_insert",
     "jaxarm.envs.peg_insert:PegInsert",
-    "Franka Panda (MJX) inserting a peg into a square hole shifted at random, end-effector control",
+    "a robot arm (MJX; env_kwargs.robot, the Panda by default) inserting a peg into a square hole shifted at random, "
+    "end-effector control",
+)
+register(
+    "peg_insert_ur5e",
+    "jaxarm.envs.peg_insert:PegInsert",
+    "peg insertion on a Universal Robots UR5e with a two-finger gripper (the task's tutorial's arm)",
+    robot="ur5e",
 )
 register(
     "peg_insert_pixels",

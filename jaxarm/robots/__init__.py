@@ -5,8 +5,9 @@ Imports numpy alone, so the JAX-free deployment package reads the same descripti
 
 from jaxarm.robots.description import RobotDescription
 from jaxarm.robots.panda import PANDA
+from jaxarm.robots.ur5e import UR5E
 
-ROBOTS = {PANDA.name: PANDA}
+ROBOTS = {robot.name: robot for robot in (PANDA, UR5E)}
 """Every robot description, by name."""
 
 

@@ -61,12 +61,13 @@ class RobotDescription:
 
     Attributes:
       name: the robot's name in the registry (`jaxarm.robots.robot`).
-      model_xml: jaxarm's MJCF include file of the robot, which each task's scene includes as `scene_include`.
-      scene_include: the include attribute with which a task's scene.xml takes in `model_xml`.
+      model_xml: jaxarm's MJCF include file of the robot, which a task's scene takes in (`scene_spec` in
+        `jaxarm.envs.panda.robot`).
       menagerie_xml: the same robot from MuJoCo Menagerie with `model_xml`'s names (a robot jaxarm did not write, for
         transfer tests).
       menagerie_timestep: the physics timestep `menagerie_xml` is simulated at (seconds).
-      arm_joints: [J] the arm's joint names, base to wrist.
+      arm_joints: [J] the arm's joint names, base to wrist (J: the arm's joint count, 7 for the Panda, 6 for the
+        UR5e; a model lists the arm's joints first, then the fingers', and its actuators likewise).
       arm_actuators: [J] the names of the arm joints' position servos, in `arm_joints` order.
       finger_joints: the gripper's finger joint names.
       finger_drives: the gripper drives a model of the robot may have, each a tuple of actuator names: one position
@@ -78,7 +79,8 @@ class RobotDescription:
       home_qpos: [J] float32, the arm's home posture, from which its IK starts.
       joint_limits: the arm joints' motion limits (`JointLimits`).
       identified_links: [J] the arm's identified link inertials and joint friction, in `arm_joints` order: the
-        dynamics an env may be built with in place of the model's own (`jaxarm.envs.panda.franka_dynamics`).
+        dynamics an env may be built with in place of the model's own (`dynamics=franka`,
+        `jaxarm.envs.panda.franka_dynamics`).
       ik_damping: default damping λ of the damped-least-squares IK (metres-radians).
       ik_posture_gain: default null-space pull of the arm towards its start posture per step (fraction of the
         error).
@@ -87,7 +89,6 @@ class RobotDescription:
 
     name: str
     model_xml: Path
-    scene_include: str
     menagerie_xml: Path
     menagerie_timestep: float
     arm_joints: tuple[str, ...]

@@ -77,7 +77,6 @@ _FRANKA_LINKS = (
 PANDA = RobotDescription(
     name="panda",
     model_xml=ASSETS / "panda.xml",
-    scene_include='file="../../panda/assets/panda.xml"',
     menagerie_xml=ASSETS / "menagerie" / "panda.xml",
     # Menagerie's panda.xml sets no timestep, so MuJoCo's default. Its wrist servos (kp 2000, kv 200, clamped at
     # 12 N·m) need it: at the scenes' 0.01 s a clamped servo's damping acts explicitly (200 · 0.01 / ~0.11 kg·m²,

@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from jaxarm import robots
 from jaxarm.deploy.camera import DEPTH_RANGE
 from jaxarm.deploy.limits import limit_targets
 from jaxarm.envs.base import Env, EnvSpec, EnvState, HasEpisodeLimit, Observation
@@ -33,7 +34,7 @@ from jaxarm.envs.panda.mjx_impl import (
 from jaxarm.envs.panda.render import Drawing
 from jaxarm.envs.panda.robot import RobotIds, ik_arm_targets, solve_arm_posture, tcp_pose_at
 from jaxarm.envs.panda.sim_to_real import with_noise
-from jaxarm.robots import PANDA, RobotDescription
+from jaxarm.robots import RobotDescription
 
 CONTROL_DT = 0.04
 """Seconds of simulated time per env step, in every Panda task."""
@@ -161,6 +162,7 @@ class PandaOptions:
         randomised presets' draws.
       privileged: a pixel mode's observation also holds the state observation of the same step
         ({"privileged": [S]}, for a learner's critic: `jaxarm.envs.observation`).
+      robot: the arm the task is built on, by name (`jaxarm.robots.ROBOTS`).
     """
 
     impl: str = Impl.JAX
@@ -171,9 +173,11 @@ class PandaOptions:
     cameras: tuple[str, ...] = CAMERAS
     max_action_latency: int = 2
     privileged: bool = False
+    robot: str = "panda"
 
     def __post_init__(self):
         check_obs_mode(self.obs_mode, self.resolution, self.privileged)
+        robots.robot(self.robot)  # raises naming the known robots
         if self.max_action_latency < 0:
             raise ValueError(f"max_action_latency must be >= 0, got {self.max_action_latency}")
 
@@ -194,20 +198,21 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
       options: the construction choices every task shares (`PandaOptions`).
 
     Attributes:
-      robot: the description of the robot every Panda task is built on (its home posture, joint limits, gripper).
+      robot: the description of the robot the task is built on (`options.robot`: its home posture, joint limits,
+        gripper).
+      arm_dof: J, the arm's joint count: a ctrl vector holds the arm's J servo targets, then the fingers'.
       mj_model: the compiled scene as built (drawing poses a copy of it).
       ids: the task's ids; `ids.robot` the robot's.
       impl: the MJX implementation in use (`Impl.JAX` or `Impl.WARP`).
       substeps: physics steps per env step (`CONTROL_DT` over the model's timestep, at most `WARP_TIMESTEP` on Warp).
       mjx_model: `mj_model` on the device; tasks replace its per-episode fields in `episode_model`.
       home_tcp_rotation: [3, 3] tool-centre orientation at the robot's `home_qpos` (pointing down, yaw 0).
-      start_qpos: [7] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
+      start_qpos: [J] arm posture with the tool centre at `start_tcp` in `home_tcp_rotation`.
       obs_mode, resolution, max_action_latency, privileged: as in `options`.
       cameras: the `camera.Camera`s of `cameras`, resolved once (none in "state" mode).
       camera_names: their names in the MJCF (what a renderer outside JAX draws, `jaxarm.deploy.camera`).
     """
 
-    robot: RobotDescription = PANDA
     uses_mjx = True
     draws_with_gl = True
 
@@ -218,6 +223,8 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         start_tcp: np.ndarray,
         options: PandaOptions,
     ):
+        self.robot: RobotDescription = robots.robot(options.robot)
+        self.arm_dof = len(self.robot.arm_joints)
         self.max_action_latency = options.max_action_latency
         self.obs_mode = options.obs_mode
         self.resolution = options.resolution
@@ -244,7 +251,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         self.start_qpos = self.solve_posture(start_tcp)
 
     def solve_posture(self, tcp_position: np.ndarray) -> np.ndarray:
-        """Outside jit: [7] arm joints putting the tool centre at `tcp_position` [3] in `home_tcp_rotation`."""
+        """Outside jit: [J] arm joints putting the tool centre at `tcp_position` [3] in `home_tcp_rotation`."""
         return solve_arm_posture(
             self.mj_model, self.ids.robot, self.robot.home_qpos, tcp_position, self.home_tcp_rotation
         )
@@ -254,7 +261,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         """`mjx_model` with this episode's (sim's) and the params' per-env fields replaced."""
 
     def resting(self, arm_q: jax.Array | np.ndarray, fingers: jax.Array | float) -> RestingPhysics:
-        """The model's initial qpos with the arm at `arm_q` [7] and the fingers at `fingers` (each), at rest."""
+        """The model's initial qpos with the arm at `arm_q` [J] and the fingers at `fingers` (each), at rest."""
         robot = self.ids.robot
         return RestingPhysics(
             qpos=self._data0.qpos.at[robot.arm_qpos].set(arm_q).at[robot.finger_qpos].set(fingers),
@@ -355,11 +362,12 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         return state
 
     def limited_ctrl(self, ctrl: jax.Array, sim: SimT) -> tuple[jax.Array, jax.Array]:
-        """Asked servo targets `ctrl` [9] -> (the targets sent [9], the arm's [7] rate of change, rad/s): the arm's
-        path from the sim's targets kept within the robot's joint speed and acceleration limits (`limit_targets`, which
-        the deployment loop applies to the same commands); the fingers' as asked."""
-        limited = limit_targets(ctrl[:7], sim.ctrl[:7], sim.target_velocity, CONTROL_DT, self.robot.joint_limits)
-        return ctrl.at[:7].set(limited.targets), limited.velocity
+        """Asked servo targets `ctrl` [J + 2] -> (the targets sent [J + 2], the arm's [J] rate of change, rad/s): the
+        arm's path from the sim's targets kept within the robot's joint speed and acceleration limits
+        (`limit_targets`, which the deployment loop applies to the same commands); the fingers' as asked."""
+        arm = slice(self.arm_dof)
+        limited = limit_targets(ctrl[arm], sim.ctrl[arm], sim.target_velocity, CONTROL_DT, self.robot.joint_limits)
+        return ctrl.at[arm].set(limited.targets), limited.velocity
 
     def ik_targets(
         self,
@@ -369,7 +377,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         tcp_rotation: jax.Array | np.ndarray,
         params: ParamsT,
     ) -> jax.Array:
-        """[7] arm joint targets moving the tool centre towards `tcp_target` [3] in `tcp_rotation` [3, 3]: one
+        """[J] arm joint targets moving the tool centre towards `tcp_target` [3] in `tcp_rotation` [3, 3]: one
         damped least-squares step with the params' damping, pulled towards `start_qpos` in its null space."""
         return ik_arm_targets(
             model,
@@ -383,10 +391,10 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         )
 
     def at_servo_targets(self, model: mjx.Model, data: mjx.Data) -> mjx.Data:
-        """`data` with the arm posed at its servo targets `data.ctrl[:7]` (kinematics and com-frame quantities,
+        """`data` with the arm posed at its servo targets `data.ctrl[:J]` (kinematics and com-frame quantities,
         for Jacobians): where the servos are taking the tool."""
-        arm = self.ids.robot.arm_qpos
-        return mjx.com_pos(model, mjx.kinematics(model, data.replace(qpos=data.qpos.at[arm].set(data.ctrl[:7]))))
+        posed = data.qpos.at[self.ids.robot.arm_qpos].set(data.ctrl[: self.arm_dof])
+        return mjx.com_pos(model, mjx.kinematics(model, data.replace(qpos=posed)))
 
     def servo_ik_targets(
         self,
@@ -396,14 +404,15 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         tcp_rotation: jax.Array | np.ndarray,
         params: ParamsT,
     ) -> jax.Array:
-        """[7] arm joint targets putting the tool centre at `tcp_target` [3] in `tcp_rotation` [3, 3], from where the
+        """[J] arm joint targets putting the tool centre at `tcp_target` [3] in `tcp_rotation` [3, 3], from where the
         servos are taking the tool (`servo_data`, from `at_servo_targets`): a running target's differential IK, so
         what the servos chase moves by the target's change alone, where IK from the measured pose would start each
         step the servos' lag behind. `ik_targets`, then a second damped step without the posture pull: the first
         leaves 2-7% of a 1 cm move undone (its damping, and the pull's leak into the tool's motion), which would
         slow the tool as much."""
         joints = self.ik_targets(model, servo_data, tcp_target, tcp_rotation, params)
-        servo_data = self.at_servo_targets(model, servo_data.replace(ctrl=servo_data.ctrl.at[:7].set(joints)))
+        servo_ctrl = servo_data.ctrl.at[: self.arm_dof].set(joints)
+        servo_data = self.at_servo_targets(model, servo_data.replace(ctrl=servo_ctrl))
         ids, damping = self.ids.robot, params.ik_damping
         return ik_arm_targets(model, servo_data, ids, tcp_target, tcp_rotation, damping, 0.0, self.start_qpos)
 

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from jaxarm.robots import RobotDescription
+from jaxarm.robots import PANDA, RobotDescription
 
 
 @dataclasses.dataclass(frozen=True)
@@ -23,12 +23,13 @@ class RobotIds:
     """Indices of the robot in a compiled scene, resolved once (numpy ints / arrays, static under jit).
 
     Attributes:
-      arm_qpos: [7] qpos addresses of the arm joints (also their dof addresses: the arm comes first).
+      arm_qpos: [J] qpos addresses of the arm joints (also their dof addresses: the arm comes first; J: the arm's
+        joint count, `RobotDescription.arm_joints`).
       finger_qpos: [2] qpos addresses of the finger joints.
       hand_body: body id of the hand.
       tcp_site: site id of the tool centre point (between the finger pads).
-      arm_limits: [7, 2] arm joint ranges.
-      arm_actuators: [7] actuator ids of the arm joints' servos.
+      arm_limits: [J, 2] arm joint ranges.
+      arm_actuators: [J] actuator ids of the arm joints' servos.
     """
 
     arm_qpos: np.ndarray
@@ -39,15 +40,19 @@ class RobotIds:
     arm_actuators: np.ndarray
 
 
-def scene_spec(scene_xml: Path, robot: RobotDescription, robot_xml: Path) -> mujoco.MjSpec:
-    """The MjSpec of a task's `scene_xml`, which includes `robot`'s `model_xml`, with `robot_xml` (that model or
-    another with the names of `robot`'s description) included in its place."""
-    if robot_xml == robot.model_xml:
+SCENE_ROBOT_INCLUDE = 'file="../../panda/assets/panda.xml"'
+"""How every task's scene.xml includes its robot: jaxarm's Panda, which `scene_spec` replaces with another model."""
+
+
+def scene_spec(scene_xml: Path, robot_xml: Path) -> mujoco.MjSpec:
+    """The MjSpec of a task's `scene_xml` with the robot model `robot_xml` (any robot's, jaxarm's or another with
+    the names of its description) included in place of jaxarm's Panda."""
+    if robot_xml == PANDA.model_xml:
         return mujoco.MjSpec.from_file(str(scene_xml))
     text = scene_xml.read_text()
-    if robot.scene_include not in text:
-        raise ValueError(f"{scene_xml} does not include the {robot.name} as {robot.scene_include}")
-    return mujoco.MjSpec.from_string(text.replace(robot.scene_include, f'file="{robot_xml.resolve()}"'))
+    if SCENE_ROBOT_INCLUDE not in text:
+        raise ValueError(f"{scene_xml} does not include its robot as {SCENE_ROBOT_INCLUDE}")
+    return mujoco.MjSpec.from_string(text.replace(SCENE_ROBOT_INCLUDE, f'file="{robot_xml.resolve()}"'))
 
 
 def resolve_robot_ids(model: mujoco.MjModel, robot: RobotDescription) -> RobotIds:
@@ -64,7 +69,7 @@ def resolve_robot_ids(model: mujoco.MjModel, robot: RobotDescription) -> RobotId
 
 
 def tcp_pose_at(model: mujoco.MjModel, ids: RobotIds, arm_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Forward kinematics outside jit: [7] arm joints -> (tool centre position [3], rotation [3, 3])."""
+    """Forward kinematics outside jit: [J] arm joints -> (tool centre position [3], rotation [3, 3])."""
     data = mujoco.MjData(model)
     data.qpos[ids.arm_qpos] = arm_q
     mujoco.mj_kinematics(model, data)
@@ -79,7 +84,7 @@ def solve_arm_posture(
     rotation: np.ndarray,
     iterations: int = 200,
 ) -> np.ndarray:
-    """Outside jit: [7] arm joints, from `home_qpos` [7], putting the tool centre at `tcp_position` with `rotation`.
+    """Outside jit: [J] arm joints, from `home_qpos` [J], putting the tool centre at `tcp_position` with `rotation`.
 
     Raises ValueError if the IK does not reach the pose within 0.1 mm (out of reach or at a joint limit).
     Its steps run on the CPU backend whatever the default device: on a GPU each of them would be a launch and
@@ -120,7 +125,7 @@ def host_device() -> jax.Device | None:
 def _posture_step(
     jacobian: np.ndarray, position_error: np.ndarray, rotation: np.ndarray, target_rotation: np.ndarray
 ) -> tuple[jax.Array, jax.Array]:
-    """One step of `solve_arm_posture`: ([7] joint step, [6] task error). Compiled once, because the same
+    """One step of `solve_arm_posture`: ([J] joint step, [6] task error). Compiled once, because the same
     operations dispatched one by one took 2.6 s of the 200-iteration solve on the 2-core CPU (0.3 s compiled)."""
     error = jnp.concatenate([position_error, rotation_error(rotation, target_rotation)])
     step, _ = damped_least_squares(jacobian, error, 1e-3)
@@ -193,9 +198,9 @@ def ik_arm_targets(
     posture_gain,
     posture: np.ndarray,
 ) -> jax.Array:
-    """[7] arm joint targets moving the tool centre towards `tcp_target` [3] with `tcp_rotation` [3, 3].
+    """[J] arm joint targets moving the tool centre towards `tcp_target` [3] with `tcp_rotation` [3, 3].
 
-    One damped least-squares step from the measured joints, plus `posture_gain` of the way to `posture` [7]
+    One damped least-squares step from the measured joints, plus `posture_gain` of the way to `posture` [J]
     in the null space of the tool pose, clipped to the joint limits.
     """
     arm_q = data.qpos[ids.arm_qpos]

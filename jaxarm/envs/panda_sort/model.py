@@ -163,8 +163,8 @@ def build_spec(
 ) -> mujoco.MjSpec:
     """The scene as an MjSpec: robot and table from assets/scene.xml with the robot's `dynamics`
     (`franka_dynamics.DYNAMICS`), the rest from `layout`; `firm_grip` sets FIRM_GRIP_TIMESTEP and
-    FIRM_GRIP_SOLREF; `robot_xml` replaces jaxarm's Panda (`robot.scene_spec`)."""
-    spec = scene_spec(ASSETS / "scene.xml", PANDA, robot_xml)
+    FIRM_GRIP_SOLREF; `robot_xml` replaces jaxarm's Panda (`robot.scene_spec`) with a Panda of the same names."""
+    spec = scene_spec(ASSETS / "scene.xml", robot_xml)
     set_dynamics(spec, dynamics, PANDA)
     if firm_grip:
         spec.option.timestep = FIRM_GRIP_TIMESTEP

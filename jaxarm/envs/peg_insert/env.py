@@ -1,10 +1,11 @@
-"""Peg-in-hole insertion in MJX: the Panda holds a peg over a block whose square hole moves every episode.
+"""Peg-in-hole insertion in MJX: a robot arm (`robot`: the Panda, the UR5e) holds a peg over a block whose square hole
+moves every episode.
 
 One env step is `CONTROL_DT` = 0.04 s. The action [3] moves a tool-centre target by at most `ee_step` per
 axis; the target is held within `max_lead` of the measured tool centre (so a blocked peg presses with
 bounded force) and followed through damped least-squares IK with the tool pointing down (from the measured pose, or
-with `running_target` from the servos' targets, as the sorter's), the joints' targets moved within Franka's speed and
-acceleration limits (`PandaBase.limited_ctrl`). Reward:
+with `running_target` from the servos' targets, as the sorter's), the joints' targets moved within the robot's speed
+and acceleration limits (`PandaBase.limited_ctrl`). Reward:
 `progress_weight` · (previous − current tip-to-hole-bottom distance) / initial distance, plus
 `success_bonus` every step the tip is within `insert_distance` of the hole bottom (inserted, a success).
 Terminated when the peg touches the table (its explicit contact pair reports penetration in any substep)
@@ -58,11 +59,11 @@ class PegInsertSim(struct.PyTreeNode):
     """Physics and task state of one env.
 
     Attributes:
-      qpos: [nq] joint positions (arm 7, fingers 2).
+      qpos: [nq] joint positions (arm J, fingers 2; J: the robot's arm joints, `PandaBase.arm_dof`).
       qvel: [nv] joint velocities.
       qacc_warmstart: [nv] the solver's warm start.
       ctrl: [9] actuator targets (arm joints, then the fingers).
-      target_velocity: [7] the arm's targets' rate of change over the last step (rad/s), as the sorter's.
+      target_velocity: [J] the arm's targets' rate of change over the last step (rad/s), as the sorter's.
       tcp_target: [3] where the tool centre is being driven.
       hole: [2] (x, y) of the hole's centre this episode.
       initial_distance: [] tip-to-hole-bottom distance at reset (metres).
@@ -100,7 +101,7 @@ class PegInsertInfo(struct.PyTreeNode):
 
 
 class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
-    """The Panda inserting a peg held in its hand into a square hole shifted at random every episode.
+    """A robot arm inserting a peg held in its hand into a square hole shifted at random every episode.
 
     Args:
       dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
@@ -116,9 +117,9 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         self, dynamics: str = NOMINAL, running_target: bool = False, *, options: PandaOptions = PandaOptions()
     ):
         self.running_target = running_target
-        mj_model = build_model(dynamics=dynamics)
+        mj_model = build_model(dynamics=dynamics, robot=options.robot)
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
-        super().__init__(mj_model, resolve_ids(mj_model), start_tcp, options)
+        super().__init__(mj_model, resolve_ids(mj_model, options.robot), start_tcp, options)
         self.spec = self.observation_spec(STATE_OBS_SIZE, 9, 3)
 
     def default_params(self) -> PegInsertParams:
@@ -196,7 +197,9 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         hole_key, arm_key = jax.random.split(key)
         hole = jnp.array(HOLE_NOMINAL) + jax.random.uniform(hole_key, (2,), minval=-1.0, maxval=1.0) * params.hole_shift
         robot = self.ids.robot
-        arm_q = self.start_qpos + jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
+        arm_q = self.start_qpos + jax.random.uniform(
+            arm_key, (self.arm_dof,), minval=-params.home_noise, maxval=params.home_noise
+        )
         fingers = jnp.full((2,), PEG_RADIUS)
         resting = self.resting(arm_q, fingers)
         zero = jnp.zeros((), jnp.float32)
@@ -205,7 +208,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             qvel=resting.qvel,
             qacc_warmstart=resting.qacc_warmstart,
             ctrl=jnp.concatenate([arm_q, fingers]),
-            target_velocity=jnp.zeros(7),
+            target_velocity=jnp.zeros(self.arm_dof),
             tcp_target=jnp.zeros(3),
             hole=hole,
             initial_distance=zero,
@@ -233,7 +236,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
     def _arm_targets(
         self, model: mjx.Model, data: mjx.Data, sim: PegInsertSim, action: jax.Array, params: PegInsertParams
     ) -> tuple[jax.Array, jax.Array]:
-        """The applied `action` [3] -> (the next tool-centre target [3], the arm's joint targets [7]): the target
+        """The applied `action` [3] -> (the next tool-centre target [3], the arm's joint targets [J]): the target
         the servos chase (`sim.tcp_target`, or with `running_target` the tool centre at the servos' targets) moved
         by the action, held within `max_lead` of the measured tool centre (`data`'s), and IK towards it from the
         measured pose, or with `running_target` from the servos' targets (`PandaBase.servo_ik_targets`)."""
@@ -251,7 +254,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         data = self.kinematics(model, sim)
         applied, queued = delayed_action(sim.queued_actions, action, params.action_latency)
         target, arm_ctrl = self._arm_targets(model, data, sim, applied, params)
-        ctrl, target_velocity = self.limited_ctrl(jnp.concatenate([arm_ctrl, sim.ctrl[7:]]), sim)
+        ctrl, target_velocity = self.limited_ctrl(jnp.concatenate([arm_ctrl, sim.ctrl[self.arm_dof :]]), sim)
         data = data.replace(ctrl=ctrl)
 
         def substep(_, carry):

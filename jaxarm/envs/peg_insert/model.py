@@ -1,9 +1,10 @@
 """Builds the MuJoCo model of peg insertion and resolves the ids the env needs, once, outside jit.
 
-The peg is a capsule fixed in the Panda's hand (the fingers close on it for show; they collide with
-nothing). The block is a static body of five boxes: a floor and four walls around a square hole. Its
-position is `mjx.Model.body_pos` and the walls' placement `geom_pos`/`geom_size`, both replaced per env
-inside the step (`hole_walls` gives the walls for a clearance), so the hole moves and resizes under vmap.
+The peg is a capsule fixed in the robot's hand (the fingers close on it for show; they collide with
+nothing), its tip `PEG_LENGTH` below the tool centre whatever the robot. The block is a static body of five
+boxes: a floor and four walls around a square hole. Its position is `mjx.Model.body_pos` and the walls' placement
+`geom_pos`/`geom_size`, both replaced per env inside the step (`hole_walls` gives the walls for a clearance), so
+the hole moves and resizes under vmap.
 
 Contacts come only from explicit <pair>s: the peg against the table top and against each box of the block.
 """
@@ -16,16 +17,17 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from jaxarm import robots
 from jaxarm.envs.panda.franka_dynamics import NOMINAL, set_dynamics
 from jaxarm.envs.panda.robot import RobotIds, resolve_robot_ids, scene_spec
-from jaxarm.robots import PANDA
+from jaxarm.robots import RobotDescription
 
 ASSETS = Path(__file__).parent / "assets"
 PEG_RADIUS = 0.01
 PEG_LENGTH = 0.08
 """The peg's tip is this far below the tool centre (the fingers hold its upper end)."""
-TCP_IN_HAND = 0.1034
-"""Height of the tool centre below the hand's origin, along the hand's z axis (panda.xml's tcp site)."""
+PEG_ABOVE_TCP = 0.035
+"""How far the peg reaches above the tool centre, into the hand."""
 HOLE_DEPTH = 0.04
 HOLE_FLOOR = 0.01
 """Thickness of the block's floor: the hole bottom is this high above the table."""
@@ -42,7 +44,7 @@ class PegIds:
     """Indices into the compiled model (numpy ints / arrays, static under jit).
 
     Attributes:
-      robot: the Panda's ids.
+      robot: the robot's ids.
       peg_geom: geom id of the peg.
       peg_tip: site id of the peg's tip.
       table_geom: geom id of the table top.
@@ -84,10 +86,12 @@ def hole_walls(clearance) -> tuple:
     return centres, jnp.stack([long_wall, long_wall, short_wall, short_wall])
 
 
-def _add_peg(spec: mujoco.MjSpec) -> None:
-    hand = spec.body("hand")
+def _add_peg(spec: mujoco.MjSpec, robot: RobotDescription) -> None:
+    hand = spec.body(robot.hand_body)
     peg = hand.add_body(name="peg")
-    top, tip = TCP_IN_HAND - 0.035, TCP_IN_HAND + PEG_LENGTH
+    # The tool centre's height along the hand's z axis, where the hand points (both robots' tcp sites).
+    tcp_in_hand = spec.site(robot.tcp_site).pos[2]
+    top, tip = tcp_in_hand - PEG_ABOVE_TCP, tcp_in_hand + PEG_LENGTH
     peg.add_geom(
         name="peg",
         type=mujoco.mjtGeom.mjGEOM_CAPSULE,
@@ -111,13 +115,16 @@ def _add_block(spec: mujoco.MjSpec, clearance: float) -> None:
         block.add_geom(name=name, pos=centre, size=half, **common)
 
 
-def build_spec(clearance: float, dynamics: str = NOMINAL, robot_xml: Path = PANDA.model_xml) -> mujoco.MjSpec:
-    """The scene as an MjSpec: robot, table and camera from assets/scene.xml with the robot's `dynamics`
-    (`franka_dynamics.DYNAMICS`), then the peg and the block; `robot_xml` replaces jaxarm's Panda
-    (`robot.scene_spec`)."""
-    spec = scene_spec(ASSETS / "scene.xml", PANDA, robot_xml)
-    set_dynamics(spec, dynamics, PANDA)
-    _add_peg(spec)
+def build_spec(
+    clearance: float, dynamics: str = NOMINAL, robot: str = "panda", robot_xml: Path | None = None
+) -> mujoco.MjSpec:
+    """The scene as an MjSpec: table and camera from assets/scene.xml with `robot` (by name, `jaxarm.robots`) and its
+    `dynamics` (`franka_dynamics.DYNAMICS`), then the peg and the block. The robot's model is its description's
+    `model_xml`, or `robot_xml`, another with the names of its description (`robot.scene_spec`)."""
+    description = robots.robot(robot)
+    spec = scene_spec(ASSETS / "scene.xml", robot_xml or description.model_xml)
+    set_dynamics(spec, dynamics, description)
+    _add_peg(spec, description)
     _add_block(spec, clearance)
     spec.add_pair(geomname1="table", geomname2="peg", condim=3, friction=PEG_FRICTION)
     for name in BLOCK_GEOMS:
@@ -126,17 +133,19 @@ def build_spec(clearance: float, dynamics: str = NOMINAL, robot_xml: Path = PAND
 
 
 @functools.cache
-def build_model(clearance: float = 0.001, dynamics: str = NOMINAL, robot_xml: Path = PANDA.model_xml) -> mujoco.MjModel:
-    """Compiled model with the walls at `clearance` (the env replaces them per env from its params), the robot's
-    `dynamics` and the Panda of `robot_xml` (cached: every argument is hashable)."""
-    return build_spec(clearance, dynamics, robot_xml).compile()
+def build_model(
+    clearance: float = 0.001, dynamics: str = NOMINAL, robot: str = "panda", robot_xml: Path | None = None
+) -> mujoco.MjModel:
+    """Compiled model with the walls at `clearance` (the env replaces them per env from its params), `robot` with
+    its `dynamics`, from `robot_xml` where given (`build_spec`; cached: every argument is hashable)."""
+    return build_spec(clearance, dynamics, robot, robot_xml).compile()
 
 
-def resolve_ids(model: mujoco.MjModel) -> PegIds:
-    """Looks up every id the env uses, by name."""
+def resolve_ids(model: mujoco.MjModel, robot: str = "panda") -> PegIds:
+    """Looks up every id the env uses, by name, with `robot`'s by its description's names."""
     block_geoms = {model.geom(name).id for name in BLOCK_GEOMS}
     return PegIds(
-        robot=resolve_robot_ids(model, PANDA),
+        robot=resolve_robot_ids(model, robots.robot(robot)),
         peg_geom=model.geom("peg").id,
         peg_tip=model.site("peg_tip").id,
         table_geom=model.geom("table").id,
