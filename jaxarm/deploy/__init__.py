@@ -1,6 +1,6 @@
 """What runs next to a robot: each control tick, the observation a policy was trained on, formed from what the
 robot reads, the exported numpy policy (`jaxarm.export.numpy_policy`), and the env's own controller (IK, running
-target, joint limits) in numpy, within Franka's joint speed and acceleration limits.
+target, joint limits) in numpy, within the arm's joint speed and acceleration limits.
 
 `loop.py` keeps the tick and the `Robot` it drives; `sort.py` and `peg.py` are the sorter's and the peg's
 observation and control; `kinematics.py` poses the arm with MuJoCo's C library; `ik.py` is the env's IK maths in

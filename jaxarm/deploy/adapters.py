@@ -7,7 +7,8 @@ connects.
 Each driver streams to its arm at the arm's servo rate itself (franky: Ruckig at 1 kHz within Franka's limits, as
 `stream.ServoStream` does in the rehearsal; ur_rtde: servoJ with the controller's lookahead filter). An adapter hands
 it each control tick's targets, keeps the policy's wall-clock schedule (`clock.Schedule`), and `hold` brakes the arm
-to rest and stops: the rehearsal's safe reaction, called by whoever runs the loop when a tick fails.
+to rest and stops: the rehearsal's safe reaction, called by whoever runs the loop when a tick fails. J is the arm's
+joint count; servo targets `ctrl` are the J arm joints' then the fingers' (`loop`).
 """
 
 import importlib
@@ -18,6 +19,7 @@ import numpy as np
 
 from jaxarm.deploy.clock import Schedule
 from jaxarm.deploy.reading import ArmReading
+from jaxarm.robots import PANDA, RobotDescription
 
 GRIPPER_SPEED = 0.1
 """Franka Hand's finger speed for a new width (m/s; its maximum is about 0.1)."""
@@ -27,7 +29,7 @@ time and is slow, so a width that moves by noise every tick would queue commands
 
 
 class FrankyJointState(Protocol):
-    """`franky.JointState`: joint positions and velocities [7]."""
+    """`franky.JointState`: joint positions and velocities [J]."""
 
     @property
     def position(self) -> np.ndarray: ...
@@ -61,14 +63,26 @@ class FrankyRobot:
     position, arriving at the loop's rate over the tick, which replaces the running one (franky's real-time motion
     update); the fingers' targets become a width for the Hand.
 
+    Franka-only, as franky is: `description` is the Panda's by default and another Franka arm's at most (franky
+    drives no other); the adapter still reads J from it, as every other part of the loop does.
+
     Args:
       arm, gripper: a connected `franky.Robot` and `franky.Gripper` (`connect` makes them).
       franky: the franky module (its motion and state classes).
       control_period: seconds per control tick.
+      description: the arm's description (its joint count).
     """
 
-    def __init__(self, arm: FrankyArm, gripper: FrankyGripper, franky: Any, control_period: float):
+    def __init__(
+        self,
+        arm: FrankyArm,
+        gripper: FrankyGripper,
+        franky: Any,
+        control_period: float,
+        description: RobotDescription = PANDA,
+    ):
         self.arm, self.gripper, self.franky = arm, gripper, franky
+        self.joints = len(description.arm_joints)
         self.schedule = Schedule(control_period)
         self._targets: np.ndarray | None = None
         self._width: float | None = None
@@ -93,18 +107,18 @@ class FrankyRobot:
         return ArmReading(np.asarray(state.position, np.float64), np.asarray(state.velocity, np.float64), finger_q)
 
     def command(self, ctrl: np.ndarray) -> None:
-        """Sends servo targets [9]: the arm's to franky, the fingers' as the Hand's width; starts the schedule at the
-        first."""
-        arm = np.asarray(ctrl[:7], np.float64)
+        """Sends servo targets [J + 2]: the arm's to franky, the fingers' as the Hand's width; starts the schedule at
+        the first."""
+        arm = np.asarray(ctrl[: self.joints], np.float64)
         if self._targets is None:
             self.schedule.start()
-            velocity = np.zeros(7)
+            velocity = np.zeros(self.joints)
         else:
             velocity = (arm - self._targets) / self.schedule.period
         self._targets = arm
         target = self.franky.JointState(position=arm, velocity=velocity)
         self.arm.move(self.franky.JointMotion(target), asynchronous=True)
-        width = float(np.sum(ctrl[7:]))
+        width = float(np.sum(ctrl[self.joints :]))
         if self._width is None or abs(width - self._width) >= GRIPPER_DEADBAND:
             self.gripper.move_async(width, GRIPPER_SPEED)
             self._width = width

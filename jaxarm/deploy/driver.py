@@ -6,9 +6,11 @@ Each servo tick (1 kHz) it takes the policy's newest targets (`wire.Command`, 25
 setpoint of a jerk-limited stream towards them (`stream.ServoStream`) and steps the physics one servo period; every
 `Timing.publish_period` it sends its state (`wire.State`). Its watchdog is the safe reaction: when a command misses
 its deadline (one control period and the latency budget after the last one's tick), one is missing from the
-sequence, one is not finite, or the policy ends, the arm holds (brakes to rest within Franka's limits, the gripper
+sequence, one is not finite, or the policy ends, the arm holds (brakes to rest within its limits, the gripper
 keeping its grip), then stops: the driver sends its last state, takes no more commands, and writes the setpoints it
 streamed (`StreamLog`).
+
+J and F are the arm's joint and finger counts (`DriverSetup.description`'s `arm_joints` and `finger_joints`).
 """
 
 import dataclasses
@@ -23,6 +25,7 @@ from jaxarm.deploy import wire
 from jaxarm.deploy.clock import sleep_until
 from jaxarm.deploy.mujoco_robot import MujocoRobot
 from jaxarm.deploy.stream import ServoStream
+from jaxarm.robots import PANDA, RobotDescription
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,11 +36,12 @@ class DriverSetup:
       address: the zmq address it binds (`ipc://...` or `tcp://...`).
       model_path: the scene as MuJoCo's binary model (.mjb); stepped at `timing.servo_period`.
       qpos: [nq] the scene's start positions (the arm at rest).
-      ctrl: [9] the servos' start targets (arm, fingers).
+      ctrl: [J + F] the servos' start targets (arm, fingers).
       object_qpos: int [N, 7] where each object's pose is in qpos (what a detector reports; [0, 7] for none).
       object_qvel: int [N, 6] where each object's velocity is in qvel.
       timing: the rehearsal's clocks and deadlines.
       log_path: where the streamed setpoints are written (.npz, `StreamLog`'s fields).
+      description: the robot in the scene (its names, joint count and limits).
     """
 
     address: str
@@ -48,6 +52,7 @@ class DriverSetup:
     object_qvel: np.ndarray
     timing: wire.Timing
     log_path: str
+    description: RobotDescription = PANDA
 
 
 @dataclasses.dataclass
@@ -55,7 +60,7 @@ class StreamLog:
     """What the driver streamed, one row per servo tick.
 
     Attributes:
-      position, velocity, acceleration: [T, 7] the setpoints sent to the arm.
+      position, velocity, acceleration: [T, J] the setpoints sent to the arm.
       lateness: [T] seconds each servo tick started after its slot on the wall clock.
       fault: the code (`wire.FAULTS`) of what made the arm hold; `NO_FAULT` if no command ever came.
       hold_tick, stop_tick: the servo ticks at which it began to hold and came to rest (-1: never).
@@ -108,7 +113,8 @@ def stream_commands(robot: MujocoRobot, socket: zmq.Socket, setup: DriverSetup) 
     """The real-time loop, from the policy's first message (number 0) until the arm has held and stopped. The first
     target is due one deadline after the start, as if that message had been stamped then."""
     timing, log = setup.timing, StreamLog()
-    stream = ServoStream(robot.reading().arm_q, timing.servo_period, timing.arrival)
+    stream = ServoStream(robot.reading().arm_q, timing.servo_period, timing.arrival, setup.description.joint_limits)
+    joints = robot.joints
     start = time.monotonic()
     last = wire.Command(wire.TARGET, 0, start, setup.ctrl)
     tick = 0
@@ -118,7 +124,8 @@ def stream_commands(robot: MujocoRobot, socket: zmq.Socket, setup: DriverSetup) 
         for command in receive(socket):
             log.fault = log.fault or judge(command, now, last, timing)
             if not log.fault:
-                stream.retarget(command.ctrl[:7], (command.ctrl[:7] - last.ctrl[:7]) / timing.control_period)
+                target = command.ctrl[:joints]
+                stream.retarget(target, (target - last.ctrl[:joints]) / timing.control_period)
                 last = command
         if not log.fault and now > last.stamp + timing.deadline:
             log.fault = wire.MISSED
@@ -127,7 +134,7 @@ def stream_commands(robot: MujocoRobot, socket: zmq.Socket, setup: DriverSetup) 
             log.hold_tick = tick
         point = stream.next()
         # The gripper keeps its last target while the arm holds: an object in its grasp stays there.
-        robot.command(np.concatenate([point.position, last.ctrl[7:]]))
+        robot.command(np.concatenate([point.position, last.ctrl[joints:]]))
         robot.step()
         log.position.append(point.position)
         log.velocity.append(point.velocity)
@@ -148,7 +155,7 @@ def serve(setup: DriverSetup) -> None:
     the connect timeout)."""
     model = mujoco.MjModel.from_binary_path(setup.model_path)
     model.opt.timestep = setup.timing.servo_period
-    robot = MujocoRobot(model, setup.timing.servo_period)
+    robot = MujocoRobot(model, setup.timing.servo_period, setup.description)
     robot.data.qpos[:] = setup.qpos
     robot.command(setup.ctrl)
     mujoco.mj_forward(model, robot.data)

@@ -1,6 +1,6 @@
 """A controller as files, for a robot's computer without JAX: `save(directory, controller)` writes deploy.json (the
-task's numbers) and robot.mjb (the scene the arm is posed in); `load(directory)` builds the controller again.
-Imports numpy and mujoco alone."""
+task's numbers and the robot's name) and robot.mjb (the scene the arm is posed in); `load(directory)` builds the
+controller again. Imports numpy and mujoco alone."""
 
 import dataclasses
 import json
@@ -14,6 +14,7 @@ from jaxarm.deploy import peg, sort
 from jaxarm.deploy.kinematics import ArmKinematics
 from jaxarm.deploy.loop import Controller
 from jaxarm.export.numpy_policy import EXPORT_AGAIN
+from jaxarm.robots import PANDA, robot
 
 TASK_FILE = "deploy.json"
 MODEL_FILE = "robot.mjb"
@@ -55,7 +56,8 @@ def save(directory: str | pathlib.Path, controller: Controller) -> list[pathlib.
     directory.mkdir(parents=True, exist_ok=True)
     task_path, model_path = directory / TASK_FILE, directory / MODEL_FILE
     task = controller.task
-    task_path.write_text(json.dumps({"task": name, "numbers": _plain(task)}, indent=1))
+    record = {"task": name, "robot": controller.kinematics.robot.name, "numbers": _plain(task)}
+    task_path.write_text(json.dumps(record, indent=1))
     mujoco.mj_saveModel(controller.kinematics.model, str(model_path))
     return [task_path, model_path]
 
@@ -69,6 +71,8 @@ def load(directory: str | pathlib.Path) -> Controller:
         data = json.loads(task_path.read_text())
         controller_class, task_class = CONTROLLERS[data["task"]]
         task = _record(task_class, data["numbers"])
+        # Files written before deploy.json named its robot are the Panda's, the only robot there was.
+        description = robot(data.get("robot", PANDA.name))
     except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, ValueError, AttributeError) as error:
         # KeyError: a task or field it lacks; TypeError, AttributeError: parts of the wrong JSON type.
         raise ValueError(
@@ -77,9 +81,9 @@ def load(directory: str | pathlib.Path) -> Controller:
     if not model_path.is_file():
         raise ValueError(f"no {model_path}; {EXPORT_AGAIN}")
     try:
-        kinematics = ArmKinematics(mujoco.MjModel.from_binary_path(str(model_path)))
-    except (ValueError, KeyError) as error:  # KeyError: a model without a Panda's joint, body or site names
+        kinematics = ArmKinematics(mujoco.MjModel.from_binary_path(str(model_path)), description)
+    except (ValueError, KeyError) as error:  # KeyError: a model without the robot's joint, body or site names
         raise ValueError(
-            f"{model_path} is not a Panda's scene ({type(error).__name__}: {error}); {EXPORT_AGAIN}"
+            f"{model_path} is not a {description.name} scene ({type(error).__name__}: {error}); {EXPORT_AGAIN}"
         ) from None
     return controller_class(task, kinematics)

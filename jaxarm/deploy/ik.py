@@ -1,6 +1,6 @@
 """The Panda envs' end-effector control maths in numpy: `jaxarm.envs.panda.robot`'s damped least-squares IK, its
 orientation error, yaw helpers and running target, the same formulas (tests/deploy/test_controller.py holds the
-two to 1e-5). Imports numpy alone.
+two to 1e-5). J is the arm's joint count (`ArmKinematics.joints`). Imports numpy alone.
 """
 
 import numpy as np
@@ -58,9 +58,9 @@ def ik_arm_targets(
     posture: np.ndarray,
     arm_limits: np.ndarray,
 ) -> np.ndarray:
-    """[7] arm joint targets moving the tool centre from `pose` towards `tcp_target` [3] with `tcp_rotation`
-    [3, 3]: one damped least-squares step plus `posture_gain` of the way to `posture` [7] in the null space of the
-    tool pose, clipped to `arm_limits` [7, 2]."""
+    """[J] arm joint targets moving the tool centre from `pose` towards `tcp_target` [3] with `tcp_rotation`
+    [3, 3]: one damped least-squares step plus `posture_gain` of the way to `posture` [J] in the null space of the
+    tool pose, clipped to `arm_limits` [J, 2]."""
     error = np.concatenate([tcp_target - pose.tcp, rotation_error(pose.tcp_rotation, tcp_rotation)])
     step, projector = damped_least_squares(pose.jacobian, error, damping)
     pull = projector @ (posture_gain * (posture - pose.arm_q))
@@ -76,7 +76,7 @@ def servo_ik_targets(
     posture_gain: float,
     posture: np.ndarray,
 ) -> np.ndarray:
-    """[7] arm joint targets from the arm posed at its servos' targets (`servo_pose`): `ik_arm_targets`, then a
+    """[J] arm joint targets from the arm posed at its servos' targets (`servo_pose`): `ik_arm_targets`, then a
     second damped step from the first's joints without the posture pull, as `PandaBase.servo_ik_targets`."""
     limits = kinematics.arm_limits
     joints = ik_arm_targets(servo_pose, tcp_target, tcp_rotation, damping, posture_gain, posture, limits)

@@ -1,5 +1,6 @@
 """A robot arm's forward kinematics and tool Jacobian with MuJoCo's C library: what the deployment loop's controller
-and observation read of the arm's posture. Imports numpy and mujoco alone (no JAX)."""
+and observation read of the arm's posture. J is the arm's joint count (its description's `arm_joints`). Imports numpy
+and mujoco alone (no JAX)."""
 
 from typing import NamedTuple
 
@@ -13,11 +14,11 @@ class ArmPose(NamedTuple):
     """The arm at one posture.
 
     Attributes:
-      arm_q: [7] joint angles.
+      arm_q: [J] joint angles.
       tcp: [3] tool-centre position.
       tcp_rotation: [3, 3] tool-centre orientation.
       hand_quat: [4] the hand body's orientation (w, x, y, z).
-      jacobian: [6, 7] the tool centre's linear, then angular, velocity per arm joint speed.
+      jacobian: [6, J] the tool centre's linear, then angular, velocity per arm joint speed.
     """
 
     arm_q: np.ndarray
@@ -39,11 +40,15 @@ class ArmKinematics:
 
     Attributes:
       model: the model posed.
-      arm_limits: [7, 2] the arm joints' ranges.
+      robot: the description of the robot in it.
+      joints: J, the arm's joint count.
+      arm_limits: [J, 2] the arm joints' ranges.
     """
 
     def __init__(self, model: mujoco.MjModel, robot: RobotDescription = PANDA):
         self.model = model
+        self.robot = robot
+        self.joints = len(robot.arm_joints)
         self._data = mujoco.MjData(model)
         joints = [model.joint(name) for name in robot.arm_joints]
         self._arm_qpos = np.array([joint.qposadr[0] for joint in joints])
@@ -54,7 +59,7 @@ class ArmKinematics:
         self._jacp, self._jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
 
     def pose(self, arm_q: np.ndarray) -> ArmPose:
-        """The arm at `arm_q` [7]."""
+        """The arm at `arm_q` [J]."""
         data = self._data
         data.qpos[self._arm_qpos] = arm_q
         mujoco.mj_kinematics(self.model, data)
@@ -69,7 +74,7 @@ class ArmKinematics:
         )
 
     def site_position_jacobian(self, site: str) -> tuple[np.ndarray, np.ndarray]:
-        """(position [3], linear Jacobian [3, 7] per arm joint speed) of `site` at the last `pose`'s posture."""
+        """(position [3], linear Jacobian [3, J] per arm joint speed) of `site` at the last `pose`'s posture."""
         site_id = self.model.site(site).id
         mujoco.mj_jacSite(self.model, self._data, self._jacp, None, site_id)
         return self._data.site_xpos[site_id].copy(), self._jacp[:, self._arm_dof].copy()

@@ -1,5 +1,6 @@
 """The clip that keeps an arm's target path within its joints' speed and acceleration limits (a robot
-description's `JointLimits`; the Panda's are Franka's datasheet's).
+description's `JointLimits`; the Panda's are Franka's datasheet's). J is the arm's joint count, the length of the
+limits' arrays.
 
 Imports numpy alone: the deployment loop clips with it, and jaxarm's envs clip their servos' targets with the same
 function (`limit_targets` uses only array methods and operators, so it runs on numpy and JAX arrays alike).
@@ -15,10 +16,10 @@ class LimitedTargets(NamedTuple):
     """A tick's joint targets within the limits (numpy or JAX arrays, as given).
 
     Attributes:
-      targets: [7] the targets sent.
-      velocity: [7] their rate of change over the tick (rad/s).
-      acceleration_clipped: [7] bool, joints whose asked rate changed faster than the acceleration limit allows.
-      speed_clipped: [7] bool, joints whose rate (after the acceleration limit) was beyond the speed limit.
+      targets: [J] the targets sent.
+      velocity: [J] their rate of change over the tick (rad/s).
+      acceleration_clipped: [J] bool, joints whose asked rate changed faster than the acceleration limit allows.
+      speed_clipped: [J] bool, joints whose rate (after the acceleration limit) was beyond the speed limit.
     """
 
     targets: Any
@@ -30,7 +31,7 @@ class LimitedTargets(NamedTuple):
 def limit_targets(
     targets: Any, previous: Any, previous_velocity: Any, period: float, limits: JointLimits = PANDA.joint_limits
 ) -> LimitedTargets:
-    """[7] asked `targets` -> the nearest targets whose path from `previous` [7], moving at `previous_velocity` [7],
+    """[J] asked `targets` -> the nearest targets whose path from `previous` [J], moving at `previous_velocity` [J],
     keeps every joint within the speed and acceleration `limits` over one tick of `period` seconds.
 
     A path that a held action asks for and then stops asking for loses the distance the acceleration limit holds

@@ -1,5 +1,8 @@
 """The deployment loop: each control tick, a robot's reading -> the env's observation -> the exported policy ->
-the env's controller -> servo targets within Franka's limits, timed. Imports numpy and mujoco alone.
+the env's controller -> servo targets within the arm's limits, timed. Imports numpy and mujoco alone.
+
+Servo targets (`ctrl`, [J + F]) are the J arm joints' targets (rad) then the F fingers' openings (m), J and F the
+lengths of the robot description's `arm_joints` and `finger_joints` (the Panda's 7 and 2 by default).
 
 The limits are the envs' own (`PandaBase.limited_ctrl` applies `limits.limit_targets` to the same targets), so with
 `clip` the robot gets the targets the env's servos got, and the counts tell how often the policy asked for more.
@@ -16,11 +19,12 @@ import numpy as np
 from jaxarm.deploy.kinematics import ArmKinematics
 from jaxarm.deploy.limits import limit_targets
 from jaxarm.deploy.reading import ArmReading
+from jaxarm.robots import PANDA, RobotDescription
 
 
 class UnsafeAction(RuntimeError):
     """The policy gave an action that is not finite (NaN or infinite), which no servo target may be made of: the
-    loop sent nothing, so the robot holds the last targets it was sent (finite, within Franka's limits) and stops
+    loop sent nothing, so the robot holds the last targets it was sent (finite, within the arm's limits) and stops
     there. The message says at which tick and what the action was, in one line."""
 
 
@@ -67,7 +71,7 @@ class Robot(Protocol):
         ...
 
     def command(self, ctrl: np.ndarray) -> None:
-        """Sends servo targets [9]: the arm's joints (rad), then each finger's opening (m)."""
+        """Sends servo targets [J + F]: the arm's joints (rad), then each finger's opening (m)."""
         ...
 
     def step(self) -> None:
@@ -78,15 +82,15 @@ class Robot(Protocol):
 
 @dataclasses.dataclass
 class LimitCounts:
-    """How often the loop's commands went beyond Franka's limits, per arm joint, over the ticks so far.
+    """How often the loop's commands went beyond the arm's limits, per arm joint, over the ticks so far.
 
     Attributes:
-      acceleration: [7] ticks at which a joint's asked rate changed faster than its acceleration limit.
-      speed: [7] ticks at which a joint's rate (after the acceleration limit) was beyond its speed limit.
+      acceleration: [J] ticks at which a joint's asked rate changed faster than its acceleration limit.
+      speed: [J] ticks at which a joint's rate (after the acceleration limit) was beyond its speed limit.
     """
 
-    acceleration: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(7, np.int64))
-    speed: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(7, np.int64))
+    acceleration: np.ndarray
+    speed: np.ndarray
 
 
 class DeploymentLoop:
@@ -97,32 +101,43 @@ class DeploymentLoop:
         (`jaxarm.export.numpy_policy.load(path)`).
       controller: the task's observation and control.
       period: seconds per tick (the env's control step).
-      clip: whether commands beyond Franka's limits are clipped (else only counted).
+      clip: whether commands beyond the arm's limits are clipped (else only counted).
+      description: the robot's description (the Panda's by default): its joint and finger counts and its limits.
 
     Attributes:
-      ctrl: [9] the last servo targets sent (arm, fingers).
+      joints: J, the arm's joint count.
+      ctrl: [J + F] the last servo targets sent (arm, fingers).
       counts: the limits' clips so far (`LimitCounts`).
       tick_seconds: wall time of each tick so far (observation, policy, control, limits).
     """
 
-    def __init__(self, policy: Callable[[Any], np.ndarray], controller: Controller, period: float, clip: bool = True):
+    def __init__(
+        self,
+        policy: Callable[[Any], np.ndarray],
+        controller: Controller,
+        period: float,
+        clip: bool = True,
+        description: RobotDescription = PANDA,
+    ):
         self.policy = policy
         self.controller = controller
         self.period = period
         self.clip = clip
-        self.ctrl = np.zeros(9)
-        self._velocity = np.zeros(7)
-        self.counts = LimitCounts()
+        self.joints = len(description.arm_joints)
+        self._limits = description.joint_limits
+        self.ctrl = np.zeros(self.joints + len(description.finger_joints))
+        self._velocity = np.zeros(self.joints)
+        self.counts = LimitCounts(acceleration=np.zeros(self.joints, np.int64), speed=np.zeros(self.joints, np.int64))
         self.tick_seconds: list[float] = []
 
     def begin(self, ctrl: np.ndarray) -> None:
-        """A new episode with the servos at `ctrl` [9] and the arm at rest."""
+        """A new episode with the servos at `ctrl` [J + F] and the arm at rest."""
         self.ctrl = np.array(ctrl, np.float64)
-        self._velocity = np.zeros(7)
+        self._velocity = np.zeros(self.joints)
         self.controller.begin()
 
     def tick(self, reading: ArmReading, estimate: Any) -> np.ndarray:
-        """[9] the servo targets to send for this tick's `reading` and the task's `estimate`; `UnsafeAction`, with
+        """[J + F] the servo targets to send for this tick's `reading` and the task's `estimate`; `UnsafeAction`, with
         nothing to send (the robot stops at its last targets, `ctrl`), where the policy's action is not finite."""
         start = time.perf_counter()
         obs = self.controller.observe(reading, estimate, self.ctrl)
@@ -130,26 +145,27 @@ class DeploymentLoop:
         if not np.all(np.isfinite(action)):
             # Checked before the controller: its clips and gripper thresholds could turn NaN into a finite target.
             # The robot comes to rest at its last targets: a later tick's limits start from rest.
-            self._velocity = np.zeros(7)
+            self._velocity = np.zeros(self.joints)
             raise UnsafeAction(
                 f"the policy's action at tick {len(self.tick_seconds) + 1} is not finite "
                 f"({np.array2string(action, precision=3, separator=', ')}); the robot was stopped at its last targets"
             )
         ctrl = self.controller.act(reading, self.ctrl, action)
-        limited = limit_targets(ctrl[:7], self.ctrl[:7], self._velocity, self.period)
+        arm = slice(self.joints)
+        limited = limit_targets(ctrl[arm], self.ctrl[arm], self._velocity, self.period, self._limits)
         self.counts.acceleration += limited.acceleration_clipped
         self.counts.speed += limited.speed_clipped
         if self.clip:
-            ctrl[:7] = limited.targets
+            ctrl[arm] = limited.targets
             self._velocity = limited.velocity
         else:
-            self._velocity = (ctrl[:7] - self.ctrl[:7]) / self.period
+            self._velocity = (ctrl[arm] - self.ctrl[arm]) / self.period
         self.ctrl = ctrl
         self.tick_seconds.append(time.perf_counter() - start)
         return ctrl
 
     def drive(self, robot: Robot, estimate: Any) -> np.ndarray:
-        """One control tick on `robot`: its reading -> `tick` -> the targets sent to it (returned, [9]), then one
+        """One control tick on `robot`: its reading -> `tick` -> the targets sent to it (returned, [J + F]), then one
         control period on its clock."""
         ctrl = self.tick(robot.reading(), estimate)
         robot.command(ctrl)

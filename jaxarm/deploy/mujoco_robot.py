@@ -1,5 +1,7 @@
 """Stock MuJoCo as the robot: a scene stepped by MuJoCo's C engine (`mujoco.mj_step`), read and commanded only as
-a Panda's controller would be (joints, gripper, servo targets). Imports numpy and mujoco alone.
+a robot's controller would be (joints, gripper, servo targets). Imports numpy and mujoco alone.
+
+J and F are the arm's joint and finger counts (its description's `arm_joints` and `finger_joints`).
 
 The scene keeps its own timestep, integrator and contact settings; the constraint solver gets MuJoCo's defaults
 (`stock_solver`), not the few iterations the MJX scenes are tuned to for speed.
@@ -23,22 +25,24 @@ def stock_solver(model: mujoco.MjModel) -> dict[str, float]:
 
 
 class MujocoRobot:
-    """A Panda scene in MuJoCo C, driven one control period at a time (a `loop.Robot`).
+    """A robot's scene in MuJoCo C, driven one control period at a time (a `loop.Robot`).
 
     Args:
       model: the scene (a robot with its description's joint and actuator names; its gripper one of the
         description's `finger_drives`).
       period: seconds per control tick; the scene steps `period / timestep` times per tick.
-      robot: the description of the robot in the scene.
+      robot: the description of the robot in the scene (the Panda by default).
 
     Attributes:
       model, data: the scene and its state.
+      joints: J, the arm's joint count.
       substeps: physics steps per tick.
     """
 
     def __init__(self, model: mujoco.MjModel, period: float, robot: RobotDescription = PANDA):
         self.model = model
         self.data = mujoco.MjData(model)
+        self.joints = len(robot.arm_joints)
         self.substeps = int(round(period / model.opt.timestep))
         joints = [model.joint(name) for name in (*robot.arm_joints, *robot.finger_joints)]
         self._qpos = np.array([joint.qposadr[0] for joint in joints])
@@ -58,12 +62,16 @@ class MujocoRobot:
     def reading(self) -> ArmReading:
         """What the arm's sensors report now."""
         qpos, qvel = self.data.qpos[self._qpos], self.data.qvel[self._dof]
-        return ArmReading(arm_q=qpos[:7].copy(), arm_qvel=qvel[:7].copy(), finger_q=qpos[7:].copy())
+        joints = self.joints
+        return ArmReading(arm_q=qpos[:joints].copy(), arm_qvel=qvel[:joints].copy(), finger_q=qpos[joints:].copy())
 
     def command(self, ctrl: np.ndarray) -> None:
-        """Sends servo targets [9]: the arm's joints, then each finger's opening (m)."""
-        self.data.ctrl[self._arm_actuators] = ctrl[:7]
-        fingers = ctrl[7:] if len(self._finger_actuators) == 2 else np.mean(ctrl[7:], keepdims=True)
+        """Sends servo targets [J + F]: the arm's joints, then each finger's opening (m)."""
+        self.data.ctrl[self._arm_actuators] = ctrl[: self.joints]
+        # One drive per finger takes each finger's opening; a single drive for all (menagerie's) takes their mean.
+        fingers = ctrl[self.joints :]
+        if len(self._finger_actuators) != len(fingers):
+            fingers = np.mean(fingers, keepdims=True)
         self.data.ctrl[self._finger_actuators] = fingers * self._finger_scale
 
     def step(self, after_substep=None) -> None:

@@ -1,6 +1,9 @@
 """The peg insertion (`peg_insert`) next to a robot: its state observation (and its arm part, a camera policy's
 proprio) and controller in numpy, the same formulas as `jaxarm.envs.peg_insert.env` (tests/deploy/test_controller.py
-holds them to 1e-5). Imports numpy and mujoco alone."""
+holds them to 1e-5). Imports numpy and mujoco alone.
+
+J is the arm's joint count (`ArmKinematics.joints`); the servo targets `ctrl` [J + F] are the arm joints' then the
+fingers' (`loop`)."""
 
 import dataclasses
 
@@ -21,7 +24,7 @@ class PegTask:
     Attributes:
       running_target: the env's constructor argument.
       ee_step, max_lead, ik_damping, ik_posture_gain: the env params of those names.
-      start_qpos: [7] the arm's start posture, towards which the IK's null space pulls.
+      start_qpos: [J] the arm's start posture, towards which the IK's null space pulls.
       home_tcp_rotation: [3, 3] the tool's orientation, pointing down, held throughout.
       hole_nominal: [2] (x, y) of the hole before its per-episode shift.
       hole_floor: height of the hole's bottom above the table (m).
@@ -79,13 +82,13 @@ def arm_targets(
     ctrl: np.ndarray,
     action: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """`action` [3] -> (the next tool-centre target [3], the arm's joint targets [7]) from the arm measured at
-    `pose`, the running target `tcp_target` [3] and the servos' targets `ctrl` [9], the tool pointing down:
+    """`action` [3] -> (the next tool-centre target [3], the arm's joint targets [J]) from the arm measured at
+    `pose`, the running target `tcp_target` [3] and the servos' targets `ctrl` [J + F], the tool pointing down:
     `PegInsert._arm_targets`."""
     step = action * task.ee_step
     gains = (task.ik_damping, task.ik_posture_gain, task.start_qpos)
     if task.running_target:
-        servo_pose = kinematics.pose(ctrl[:7])
+        servo_pose = kinematics.pose(ctrl[: kinematics.joints])
         target = ik.advanced_target(servo_pose.tcp, step, pose.tcp, task.max_lead)
         return target, ik.servo_ik_targets(kinematics, servo_pose, target, task.home_tcp_rotation, *gains)
     target = ik.advanced_target(tcp_target, step, pose.tcp, task.max_lead)
@@ -131,7 +134,7 @@ class PegController:
         return arm_observation(self.task, self.kinematics, pose, reading, target)
 
     def act(self, reading: ArmReading, ctrl: np.ndarray, action: np.ndarray) -> np.ndarray:
-        """[9] servo targets: the arm's towards the moved target, the fingers' as they were."""
+        """[J + F] servo targets: the arm's towards the moved target, the fingers' as they were."""
         assert self._pose is not None and self.tcp_target is not None, "observe before act"
         self.tcp_target, arm = arm_targets(self.task, self.kinematics, self._pose, self.tcp_target, ctrl, action)
-        return np.concatenate([arm, ctrl[7:]])
+        return np.concatenate([arm, ctrl[self.kinematics.joints :]])

@@ -1,4 +1,5 @@
-"""What a robot provides each control tick: its joints and gripper, and estimates of the task's objects."""
+"""What a robot provides each control tick: its joints and gripper, and estimates of the task's objects. J is the
+arm's joint count (its description's `arm_joints`)."""
 
 from typing import NamedTuple
 
@@ -6,12 +7,13 @@ import numpy as np
 
 
 class ArmReading(NamedTuple):
-    """The Panda's own sensors at one tick.
+    """The arm's own sensors at one tick.
 
     Attributes:
-      arm_q: [7] arm joint angles (rad).
-      arm_qvel: [7] arm joint speeds (rad/s).
-      finger_q: [2] each finger's opening (m; the gripper's width is their sum).
+      arm_q: [J] arm joint angles (rad).
+      arm_qvel: [J] arm joint speeds (rad/s).
+      finger_q: [F] each finger's opening (m; the gripper's width is their sum), F its description's
+        `finger_joints`' count (the Panda's 2; none for an arm without a gripper).
     """
 
     arm_q: np.ndarray

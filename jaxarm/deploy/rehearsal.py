@@ -45,8 +45,8 @@ def start_driver(setup: DriverSetup) -> BaseProcess:
 
 
 def drive(loop: DeploymentLoop, robot: RemoteRobot, ctrl: np.ndarray, steps: int, done: Callable[[], bool]) -> int:
-    """Runs `loop` on `robot` from the servo targets `ctrl` [9] for up to `steps` ticks, until `done()` or the robot
-    stops; returns the ticks run."""
+    """Runs `loop` on `robot` from the servo targets `ctrl` [J + F] (`loop`) for up to `steps` ticks, until `done()`
+    or the robot stops; returns the ticks run."""
     robot.connect(ctrl)
     loop.begin(ctrl)
     ticks = 0

@@ -1,6 +1,7 @@
 """The policy's side of a real-time rehearsal: a robot process behind a zmq socket (`driver.serve`) as a `loop.Robot`
 on the policy's own wall-clock schedule, with its ticks' jitter and deadline misses counted and faults injected on
-request. Imports numpy and zmq alone.
+request. Imports numpy and zmq alone. Servo targets `ctrl` [J + F] are the J arm joints' then the F fingers'
+(`loop`).
 """
 
 import dataclasses
@@ -73,7 +74,7 @@ class RemoteRobot:
         self._socket.connect(address)
 
     def connect(self, ctrl: np.ndarray) -> None:
-        """Starts the robot's clock with the servo targets it starts at (`ctrl` [9]), and the policy's schedule at
+        """Starts the robot's clock with the servo targets it starts at (`ctrl` [J + F]), and the policy's schedule at
         the robot's first state; `RobotStopped` if none comes within the connect timeout."""
         self._socket.send(wire.encode_command(wire.Command(wire.TARGET, 0, time.monotonic(), ctrl)))
         if not self._socket.poll(round(self.timing.connect_timeout * 1000)):
@@ -92,7 +93,7 @@ class RemoteRobot:
         return ObjectEstimate(self.state.object_pose, self.state.object_velocity, self.object_shape, self.object_size)
 
     def command(self, ctrl: np.ndarray) -> None:
-        """Sends servo targets [9] stamped with this tick's start (or, at the fault's tick, injects it)."""
+        """Sends servo targets [J + F] stamped with this tick's start (or, at the fault's tick, injects it)."""
         stamp = self.schedule.stamp
         self._seq += 1
         fault = self.fault
@@ -119,7 +120,7 @@ class RemoteRobot:
         """Tells the robot the run is over; its last state, once it has held and stopped (`RobotStopped` if it sends
         none within the connect timeout)."""
         self._seq += 1
-        wire.send(self._socket, wire.encode_command(wire.Command(wire.END, self._seq, time.monotonic(), np.zeros(9))))
+        wire.send(self._socket, wire.encode_command(wire.Command(wire.END, self._seq, time.monotonic(), np.zeros(0))))
         while self.state.status != wire.STOPPED:
             if not self._socket.poll(round(self.timing.connect_timeout * 1000)):
                 raise RobotStopped(f"the robot did not stop within {self.timing.connect_timeout} s of the end")

@@ -4,6 +4,9 @@ holds them to 1e-5), and which objects are still in play. Imports numpy and mujo
 
 The env parks an object once it is scored and observes it as zeros; here an object leaves play when its
 estimated centre enters a bin or drops off the table (`scoring.next_outcome`), and is observed as zeros after.
+
+J is the arm's joint count (`ArmKinematics.joints`); the servo targets `ctrl` [J + 2] are the arm joints' then the
+two fingers' (`loop`).
 """
 
 import dataclasses
@@ -28,7 +31,7 @@ class SortTask:
       objects_count, control_mode, running_target, target_first: the env's constructor arguments.
       ee_step, ee_yaw_step, joint_step, max_lead, max_yaw_lead, max_joint_lead: the env params of those names.
       ik_damping, ik_posture_gain, carry_height: the env params of those names.
-      start_qpos: [7] the arm's start posture, towards which the IK's null space pulls.
+      start_qpos: [J] the arm's start posture, towards which the IK's null space pulls.
       home_tcp_rotation: [3, 3] the tool's orientation at yaw 0, pointing down.
       bins: where the bins are (scoring.Bins).
       tcp_min_z: lowest tool-centre target (m).
@@ -56,7 +59,8 @@ class SortTask:
 
     @property
     def action_size(self) -> int:
-        return 5 if self.control_mode == MODE_EE else 8
+        """The tool's step and yaw turn in `ee` mode, or each arm joint's step in `joint` mode; then the gripper."""
+        return 5 if self.control_mode == MODE_EE else len(self.start_qpos) + 1
 
 
 def slot_order(task: SortTask, target: int) -> np.ndarray:
@@ -74,9 +78,9 @@ def observation(
     target: int,
     ctrl: np.ndarray,
 ) -> np.ndarray:
-    """float32 [26 N + 21] ([+7] with `running_target`): the env's state observation (`PandaSort._observe`) of the
-    arm at `pose` (its posture `reading.arm_q`), `objects` with outcomes [N], the `target` slot, and the servos'
-    targets `ctrl` [9]."""
+    """float32 [26 N + 14 + J] ([+J] with `running_target`): the env's state observation (`PandaSort._observe`) of
+    the arm at `pose` (its posture `reading.arm_q`), `objects` with outcomes [N], the `target` slot, and the servos'
+    targets `ctrl` [J + 2]."""
     in_play = (outcome == scoring.IN_PLAY)[:, None]
     position = objects.pose[:, :3]
     relative_yaw = ik.yaw_of_quaternion(objects.pose[:, 3:]) - ik.yaw_of_rotation(pose.tcp_rotation)
@@ -101,31 +105,31 @@ def observation(
 
 
 def tool_observation(task: SortTask, pose: ArmPose, reading: ArmReading, ctrl: np.ndarray) -> np.ndarray:
-    """float32 [21] ([28] with `running_target`): the tool's part of `observation`, which a camera policy reads as
-    its proprio part: tool centre, hand orientation, tool velocity, gripper width, arm joints (and each joint's
-    servo target `ctrl` [9] minus its angle)."""
+    """float32 [14 + J] ([14 + 2 J] with `running_target`): the tool's part of `observation`, which a camera policy
+    reads as its proprio part: tool centre, hand orientation, tool velocity, gripper width, arm joints (and each
+    joint's servo target `ctrl` [J + 2] minus its angle)."""
     tool = [pose.tcp, pose.hand_quat, pose.jacobian @ reading.arm_qvel, [np.sum(reading.finger_q)], reading.arm_q]
     if task.running_target:
-        tool.append(ctrl[:7] - reading.arm_q)
+        tool.append(ctrl[: len(reading.arm_q)] - reading.arm_q)
     return np.concatenate(tool).astype(np.float32)
 
 
 def arm_targets(
     task: SortTask, kinematics: ArmKinematics, pose: ArmPose, ctrl: np.ndarray, action: np.ndarray
 ) -> np.ndarray:
-    """[7] arm joint targets for `action` [A] from the arm measured at `pose` and the servos' targets `ctrl` [9]:
+    """[J] arm joint targets for `action` [A] from the arm measured at `pose` and the servos' targets `ctrl` [J + 2]:
     `PandaSort._arm_targets`."""
-    limits = kinematics.arm_limits
+    limits, arm = kinematics.arm_limits, slice(kinematics.joints)
     if task.control_mode == MODE_JOINT:
         if task.running_target:
-            joints = ik.advanced_target(ctrl[:7], action[:7] * task.joint_step, pose.arm_q, task.max_joint_lead)
+            joints = ik.advanced_target(ctrl[arm], action[arm] * task.joint_step, pose.arm_q, task.max_joint_lead)
         else:
-            joints = pose.arm_q + action[:7] * task.joint_step
+            joints = pose.arm_q + action[arm] * task.joint_step
         return np.clip(joints, limits[:, 0], limits[:, 1])
     yaw = ik.yaw_of_rotation(pose.tcp_rotation)
     if task.running_target:
         # IK from where the servos are taking the tool, as the env's running target does.
-        pose_from = kinematics.pose(ctrl[:7])
+        pose_from = kinematics.pose(ctrl[arm])
         target = ik.advanced_target(pose_from.tcp, action[:3] * task.ee_step, pose.tcp, task.max_lead)
         turn = ik.wrapped_angle(ik.yaw_of_rotation(pose_from.tcp_rotation) + action[3] * task.ee_yaw_step - yaw)
         target_yaw = yaw + np.clip(turn, -task.max_yaw_lead, task.max_yaw_lead)
@@ -187,7 +191,7 @@ class SortController:
         return tool_observation(self.task, self._pose, reading, ctrl)
 
     def act(self, reading: ArmReading, ctrl: np.ndarray, action: np.ndarray) -> np.ndarray:
-        """[9] servo targets (arm, then fingers) for `action`, after `observe` (or `proprio`) of the same tick."""
+        """[J + 2] servo targets (arm, then fingers) for `action`, after `observe` (or `proprio`) of the same tick."""
         assert self._pose is not None, "observe before act"
         arm = arm_targets(self.task, self.kinematics, self._pose, ctrl, action)
         return np.concatenate([arm, finger_targets(self.task, action)])

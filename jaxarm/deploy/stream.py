@@ -1,5 +1,6 @@
 """A jerk-limited servo stream: the policy's joint targets, one each control tick (25 Hz), turned into a setpoint
-each servo tick (1 kHz) within Franka's speed, acceleration and jerk limits, by Ruckig's online trajectories.
+each servo tick (1 kHz) within the arm's speed, acceleration and jerk limits (its description's `JointLimits`; the
+Panda's by default), by Ruckig's online trajectories. J is the arm's joint count, the length of the limits' arrays.
 Imports numpy and ruckig alone.
 
 Each target is reached no sooner than `arrival` seconds after it was given, moving at the rate the loop's targets
@@ -15,11 +16,9 @@ import ruckig
 from jaxarm.robots import PANDA
 from jaxarm.robots.description import JointLimits
 
-JOINTS = 7
-
 
 class StreamPoint(NamedTuple):
-    """One servo tick's setpoint, each [7]: joint angle (rad), speed (rad/s) and acceleration (rad/s²)."""
+    """One servo tick's setpoint, each [J]: joint angle (rad), speed (rad/s) and acceleration (rad/s²)."""
 
     position: np.ndarray
     velocity: np.ndarray
@@ -31,13 +30,13 @@ class StreamError(RuntimeError):
 
 
 class ServoStream:
-    """Setpoints every `servo_period` seconds towards the latest target, within Franka's limits.
+    """Setpoints every `servo_period` seconds towards the latest target, within the arm's limits.
 
     Args:
-      position: [7] where the arm is, at rest.
+      position: [J] where the arm is, at rest.
       servo_period: seconds between setpoints (0.001: Franka's 1 kHz).
       arrival: seconds after a target is given that the stream reaches it, at the earliest (`wire.Timing.arrival`).
-      limits: the arm's joint limits.
+      limits: the arm's joint limits, whose length is the stream's J.
 
     Attributes:
       holding: whether `hold` was called: the stream brakes to rest and takes no more targets.
@@ -46,9 +45,10 @@ class ServoStream:
     def __init__(
         self, position: np.ndarray, servo_period: float, arrival: float, limits: JointLimits = PANDA.joint_limits
     ):
-        self._generator = ruckig.Ruckig(JOINTS, servo_period)
-        self._input = ruckig.InputParameter(JOINTS)
-        self._output = ruckig.OutputParameter(JOINTS)
+        joints = len(limits.speed)
+        self._generator = ruckig.Ruckig(joints, servo_period)
+        self._input = ruckig.InputParameter(joints)
+        self._output = ruckig.OutputParameter(joints)
         self._speed_limits = limits.speed.astype(np.float64)
         self._input.max_velocity = self._speed_limits
         self._input.max_acceleration = limits.acceleration.astype(np.float64)
@@ -60,7 +60,7 @@ class ServoStream:
         self.holding = False
 
     def retarget(self, target: np.ndarray, velocity: np.ndarray) -> None:
-        """Heads for `target` [7] (rad), to arrive there moving at `velocity` [7] (rad/s, clipped to the speed
+        """Heads for `target` [J] (rad), to arrive there moving at `velocity` [J] (rad/s, clipped to the speed
         limits), `arrival` seconds from now or as soon after as the limits allow. Ignored once holding."""
         if self.holding:
             return
@@ -73,8 +73,8 @@ class ServoStream:
         """Brakes to rest where the arm gets to, within the limits: the safe reaction to a missing or late target."""
         self.holding = True
         self._input.control_interface = ruckig.ControlInterface.Velocity
-        self._input.target_velocity = np.zeros(JOINTS)
-        self._input.target_acceleration = np.zeros(JOINTS)
+        self._input.target_velocity = np.zeros_like(self._speed_limits)
+        self._input.target_acceleration = np.zeros_like(self._speed_limits)
         self._input.minimum_duration = None
 
     @property
@@ -97,7 +97,7 @@ class ServoStream:
 def limit_ratios(
     velocity: np.ndarray, acceleration: np.ndarray, servo_period: float, limits: JointLimits = PANDA.joint_limits
 ) -> dict[str, np.ndarray]:
-    """[7] each joint's largest speed, acceleration and jerk over setpoints' `velocity` and `acceleration` [T, 7]
+    """[J] each joint's largest speed, acceleration and jerk over setpoints' `velocity` and `acceleration` [T, J]
     (the jerk from successive accelerations), as fractions of the arm's `limits`: 1 is at a limit."""
     jerk = np.diff(acceleration, axis=0) / servo_period
     return {

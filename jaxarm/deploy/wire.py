@@ -2,11 +2,12 @@
 deadlines both keep: flat float64 arrays, one per zmq message, so that each side reads them with numpy alone and
 nothing on the wire is executable. Imports numpy and zmq alone.
 
-A command: [kind, seq, stamp, ctrl 9]; `seq` counts the policy's commands from 0 (a gap is a dropped one); `stamp`
-is the time (s, the host's monotonic clock, which both processes of a rehearsal share) of the control tick it was
-computed for. A state: [status, fault, time, arm_q 7, arm_qvel 7,
-finger_q 2, object pose N×7, object velocity N×6]: the robot's reading and what an object detector would report,
-with the robot's status and the fault that made it hold.
+J and F are the arm's joint and finger counts. A command: [kind, seq, stamp, ctrl J + F]; `seq` counts the policy's
+commands from 0 (a gap is a dropped one); `stamp` is the time (s, the host's monotonic clock, which both processes of
+a rehearsal share) of the control tick it was computed for. A state: [status, fault, time, J, F, arm_q J, arm_qvel J,
+finger_q F, object pose N×7, object velocity N×6]: the robot's reading and what an object detector would report,
+with the robot's status and the fault that made it hold; it carries its own J and F, so that either side reads any
+arm's.
 """
 
 import contextlib
@@ -27,7 +28,8 @@ FAULTS = ("none", "ended", "dropped", "missed", "unsafe")
 """Why a robot held, by the code a state carries: no fault; the policy's END; a gap in the commands' numbers; no
 command by its deadline (a late or stalled one, or a policy process that died: the robot cannot tell which before
 the deadline passes); servo targets that are not finite."""
-ARM_FIELDS = 3 + 7 + 7 + 2
+STATE_HEAD = 5
+"""A state's fields before the reading: status, fault, time, J, F."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +70,8 @@ class Timing:
 
 
 class Command(NamedTuple):
-    """A policy's command: its `kind` (`TARGET`, `END`), number, its tick's stamp (s) and servo targets [9]."""
+    """A policy's command: its `kind` (`TARGET`, `END`), number, its tick's stamp (s) and servo targets [J + F]
+    (none for `END`)."""
 
     kind: int
     seq: int
@@ -99,22 +102,24 @@ def decode_command(message: bytes) -> Command:
 
 def encode_state(state: State) -> bytes:
     reading = state.reading
-    head = [state.status, state.fault, state.time]
+    head = [state.status, state.fault, state.time, len(reading.arm_q), len(reading.finger_q)]
     parts = [head, reading.arm_q, reading.arm_qvel, reading.finger_q, state.object_pose.ravel()]
     return np.concatenate([*parts, state.object_velocity.ravel()]).astype(np.float64).tobytes()
 
 
 def decode_state(message: bytes) -> State:
     values = np.frombuffer(message, np.float64)
-    count = (len(values) - ARM_FIELDS) // 13
-    pose_end = ARM_FIELDS + 7 * count
+    joints, fingers = int(values[3]), int(values[4])
+    count = (len(values) - STATE_HEAD - 2 * joints - fingers) // 13
+    sizes = np.cumsum([joints, joints, fingers, 7 * count])
+    arm_q, arm_qvel, finger_q, pose, velocity = np.split(values[STATE_HEAD:].copy(), sizes)
     return State(
         status=int(values[0]),
         fault=int(values[1]),
         time=float(values[2]),
-        reading=ArmReading(values[3:10].copy(), values[10:17].copy(), values[17:19].copy()),
-        object_pose=values[ARM_FIELDS:pose_end].reshape(count, 7).copy(),
-        object_velocity=values[pose_end:].reshape(count, 6).copy(),
+        reading=ArmReading(arm_q, arm_qvel, finger_q),
+        object_pose=pose.reshape(count, 7),
+        object_velocity=velocity.reshape(count, 6),
     )
 
 

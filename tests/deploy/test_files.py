@@ -56,7 +56,7 @@ def test_damaged_or_foreign_deploy_files_are_refused_in_one_line_naming_the_file
         assert str(raised.value).startswith(f"{task_path} is damaged or from another version ({error}")
         assert "\n" not in str(raised.value)
     task_path.write_text(json.dumps(saved))
-    for content, message in [(b"", "is not a Panda's scene (ValueError"), (None, "no ")]:
+    for content, message in [(b"", "is not a panda scene (ValueError"), (None, "no ")]:
         model_path.unlink(missing_ok=True)
         if content is not None:
             model_path.write_bytes(content)
@@ -64,5 +64,5 @@ def test_damaged_or_foreign_deploy_files_are_refused_in_one_line_naming_the_file
             files.load(tmp_path)
         assert message in str(raised.value) and str(model_path) in str(raised.value)
     mujoco.mj_saveModel(mujoco.MjModel.from_xml_string("<mujoco/>"), str(model_path))
-    with pytest.raises(ValueError, match=r"robot.mjb is not a Panda's scene \(KeyError: .*Invalid name 'joint1'"):
+    with pytest.raises(ValueError, match=r"robot.mjb is not a panda scene \(KeyError: .*Invalid name 'joint1'"):
         files.load(tmp_path)

@@ -17,6 +17,7 @@ from jaxarm.envs.panda.base import PandaOptions
 from jaxarm.envs.panda_sort import model as sort_model
 from jaxarm.envs.panda_sort.layout import make_layout
 from jaxarm.robots import PANDA, robot
+from tests.deploy import six_joints
 
 
 def test_the_deployment_package_imports_no_jax():
@@ -64,7 +65,7 @@ def test_the_envs_clip_their_targets_as_the_loop_does():
 
 
 class StepController:
-    """Asks every joint to jump by `jump` each tick."""
+    """Asks every arm joint to jump by `jump` each tick, the fingers (the last 2 targets) kept."""
 
     action_size = 1
 
@@ -78,7 +79,7 @@ class StepController:
         return np.zeros(3, np.float32)
 
     def act(self, reading, ctrl, action):
-        return np.concatenate([ctrl[:7] + self.jump + action[0], ctrl[7:]])
+        return np.concatenate([ctrl[:-2] + self.jump + action[0], ctrl[-2:]])
 
 
 def test_the_loop_clips_and_counts():
@@ -125,3 +126,20 @@ def test_the_loop_drives_stock_mujoco_as_a_robot_on_its_clock():
         assert plant.now() == pytest.approx(0.04 * tick)
     np.testing.assert_allclose(sent[:7], start + 0.05)
     assert np.all(plant.reading().arm_q - start > 0.01)
+
+
+def test_the_loop_and_stock_mujoco_take_a_six_joint_arm_from_its_description():
+    description = six_joints.DESCRIPTION
+    plant = MujocoRobot(six_joints.scene(), period=0.04, robot=description)
+    loop = DeploymentLoop(lambda obs: np.zeros(1), StepController(0.2), period=0.04, description=description)
+    assert loop.ctrl.shape == (8,)
+    loop.begin(np.zeros(8))
+    for _ in range(5):
+        sent = loop.drive(plant, None)
+    # Asked for 5 rad/s from rest, each tick 10 rad/s² (the 6-joint limits', not the Panda's) faster: 0.016 rad more.
+    np.testing.assert_allclose(sent, [0.016 * (1 + 2 + 3 + 4 + 5)] * 6 + [0.0, 0.0])
+    assert loop.counts.acceleration.tolist() == [5] * 6 and loop.counts.speed.tolist() == [0] * 6
+    np.testing.assert_array_equal(plant.data.ctrl[:6], sent[:6])
+    reading = plant.reading()
+    assert reading.arm_q.shape == reading.arm_qvel.shape == (6,) and reading.finger_q.shape == (2,)
+    assert np.all(reading.arm_q > 0.05)

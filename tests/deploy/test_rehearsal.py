@@ -55,12 +55,14 @@ def test_messages_round_trip():
     decoded = wire.decode_command(wire.encode_command(command))
     assert decoded[:3] == command[:3]
     np.testing.assert_array_equal(decoded.ctrl, command.ctrl)
-    reading = ArmReading(np.arange(7.0), -np.arange(7.0), np.array([0.01, 0.02]))
-    state = wire.State(wire.HOLDING, wire.MISSED, 3.0, reading, np.ones((2, 7)), np.zeros((2, 6)))
-    decoded_state = wire.decode_state(wire.encode_state(state))
-    assert decoded_state[:3] == state[:3]
-    for ours, theirs in zip((*decoded_state.reading, *decoded_state[4:]), (*reading, *state[4:]), strict=True):
-        np.testing.assert_array_equal(ours, theirs)
+    # A Panda's reading, and a 6-joint arm's without a gripper: a state carries its own joint and finger counts.
+    for joints, finger_q in [(7, np.array([0.01, 0.02])), (6, np.zeros(0))]:
+        reading = ArmReading(np.arange(joints, dtype=float), -np.arange(joints, dtype=float), finger_q)
+        state = wire.State(wire.HOLDING, wire.MISSED, 3.0, reading, np.ones((2, 7)), np.zeros((2, 6)))
+        decoded_state = wire.decode_state(wire.encode_state(state))
+        assert decoded_state[:3] == state[:3]
+        for ours, theirs in zip((*decoded_state.reading, *decoded_state[4:]), (*reading, *state[4:]), strict=True):
+            np.testing.assert_array_equal(ours, theirs)
 
 
 def driver_setup(scene, tmp_path) -> DriverSetup:

@@ -5,6 +5,7 @@ import numpy as np
 
 from jaxarm.deploy import limits, wire
 from jaxarm.deploy.stream import ServoStream, limit_ratios
+from tests.deploy import six_joints
 
 TIMING = wire.Timing()
 SERVO_TICKS = round(TIMING.control_period / TIMING.servo_period)
@@ -59,3 +60,20 @@ def test_the_stream_reaches_a_target_held_still():
     points = stream_of(stream, [(np.full(7, 1e-4), np.zeros(7))])
     reached = [np.allclose(point.position, 1e-4, atol=1e-12) for point in points]
     assert reached.index(True) == round(TIMING.arrival / TIMING.servo_period) - 1
+
+
+def test_a_six_joint_stream_takes_its_joint_count_and_limits_from_them():
+    limits = six_joints.LIMITS
+    stream = ServoStream(np.zeros(6), TIMING.servo_period, TIMING.arrival, limits)
+    target = np.array([0.3, -0.2, 0.1, 0.4, -0.5, 0.2])
+    points = stream_of(stream, [(target, np.zeros(6))] * 25)
+    stream.hold()
+    points.append(stream.next())
+    assert stream.at_rest and all(len(value) == 6 for point in points for value in point)
+    np.testing.assert_allclose(points[-1].position, target, atol=1e-9)
+    velocity = np.array([point.velocity for point in points])
+    ratios = limit_ratios(velocity, np.array([point.acceleration for point in points]), TIMING.servo_period, limits)
+    for name, ratio in ratios.items():
+        assert ratio.shape == (6,) and np.all(ratio <= 1 + 1e-9), (name, ratio)
+    # Joint 5's 0.5 rad step, asked for within 20 ms, speeds up at its 10 rad/s² limit (the Panda's joint 5: 15).
+    assert ratios["acceleration"][4] > 0.99
