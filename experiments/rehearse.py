@@ -56,6 +56,7 @@ def driver_setup(env, params, sim, directory: pathlib.Path, timing: wire.Timing)
         object_qvel=velocity_index(ids),
         timing=timing,
         log_path=str(directory / "stream.npz"),
+        description=env.robot,
     )
 
 
@@ -120,7 +121,7 @@ def rehearse_run(run_dir: pathlib.Path, episodes: int, seed: int, fault: Fault |
         sim = transfer.one(sims, index)
         with tempfile.TemporaryDirectory(prefix="rehearse-") as directory:
             setup = driver_setup(env, params, sim, pathlib.Path(directory), timing)
-            loop = DeploymentLoop(policy, controller, CONTROL_DT)
+            loop = DeploymentLoop(policy, controller, CONTROL_DT, description=env.robot)
             size = np.asarray(sim.size, np.float64)
             rehearsal = rehearse(loop, setup, sim.shape, size, int(params.max_episode_steps), done, fault)
         rehearsals.append(rehearsal)

@@ -95,13 +95,13 @@ def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int,
     (`jaxarm.deploy.camera`)."""
     run_episode = deployable.entry(env).episode
     model = plant_model(env, params, model_name)
-    robot = MujocoRobot(model, CONTROL_DT)
+    robot = MujocoRobot(model, CONTROL_DT, env.robot)
     camera = None if env.spec.flat_observation else deployable.camera_renderer(env, model)
     if camera is None:
         controller: Controller = deployable.controller(env, params)
     else:
         controller = deployable.camera_controller(env, params, camera, robot.data)
-    loop = DeploymentLoop(policy, controller, CONTROL_DT, clip=clip)
+    loop = DeploymentLoop(policy, controller, CONTROL_DT, clip=clip, description=env.robot)
     sims = episode_starts(env, params, episodes, seed)
     began = time.perf_counter()
     results: list[dict] = []

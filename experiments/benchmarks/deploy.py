@@ -102,7 +102,7 @@ def tick_times(preset: str, ticks: int, warmup: int, seed: int) -> tuple[np.ndar
     rng = np.random.default_rng(seed)
     observation_size = env.spec.observation_shape[0]
     policy = random_policy(config, observation_size, controller.action_size, rng)
-    loop = DeploymentLoop(policy, controller, CONTROL_DT)
+    loop = DeploymentLoop(policy, controller, CONTROL_DT, description=env.robot)
     loop.begin(np.concatenate([task.start_qpos, np.full(2, 0.02)]))
     inputs = [random_inputs(controller, task.start_qpos, rng) for _ in range(64)]
     cpu_seconds = []

@@ -17,7 +17,6 @@ from jaxarm.envs.panda_sort import model as sort_model
 from jaxarm.envs.panda_sort.layout import Layout
 from jaxarm.envs.panda_sort.objects import object_mass_inertia, pose_index, velocity_index
 from jaxarm.envs.panda_sort.render import dress_objects
-from jaxarm.robots import PANDA
 
 
 def scoring_bins(layout: Layout) -> scoring.Bins:
@@ -53,7 +52,7 @@ def sort_task(env: sort_env.PandaSort, params) -> sort.SortTask:
         home_tcp_rotation=np.asarray(env.home_tcp_rotation, np.float64),
         bins=scoring_bins(env.layout),
         tcp_min_z=sort_env.TCP_MIN_Z,
-        finger_open=PANDA.finger_open,
+        finger_open=env.robot.finger_open,
     )
 
 
@@ -64,7 +63,7 @@ def sort_reward(env: sort_env.PandaSort, params) -> scoring.SortReward:
 
 
 def controller(env: sort_env.PandaSort, params) -> sort.SortController:
-    return sort.SortController(sort_task(env, params), ArmKinematics(env.mj_model))
+    return sort.SortController(sort_task(env, params), ArmKinematics(env.mj_model, env.robot))
 
 
 def scene(env: sort_env.PandaSort, params, robot_xml: Path) -> mujoco.MjModel:

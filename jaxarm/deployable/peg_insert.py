@@ -38,7 +38,7 @@ def peg_reward(params) -> scoring.PegReward:
 
 
 def controller(env: peg_env.PegInsert, params) -> peg.PegController:
-    return peg.PegController(peg_task(env, params), ArmKinematics(env.mj_model))
+    return peg.PegController(peg_task(env, params), ArmKinematics(env.mj_model, env.robot))
 
 
 def scene(env: peg_env.PegInsert, params, robot_xml: Path) -> mujoco.MjModel:

@@ -1,6 +1,9 @@
 """The robot registry, and each robot's description read against its own model files (MuJoCo C only, no JAX
 program): every name it declares is in both models, and its gripper travel and home posture agree with them."""
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -45,3 +48,10 @@ def test_each_description_names_what_its_models_hold(name, model_file):
     assert sum(set(drive) <= actuators for drive in description.finger_drives) == 1
     # KeyError if absent
     assert model.site(description.tcp_site).id >= 0 and model.body(description.hand_body).id >= 0
+
+
+def test_the_readme_shows_the_registry_line_a_new_robot_extends():
+    root = Path(__file__).resolve().parents[2]
+    shown = re.search(r"```python\n\s*(ROBOTS = .*)\n", (root / "README.md").read_text())
+    assert shown is not None
+    assert shown.group(1).replace(", YOUR_ARM", "") in (root / "jaxarm" / "robots" / "__init__.py").read_text()
