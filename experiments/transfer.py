@@ -90,9 +90,9 @@ class Recorder:
 
 def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int, clip: bool, record: bool) -> dict:
     """Runs `episodes` episodes of `policy` (observation -> action, numpy) in the eval `env`'s scene with
-    `model_name`'s Panda, from the env's resets drawn from `seed`; the summary, and the first episode's frames
-    under "frames" when `record`. A camera's policy sees the scene drawn by MuJoCo's renderer at each tick
-    (`jaxarm.deploy.camera`)."""
+    `model_name`'s model of its robot, from the env's resets drawn from `seed`; the summary, and the first
+    episode's frames under "frames" when `record`. A camera's policy sees the scene drawn by MuJoCo's renderer at
+    each tick (`jaxarm.deploy.camera`)."""
     run_episode = deployable.entry(env).episode
     model = plant_model(env, params, model_name)
     robot = MujocoRobot(model, CONTROL_DT, env.robot)
@@ -119,6 +119,7 @@ def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int,
     interval = stats.binomtest(successes, episodes).proportion_ci(method="wilson")
     ticks = np.array(loop.tick_seconds)
     summary = {
+        "robot": env.robot.name,
         "model": model_name,
         "episodes": episodes,
         "seed": seed,
@@ -179,11 +180,13 @@ def transfer(run_dir: pathlib.Path, model_name: str, episodes: int, seed: int, c
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m experiments.transfer", description=__doc__)
     parser.add_argument("run_dir")
-    parser.add_argument("--model", choices=MODELS, default="jaxarm", help="whose Panda the scene holds")
+    parser.add_argument(
+        "--model", choices=MODELS, default="jaxarm", help="whose model of the run's robot the scene holds"
+    )
     parser.add_argument("--episodes", type=int, default=200)
     parser.add_argument("--seed", type=int, default=12345)
     parser.add_argument("--video", nargs="?", const="gif", choices=headless.FORMATS, help="write the first episode")
-    parser.add_argument("--no-clip", action="store_true", help="count commands beyond Franka's limits, send them")
+    parser.add_argument("--no-clip", action="store_true", help="count commands beyond the robot's limits, send them")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     run_dir = pathlib.Path(args.run_dir)
     # Probed first, as eval does: a renderer failing after the episodes ran gives GLFW's warnings and no hint.
@@ -200,10 +203,10 @@ def main(argv=None) -> int:
         rundir.write_json(path, result)
         low, high = result["success_ci95"]
         print(
-            f"{run_dir} in stock MuJoCo ({args.model}'s Panda): success_rate {result['success_rate']:.3f} "
+            f"{run_dir} in stock MuJoCo ({args.model}'s {result['robot']}): success_rate {result['success_rate']:.3f} "
             f"[{low:.3f}, {high:.3f}] return_mean {result['return_mean']:.2f} over {args.episodes} episodes; "
             f"tick p50 {result['tick_ms_p50']:.2f} ms, p99 {result['tick_ms_p99']:.2f} ms; "
-            f"{'clipped' if result['clip'] else 'beyond'} Franka's limits in {result['ticks']} ticks: "
+            f"{'clipped' if result['clip'] else 'beyond'} the {result['robot']}'s limits in {result['ticks']} ticks: "
             f"acceleration {result['acceleration_clips']}, speed {result['speed_clips']}"
         )
         print(f"wrote {path}")

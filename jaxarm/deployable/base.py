@@ -1,5 +1,5 @@
-"""A deployable task's entry: what builds its controller from an env, its scene with another Panda, and one of its
-episodes in stock MuJoCo through the deployment loop (`registry.DEPLOYABLES` lists the entries)."""
+"""A deployable task's entry: what builds its controller from an env, its scene with another model of its robot, and
+one of its episodes in stock MuJoCo through the deployment loop (`registry.DEPLOYABLES` lists the entries)."""
 
 import dataclasses
 from collections.abc import Callable
@@ -24,8 +24,8 @@ class Deployable:
       env_class: the env whose instances the task is (wrapped ones too; state observations or cameras).
       controller: (env, params) -> the task's numpy controller, posing the arm in the env's own model (with its
         proprio part for a camera's policy).
-      scene: (env, params, robot_xml) -> the env's scene with the Panda of `robot_xml` in place of jaxarm's (a cached
-        model: copy it before editing).
+      scene: (env, params, robot_xml) -> the env's scene with its robot's model `robot_xml` in place of jaxarm's (a
+        cached model: copy it before editing).
       episode: (robot, loop, env, params, sim, capture) -> one episode from `sim` (the env's reset, as numpy arrays)
         on `robot` (the task's scene) through `loop`, scored from MuJoCo's state in numpy: its "success", "return"
         and "steps", and any of the task's own numbers ("placed": the sorter's fraction of objects placed).

@@ -1,5 +1,5 @@
 """The sorter as a deployable task: its `jaxarm.deploy.sort` controller, bins and reward read from a `PandaSort`
-and its params; its scene with another Panda; one episode in stock MuJoCo, scored in numpy."""
+and its params; its scene with another model of its robot; one episode in stock MuJoCo, scored in numpy."""
 
 from pathlib import Path
 
@@ -67,15 +67,17 @@ def controller(env: sort_env.PandaSort, params) -> sort.SortController:
 
 
 def scene(env: sort_env.PandaSort, params, robot_xml: Path) -> mujoco.MjModel:
-    """The env's scene with the Panda of `robot_xml`; the tosser's with its firm grip, as the env builds it."""
-    return sort_model.build_model(env.objects_count, env.layout, firm_grip=env.tosser, robot_xml=robot_xml)
+    """The env's scene with its robot's model `robot_xml`; the tosser's with its firm grip, as the env builds it."""
+    return sort_model.build_model(
+        env.objects_count, env.layout, firm_grip=env.tosser, robot=env.robot.name, robot_xml=robot_xml
+    )
 
 
 def dress_scene(model: mujoco.MjModel, env: sort_env.PandaSort, params, shape, size, colour) -> sort_model.ModelIds:
     """Writes an episode's objects (shapes [N], sizes [N], colours [N, 3]) and the params' masses and friction into
     the robot's scene `model` (in place), as the env's `episode_model` does; returns the scene's ids, resolved in
     it (another Panda model may number its bodies differently)."""
-    ids = sort_model.resolve_ids(model, env.objects_count)
+    ids = sort_model.resolve_ids(model, env.objects_count, env.robot.name)
     dress_objects(model, ids, shape, size, colour)
     geoms = ids.object_geom.ravel()
     model.geom_rbound[geoms] = np.linalg.norm(model.geom_size[geoms], axis=-1)

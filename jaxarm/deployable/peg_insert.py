@@ -14,6 +14,7 @@ from jaxarm.deploy.reading import HoleEstimate
 from jaxarm.deployable.base import Capture, Deployable
 from jaxarm.envs.peg_insert import env as peg_env
 from jaxarm.envs.peg_insert import model as peg_model
+from jaxarm.envs.peg_insert.render import paint_surfaces
 
 
 def peg_task(env: peg_env.PegInsert, params) -> peg.PegTask:
@@ -58,6 +59,7 @@ def episode(robot: MujocoRobot, loop: DeploymentLoop, env: peg_env.PegInsert, pa
     model, data = robot.model, robot.data
     ids = peg_model.resolve_ids(model, env.robot.name)
     model.body_pos[ids.block_body] = [*sim.hole, 0.0]
+    paint_surfaces(model, ids, np.asarray(sim.surface_gray))  # as the env's cameras saw the episode
     set_walls(model, ids, params)  # the env's own scene has them at the default clearance
     mujoco.mj_resetData(model, data)
     data.qpos[:] = sim.qpos

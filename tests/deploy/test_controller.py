@@ -15,10 +15,12 @@ import pytest
 from jaxarm import deployable
 from jaxarm.deploy import limits, peg, sort
 from jaxarm.deploy.reading import ArmReading, HoleEstimate, ObjectEstimate
-from jaxarm.envs.panda.base import CONTROL_DT
+from jaxarm.envs.panda.base import CONTROL_DT, PandaOptions
+from jaxarm.envs.panda.robot import tcp_pose_at
 from jaxarm.envs.panda_sort import IN_CORRECT_BIN, IN_PLAY, MODE_JOINT, PandaSort, PandaSortSim
 from jaxarm.envs.panda_sort.reward import next_outcome, next_target, shaping_potential
 from jaxarm.envs.peg_insert.env import PegInsert, PegInsertSim
+from jaxarm.robots import ROBOTS
 
 pytestmark = pytest.mark.mjx
 TOLERANCE = 1e-5
@@ -124,22 +126,26 @@ def test_the_sorter_observes_and_acts_as_the_env(control_mode):
 
 
 @pytest.mark.parametrize("running_target", [False, True])
-def test_the_peg_observes_and_acts_as_the_env(running_target):
-    env = PegInsert(running_target=running_target)
+@pytest.mark.parametrize("robot", sorted(ROBOTS))
+def test_the_peg_observes_and_acts_as_the_env_on_every_robot(robot, running_target):
+    env = PegInsert(running_target=running_target, options=PandaOptions(robot=robot))
     params = env.default_params()
     rng = np.random.default_rng(2)
+    joints = env.arm_dof
     qpos = env.mj_model.qpos0.astype(np.float32).copy()
-    qpos[:7] = env.start_qpos + rng.uniform(-0.2, 0.2, 7)
+    qpos[:joints] = env.start_qpos + rng.uniform(-0.2, 0.2, joints)
     qvel = rng.normal(0.0, 0.3, env.mj_model.nv).astype(np.float32)
     hole = np.array([0.55, -0.04], np.float32)
-    tcp_target = np.array([0.52, 0.01, 0.21], np.float32)
-    velocity = rng.uniform(-0.5, 0.5, 7).astype(np.float32)
+    # The target the servos chase leads the tool by less than `max_lead` (1 cm), so each action moves it.
+    tcp = tcp_pose_at(env.mj_model, env.ids.robot, qpos[:joints])[0]
+    tcp_target = (tcp + [0.004, -0.003, 0.002]).astype(np.float32)
+    velocity = rng.uniform(-0.5, 0.5, joints).astype(np.float32)
     sim = PegInsertSim(
         qpos=jnp.asarray(qpos),
         qvel=jnp.asarray(qvel),
         qacc_warmstart=jnp.zeros(env.mj_model.nv),
         # The servos' targets lead the arm, as when it moves: the running target's IK starts from them.
-        ctrl=jnp.asarray(np.r_[qpos[:7] + rng.uniform(-0.05, 0.05, 7), 0.01, 0.01], jnp.float32),
+        ctrl=jnp.asarray(np.r_[qpos[:joints] + rng.uniform(-0.05, 0.05, joints), 0.01, 0.01], jnp.float32),
         target_velocity=jnp.asarray(velocity),
         tcp_target=jnp.asarray(tcp_target),
         hole=jnp.asarray(hole),
@@ -148,6 +154,7 @@ def test_the_peg_observes_and_acts_as_the_env(running_target):
         queued_actions=env.initial_action_queue(),
         noise_key=jax.random.key(0),
         hole_error=jnp.zeros(3),
+        surface_gray=jnp.full(2, 0.5),
         overflow=jnp.zeros((), jnp.int32),
     )
     actions = rng.uniform(-1.0, 1.0, (ACTIONS, 3)).astype(np.float32)
@@ -162,14 +169,15 @@ def test_the_peg_observes_and_acts_as_the_env(running_target):
 
         def ctrl(action):
             target, arm = env._arm_targets(model, data, sim, action, params)
-            return target, env.limited_ctrl(jnp.concatenate([arm, sim.ctrl[7:]]), sim)[0][:7]
+            return target, env.limited_ctrl(jnp.concatenate([arm, sim.ctrl[joints:]]), sim)[0][:joints]
 
         return obs, *jax.vmap(ctrl)(actions)
 
     obs, targets, arm = (np.asarray(value) for value in reference(sim, jnp.asarray(actions)))
     controller = deployable.controller(env, params)
     assert isinstance(controller, peg.PegController)
-    reading = ArmReading(arm_q=qpos[:7].astype(np.float64), arm_qvel=qvel[:7].astype(np.float64), finger_q=qpos[7:9])
+    arm_q, arm_qvel = qpos[:joints].astype(np.float64), qvel[:joints].astype(np.float64)
+    reading = ArmReading(arm_q=arm_q, arm_qvel=arm_qvel, finger_q=qpos[joints : joints + 2])
     pose = controller.kinematics.pose(reading.arm_q)
     ours = peg.observation(controller.task, controller.kinematics, pose, reading, HoleEstimate(hole), tcp_target)
     np.testing.assert_allclose(ours, obs, atol=TOLERANCE)
@@ -179,6 +187,7 @@ def test_the_peg_observes_and_acts_as_the_env(running_target):
             controller.task, controller.kinematics, pose, tcp_target.astype(np.float64), sim_ctrl, action
         )
         np.testing.assert_allclose(target, expected_target, atol=TOLERANCE)
-        sent = limits.limit_targets(ours_arm, sim_ctrl[:7], velocity.astype(np.float64), CONTROL_DT).targets
-        np.testing.assert_allclose(sent, expected, atol=TOLERANCE)
+        robot_limits = env.robot.joint_limits
+        sent = limits.limit_targets(ours_arm, sim_ctrl[:joints], velocity.astype(np.float64), CONTROL_DT, robot_limits)
+        np.testing.assert_allclose(sent.targets, expected, atol=TOLERANCE)
     assert np.ptp(arm, axis=0).max() > 1e-3

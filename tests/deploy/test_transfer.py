@@ -1,5 +1,5 @@
-"""`python -m experiments.transfer`: policies run in stock MuJoCo through the deployment loop, on jaxarm's Panda
-and on menagerie's.
+"""`python -m experiments.transfer`: policies run in stock MuJoCo through the deployment loop, on jaxarm's model of
+the run's robot and on menagerie's.
 
 The tests of episodes draw their starts with the env's reset (one MJX program: marked mjx); from there only
 MuJoCo C and `jaxarm.deploy` run (and MuJoCo's OpenGL renderer, for a camera policy).
@@ -22,6 +22,7 @@ from experiments.configs.td3 import td3_peg
 from jaxarm import deployable, headless
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.deployable import panda_sort
+from jaxarm.envs.panda.base import PandaOptions
 from jaxarm.envs.panda.robot import resolve_robot_ids, tcp_pose_at
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.panda_sort import model as sort_model
@@ -29,26 +30,33 @@ from jaxarm.envs.peg_insert.env import PegInsert
 from jaxarm.envs.peg_insert.params import RUNNING_TARGET_MAX_LEAD
 from jaxarm.export import origin
 from jaxarm.export.numpy_policy import EXPORT_AGAIN
-from jaxarm.robots import PANDA
+from jaxarm.robots import PANDA, ROBOTS
 from jaxarm.runner import rundir
 from tests.deploy.exported import export_random_policy, sorter_run
 
 
-def test_both_pandas_have_the_same_kinematics_and_the_stock_solver():
-    env = PegInsert()
+@pytest.mark.parametrize("robot", sorted(ROBOTS))
+def test_both_models_of_each_robot_have_the_same_kinematics_and_the_stock_solver(robot):
+    env = PegInsert(options=PandaOptions(robot=robot))
     params = env.default_params()
     models = [transfer.plant_model(env, params, name) for name in transfer.MODELS]
     default = mujoco.MjModel.from_xml_string("<mujoco/>").opt
     assert all(model.opt.iterations == default.iterations for model in models)
     jaxarm, menagerie = models
-    assert jaxarm.opt.timestep == env.mj_model.opt.timestep and menagerie.opt.timestep == PANDA.menagerie_timestep
-    # Menagerie's own dynamics: another gripper drive, other link inertias.
-    assert menagerie.nu == jaxarm.nu - 1
-    assert not np.allclose(menagerie.body("link1").inertia, jaxarm.body("link1").inertia)
+    assert jaxarm.opt.timestep == env.mj_model.opt.timestep
+    assert menagerie.opt.timestep == env.robot.menagerie_timestep
+    # Menagerie's own dynamics: other link inertias (and the Panda's, another gripper drive).
+    first_link = jaxarm.jnt_bodyid[jaxarm.joint(env.robot.arm_joints[1]).id]
+    assert not np.allclose(menagerie.body_inertia[first_link], jaxarm.body_inertia[first_link])
+    if robot == PANDA.name:
+        assert menagerie.nu == jaxarm.nu - 1
     rng = np.random.default_rng(0)
+    description = env.robot
     for _ in range(5):
-        arm_q = env.start_qpos + rng.uniform(-0.5, 0.5, 7)
-        (tcp_a, rotation_a), (tcp_b, rotation_b) = (tcp_pose_at(m, resolve_robot_ids(m, PANDA), arm_q) for m in models)
+        arm_q = env.start_qpos + rng.uniform(-0.5, 0.5, env.arm_dof)
+        (tcp_a, rotation_a), (tcp_b, rotation_b) = (
+            tcp_pose_at(m, resolve_robot_ids(m, description), arm_q) for m in models
+        )
         np.testing.assert_allclose(tcp_a, tcp_b, atol=1e-9)
         np.testing.assert_allclose(rotation_a, rotation_b, atol=1e-6)
 
@@ -58,7 +66,7 @@ def test_an_env_transfer_does_not_run_is_named_with_those_it_runs(tmp_path, caps
     assert transfer.main([str(tmp_path)]) == 2
     error = capsys.readouterr().err
     assert f"{tmp_path}'s env is arm2d; transfer runs panda_sort, panda_sort3," in error
-    assert error.endswith("panda_sort_pixels, panda_sort_tosser, peg_insert, peg_insert_pixels\n")
+    assert error.endswith("panda_sort_tosser, peg_insert, peg_insert_pixels, peg_insert_ur5e\n")
 
 
 def wrist_step_response(model: mujoco.MjModel, start_qpos: np.ndarray, seconds: float) -> np.ndarray:
@@ -123,9 +131,12 @@ def scripted_insertion(obs: np.ndarray) -> np.ndarray:
 
 @pytest.mark.mjx
 @pytest.mark.slow
-@pytest.mark.parametrize("running_target", [False, True])
-def test_a_scripted_peg_inserts_in_stock_mujoco_with_both_pandas(running_target):
-    env = PegInsert(running_target=running_target)
+@pytest.mark.parametrize(
+    ("robot", "running_target"),
+    [(PANDA.name, False), (PANDA.name, True), *((name, True) for name in ROBOTS if name != PANDA.name)],
+)
+def test_a_scripted_peg_inserts_in_stock_mujoco_with_both_models_of_each_robot(robot, running_target):
+    env = PegInsert(running_target=running_target, options=PandaOptions(robot=robot))
     params = env.default_params()
     if running_target:
         params = params.replace(max_lead=RUNNING_TARGET_MAX_LEAD)
@@ -148,7 +159,7 @@ def test_the_transfer_cli_runs_an_exported_sorter_policy_on_both_pandas(tmp_path
         assert result["model"] == name and result["ticks"] == 40 and result["steps_mean"] == 20
         assert 0.0 <= result["success_rate"] <= result["success_ci95"][1] <= 1.0
         assert len(result["acceleration_clips"]) == len(result["speed_clips"]) == 7
-        assert f"({name}'s Panda)" in capsys.readouterr().out
+        assert f"({name}'s panda)" in capsys.readouterr().out
 
 
 def test_transfer_refuses_a_damaged_policy_too_many_episodes_and_a_video_without_gl_in_one_line(
@@ -211,4 +222,4 @@ def test_the_transfer_cli_runs_an_exported_camera_policy_on_both_pandas(tmp_path
         assert transfer.main([str(tmp_path), "--model", name, "--episodes", "2"]) == 0, capsys.readouterr().err
         result = json.loads((tmp_path / f"transfer-{name}-2-12345-7.json").read_text())
         assert result["model"] == name and result["ticks"] == 2 * result["steps_mean"] and result["steps_mean"] >= 1
-        assert f"({name}'s Panda)" in capsys.readouterr().out
+        assert f"({name}'s panda)" in capsys.readouterr().out

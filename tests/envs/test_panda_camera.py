@@ -365,6 +365,27 @@ def test_a_pandas_default_camera_params_leave_its_images_exactly_as_cast(peg_cam
         np.testing.assert_array_equal(image[..., 2 * index : 2 * index + 2], np.stack([*map(np.round, levels)], -1))
 
 
+def test_the_peg_draws_its_block_and_table_gray_each_episode_and_the_cameras_see_them(peg_cameras):
+    env, model, poses = peg_cameras
+    params = env.default_params()
+    keys = jax.random.split(jax.random.key(3), 64)
+    modelled = np.asarray(env.surface_gray(keys[0], params))
+    assert np.all(np.asarray(jax.vmap(env.surface_gray, in_axes=(0, None))(keys, params)) == modelled)
+    spread = params.replace(surface_gray_spread=jnp.float32(0.4))
+    drawn = np.asarray(jax.vmap(env.surface_gray, in_axes=(0, None))(keys, spread))
+    assert np.all(np.abs(drawn - modelled) <= 0.4 + 1e-6) and np.all((drawn >= 0) & (drawn <= 1))
+    assert drawn.std(axis=0).min() > 0.15  # each surface's gray moves across the episodes
+    image = jax.jit(lambda luma: env.camera_image(model, poses, params, jax.random.key(0), luma))
+    as_modelled = np.asarray(image(env.episode_luma(SimpleNamespace(surface_gray=jnp.asarray(modelled)))))
+    # The modelled grays are the scene's own: the images stay exactly as cast.
+    np.testing.assert_array_equal(as_modelled, np.asarray(image(None)))
+    dark = np.asarray(image(env.episode_luma(SimpleNamespace(surface_gray=jnp.zeros(2)))))
+    gray, depth = dark[..., 0::2].astype(int), dark[..., 1::2]
+    # Black surfaces read only the ambient light's share of nothing: darker wherever they are seen; depth unchanged.
+    assert (gray < as_modelled[..., 0::2]).mean() > 0.3
+    np.testing.assert_array_equal(depth, as_modelled[..., 1::2])
+
+
 def test_a_pandas_depth_noise_is_drawn_from_its_sims_noise_key(peg_cameras, monkeypatch):
     # `images` poses the sim with MJX, minutes to compile on a CPU: here the MuJoCo-posed scene stands in for it.
     env, model, poses = peg_cameras

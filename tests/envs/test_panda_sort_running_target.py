@@ -17,9 +17,12 @@ import pytest
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda.robot import wrapped_angle, yaw_of_quaternion
 from jaxarm.envs.panda_sort import MODE_JOINT, PandaSort
-from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE, SERVO_LEAD_OBS_SIZE, TOOL_OBS_SIZE
+from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE, TOOL_POSE_OBS_SIZE
 from jaxarm.robots import PANDA
 from tests.envs.compiled import same_worker
+
+PANDA_JOINTS = len(PANDA.arm_joints)
+"""The Panda's arm joints: the servos' lead a running-target sorter observes, one per joint."""
 
 pytestmark = [pytest.mark.mjx, same_worker("panda_sort_running_target")]
 TOOL = OBJECT_OBS_SIZE  # one object: the tool's part starts after its row
@@ -45,7 +48,7 @@ def observations(env: PandaSort, action: np.ndarray, steps: int) -> np.ndarray:
 def test_ee_actions_move_the_tool_and_turn_the_hand_by_their_steps():
     env = PandaSort(objects_count=1, running_target=True)
     params = env.default_params()
-    assert env.spec.observation_shape == (OBJECT_OBS_SIZE + TOOL_OBS_SIZE + SERVO_LEAD_OBS_SIZE,)
+    assert env.spec.observation_shape == (OBJECT_OBS_SIZE + (TOOL_POSE_OBS_SIZE + PANDA_JOINTS) + PANDA_JOINTS,)
     # Half speed towards the robot and a half-speed turn, fingers open, for a second.
     obs = observations(env, np.array([-0.5, 0.0, 0.0, 0.5, 1.0], np.float32), 25)
     tcp = obs[:, TOOL : TOOL + 3]
@@ -58,7 +61,7 @@ def test_ee_actions_move_the_tool_and_turn_the_hand_by_their_steps():
     yaw = np.unwrap(np.asarray(yaw_of_quaternion(obs[:, TOOL + 3 : TOOL + 7])))
     assert yaw[-1] - yaw[0] == pytest.approx(25 * 0.5 * float(params.ee_yaw_step), rel=0.1)
     # The observation's last part is the servos' lead, bounded by how far the targets may run ahead.
-    lead = obs[:, -SERVO_LEAD_OBS_SIZE:]
+    lead = obs[:, -PANDA_JOINTS:]
     assert np.all(lead[0] == 0.0) and np.any(np.abs(lead[-1]) > 1e-3)
 
 
@@ -72,7 +75,7 @@ def test_joint_actions_move_the_joint_by_joint_step_and_the_lead_stays_bounded()
     # limit and its servo's lag behind) it turns at its speed limit.
     asked = min(float(params.joint_step), float(PANDA.joint_limits.speed[0]) * CONTROL_DT)
     assert np.allclose(turn[9:], asked, rtol=0.02), turn
-    lead = obs[:, -SERVO_LEAD_OBS_SIZE:]
+    lead = obs[:, -PANDA_JOINTS:]
     assert np.all(np.abs(lead) <= float(params.max_joint_lead) + 1e-6)
     # Asked to turn the wrist faster than it can (1 rad in 10 steps; it turns ~0.5), the target stops
     # max_joint_lead ahead of the angle it starts each step from instead of running away: the lead observed
@@ -85,11 +88,11 @@ def test_joint_actions_move_the_joint_by_joint_step_and_the_lead_stays_bounded()
 
 def test_warm_starts_map_the_tool_and_leave_the_lead_new():
     plain, running = PandaSort(objects_count=1), PandaSort(objects_count=1, running_target=True)
-    shared = OBJECT_OBS_SIZE + TOOL_OBS_SIZE
+    shared = OBJECT_OBS_SIZE + (TOOL_POSE_OBS_SIZE + PANDA_JOINTS)
     into_running = running.observation_source_index(plain)
-    assert np.array_equal(into_running, np.r_[np.arange(shared), np.full(SERVO_LEAD_OBS_SIZE, -1)])
+    assert np.array_equal(into_running, np.r_[np.arange(shared), np.full(PANDA_JOINTS, -1)])
     assert np.array_equal(plain.observation_source_index(running), np.arange(shared))
-    assert np.array_equal(running.observation_source_index(running), np.arange(shared + SERVO_LEAD_OBS_SIZE))
+    assert np.array_equal(running.observation_source_index(running), np.arange(shared + PANDA_JOINTS))
 
 
 def test_wrapped_angle():

@@ -15,9 +15,12 @@ from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda.franka_dynamics import FRANKA
 from jaxarm.envs.panda.robot import yaw_of_quaternion
 from jaxarm.envs.panda_sort import MODE_JOINT, PandaSort
-from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE, SERVO_LEAD_OBS_SIZE
+from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE
 from jaxarm.robots import PANDA
 from tests.envs.compiled import same_worker
+
+PANDA_JOINTS = len(PANDA.arm_joints)
+"""The Panda's arm joints: the servos' lead a running-target sorter observes, one per joint."""
 
 pytestmark = [pytest.mark.mjx, pytest.mark.slow, same_worker("panda_sort_servo_limits")]
 TOOL = OBJECT_OBS_SIZE  # one object: the tool's part starts after its row
@@ -57,7 +60,7 @@ def random_actions(size: int) -> np.ndarray:
 
 def commanded_speeds(obs: np.ndarray) -> np.ndarray:
     """[T, 7] the servos' targets' speed each step: the observed angles plus the observed lead."""
-    targets = obs[:, ARM] + obs[:, -SERVO_LEAD_OBS_SIZE:]
+    targets = obs[:, ARM] + obs[:, -PANDA_JOINTS:]
     return np.abs(np.diff(targets, axis=0)) / CONTROL_DT
 
 

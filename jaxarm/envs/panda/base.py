@@ -321,19 +321,38 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         # Folded, not split: the task splits `noise_key` itself at the next step, and a split here would hand the
         # images that step's state-observation key.
         key = jax.random.fold_in(sim.noise_key, 0)
-        return self.camera_image(model, self.poses(model, sim), params, key)
+        return self.camera_image(model, self.poses(model, sim), params, key, self.episode_luma(sim))
 
-    def camera_image(self, model: mjx.Model, data: mjx.Data, params: CameraParams, key: jax.Array) -> jax.Array:
-        """uint8 [R, R, 2 per camera]: each camera's grayscale, then its depth over `DEPTH_RANGE`, cast in JAX
-        (`camera.render`, each camera moved by the params' `camera_offset`) from the poses in `data` (after
-        `poses`) and the episode's geom sizes, and put through `image_channels` with `params` and `key`."""
+    def episode_luma(self, sim: SimT) -> jax.Array | np.ndarray:
+        """[G] the brightness of each geom the cameras see (`camera.Scene.geoms`) in the sim's episode: the model's.
+        A task whose surfaces take a gray of their own each episode overrides it."""
+        return self.camera_scene.luma
+
+    @property
+    def camera_scene(self) -> camera.Scene:
+        """What the cameras see of the model; ValueError in "state" mode, which has none."""
         if self._camera_scene is None:
             raise ValueError('obs_mode "state" has no camera: build the env with a pixel obs_mode')
+        return self._camera_scene
+
+    def camera_image(
+        self,
+        model: mjx.Model,
+        data: mjx.Data,
+        params: CameraParams,
+        key: jax.Array,
+        luma: jax.Array | np.ndarray | None = None,
+    ) -> jax.Array:
+        """uint8 [R, R, 2 per camera]: each camera's grayscale, then its depth over `DEPTH_RANGE`, cast in JAX
+        (`camera.render`, each camera moved by the params' `camera_offset`) from the poses in `data` (after
+        `poses`) and the episode's geom sizes, its geoms as bright as `luma` [G] where given (else as modelled),
+        and put through `image_channels` with `params` and `key`."""
+        scene = self.camera_scene
         offset = params.camera_offset
         channels = []
         for view in self.cameras:
             depth, gray = camera.render(
-                self._camera_scene,
+                scene,
                 view,
                 self.resolution,
                 model.geom_size,
@@ -342,6 +361,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
                 data.xpos,
                 data.xmat,
                 offset,
+                luma,
             )
             channels += [gray, depth]
         return image_channels(jnp.stack(channels, axis=-1), params, key)

@@ -286,16 +286,18 @@ def cast(
     position: jax.Array,
     rotation: jax.Array,
     rays: jax.Array,
+    luma: jax.Array | np.ndarray | None = None,
 ) -> tuple[jax.Array, jax.Array]:
     """Nearest hit of rays from a camera at `position` [3], turned by `rotation` [3, 3], along unit `rays` [N, 3]
-    in the camera's frame: (distance [N], inf on a miss; brightness [N], 0 on a miss)."""
+    in the camera's frame: (distance [N], inf on a miss; brightness [N], 0 on a miss). `luma` [G] replaces the
+    scene's brightness of its geoms (`Scene.luma`) where given."""
     ids = scene.geoms
     geom_rotations = geom_xmat[ids].reshape(-1, 3, 3)
     # Each geom's frame from the camera's (Rᵀ_geom R_camera) and the camera in each geom's frame, both tiny: the
     # per-ray work of a geom is then element-wise over the rays, and fuses into one loop.
     to_geom = jnp.einsum("gji,jk->gik", geom_rotations, rotation, precision=_EXACT)
     origins = jnp.einsum("gji,gj->gi", geom_rotations, position - geom_xpos[ids], precision=_EXACT)
-    geoms = (to_geom, origins, geom_size[ids], scene.luma)
+    geoms = (to_geom, origins, geom_size[ids], scene.luma if luma is None else luma)
     camera_rays = (rays[:, 0], rays[:, 1], rays[:, 2])
     hit = (jnp.full(rays.shape[:1], jnp.inf), jnp.zeros(rays.shape[:1]))
     # One scan per type keeps the program's size independent of the number of geoms: unrolled over every geom,
@@ -316,12 +318,14 @@ def render(
     xpos: jax.Array,
     xmat: jax.Array,
     offset: PoseOffset = NO_OFFSET,
+    luma: jax.Array | np.ndarray | None = None,
 ) -> tuple[jax.Array, jax.Array]:
     """(depth [R, R] metres along the optical axis, `FAR` where nothing is hit; gray [R, R] in [0, 1]) seen by
     `camera`, moved by `offset` in its own frame, in a scene posed by geom_xpos [ngeom, 3], geom_xmat [ngeom, 3, 3]
-    (or [ngeom, 9]), xpos [nbody, 3] and xmat [nbody, 3, 3] (or [nbody, 9]) with sizes geom_size [ngeom, 3]."""
+    (or [ngeom, 9]), xpos [nbody, 3] and xmat [nbody, 3, 3] (or [nbody, 9]) with sizes geom_size [ngeom, 3], its
+    geoms as bright as `luma` [G] where given (else `Scene.luma`)."""
     position, rotation = camera.world_pose(xpos, xmat.reshape(-1, 3, 3), offset)
     local = ray_directions(camera.fovy, resolution).reshape(-1, 3)
-    distance, gray = cast(scene, geom_size, geom_xpos, geom_xmat, position, rotation, local)
+    distance, gray = cast(scene, geom_size, geom_xpos, geom_xmat, position, rotation, local, luma)
     depth = jnp.where(jnp.isfinite(distance), distance * -local[:, 2], FAR)
     return depth.reshape(resolution, resolution), gray.reshape(resolution, resolution)

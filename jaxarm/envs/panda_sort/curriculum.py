@@ -21,7 +21,7 @@ from jaxarm.envs.panda_sort.model import ModelIds
 from jaxarm.envs.panda_sort.objects import GRIP_HALF_WIDTH
 from jaxarm.envs.panda_sort.params import PandaSortParams
 from jaxarm.envs.panda_sort.sim import PandaSortSim
-from jaxarm.robots import PANDA
+from jaxarm.robots import RobotDescription
 
 WIND_UP_POSTURE = np.array([0.0, -1.5, 0.0, -0.35, 0.0, 3.4, -0.785], np.float32)
 """Joints 2-7 of the throw's wind-up (joint 1 faces the bin): upper arm leaning back, hand raised behind, the
@@ -92,36 +92,39 @@ def draw_start(start_key: jax.Array, objects_key: jax.Array, objects_count: int,
     )
 
 
-def pose_in_hand(ids: ModelIds, model: mjx.Model, data: mjx.Data) -> jax.Array:
+def pose_in_hand(ids: ModelIds, robot: RobotDescription, model: mjx.Model, data: mjx.Data) -> jax.Array:
     """[7] pose of an object held between the pads, whatever the hand's orientation: centred between them,
-    its z axis against the tool centre's (so upright when the tool points down)."""
-    robot = ids.robot
-    z_axis = data.site_xmat[robot.tcp_site].reshape(3, 3)[:, 2]
-    site_quat = mjx_math.quat_mul(data.xquat[model.site_bodyid[robot.tcp_site]], model.site_quat[robot.tcp_site])
-    centre = data.site_xpos[robot.tcp_site] - PANDA.pad_above_tcp * z_axis
+    its z axis against the tool centre's (so upright when the tool points down), in `robot`'s hand."""
+    tcp_site = ids.robot.tcp_site
+    z_axis = data.site_xmat[tcp_site].reshape(3, 3)[:, 2]
+    site_quat = mjx_math.quat_mul(data.xquat[model.site_bodyid[tcp_site]], model.site_quat[tcp_site])
+    centre = data.site_xpos[tcp_site] - robot.pad_above_tcp * z_axis
     return jnp.concatenate([centre, mjx_math.quat_mul(site_quat, jnp.asarray(FLIP_ABOUT_X))])
 
 
-def place_in_hand(ids: ModelIds, sim: PandaSortSim, model: mjx.Model, data: mjx.Data, start: StartDraw) -> PandaSortSim:
-    """Curriculum starts for the `start.focus` object, with `data` the kinematics of `sim`. Where `start.held`:
+def place_in_hand(
+    ids: ModelIds, robot: RobotDescription, sim: PandaSortSim, model: mjx.Model, data: mjx.Data, start: StartDraw
+) -> PandaSortSim:
+    """Curriculum starts for the `start.focus` object in `robot`'s hand, with `data` the kinematics of `sim`. Where
+    `start.held`:
     between the closed fingers at the tool centre, faces towards the pads (upright, or where `start.wound_up` in
     the hand's frame). Where `start.ready`: on the table under the tool centre, between the open fingers (faces
     towards the pads) or, where also `start.hover`, below them at the yaw it was drawn with. Elsewhere `sim` is
     returned unchanged."""
-    robot = ids.robot
+    robot_ids = ids.robot
     focus, held = start.focus, start.held
     pose_idx = jnp.asarray(ids.object_qpos)[focus] + jnp.arange(7)
     own_quat = sim.qpos[pose_idx[3:]]
     yaw = jnp.where(
-        start.hover, yaw_of_quaternion(own_quat), yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
+        start.hover, yaw_of_quaternion(own_quat), yaw_of_rotation(data.site_xmat[robot_ids.tcp_site].reshape(3, 3))
     )
-    tcp = data.site_xpos[robot.tcp_site]
-    height = jnp.where(held, tcp[2] + PANDA.pad_above_tcp, sim.size[focus] + 0.001)
+    tcp = data.site_xpos[robot_ids.tcp_site]
+    height = jnp.where(held, tcp[2] + robot.pad_above_tcp, sim.size[focus] + 0.001)
     pose = jnp.concatenate([tcp[:2], height[None], jnp.stack([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])])
-    pose = jnp.where(start.wound_up, pose_in_hand(ids, model, data), pose)
+    pose = jnp.where(start.wound_up, pose_in_hand(ids, robot, model, data), pose)
     grip = jnp.asarray(GRIP_HALF_WIDTH)[sim.shape[focus]] * sim.size[focus]
-    fingers = jnp.where(held, grip, PANDA.finger_open)
-    qpos = sim.qpos.at[pose_idx].set(pose).at[robot.finger_qpos].set(fingers)
-    ctrl = sim.ctrl.at[7:].set(jnp.where(held, 0.0, PANDA.finger_open))
+    fingers = jnp.where(held, grip, robot.finger_open)
+    qpos = sim.qpos.at[pose_idx].set(pose).at[robot_ids.finger_qpos].set(fingers)
+    ctrl = sim.ctrl.at[len(robot.arm_joints) :].set(jnp.where(held, 0.0, robot.finger_open))
     moved = held | start.ready
     return sim.replace(qpos=jnp.where(moved, qpos, sim.qpos), ctrl=jnp.where(moved, ctrl, sim.ctrl))

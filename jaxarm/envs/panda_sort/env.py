@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from jaxarm import robots
 from jaxarm.envs.base import Env, Observation, Transition
 from jaxarm.envs.panda.base import PandaBase, PandaOptions
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
@@ -70,13 +71,13 @@ from jaxarm.envs.panda_sort.reward import (
     step_info,
 )
 from jaxarm.envs.panda_sort.sim import PandaSortSim
+from jaxarm.robots import PANDA
 
 MODE_EE = "ee"
 MODE_JOINT = "joint"
-TOOL_OBS_SIZE = 21
-"""The tool's part of the observation, after the objects': see `PandaSort._observe`."""
-SERVO_LEAD_OBS_SIZE = 7
-"""What a `running_target` env adds after the tool's part: each arm joint's servo target minus its angle."""
+TOOL_POSE_OBS_SIZE = 14
+"""The tool's part of the observation, after the objects', up to the arm's joint angles (`PandaSort._observe`):
+the tool's J joint angles follow, then with `running_target` each arm joint's servo target minus its angle (J)."""
 OBJECT_OBS_SIZE = 26
 """Per object: position 3, quaternion 4, linear and angular velocity 6, one-hot shape 3, size 1, in play 1,
 then what a policy would otherwise have to compute: object − tool centre 3, carry target − object 3, and
@@ -99,8 +100,8 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
     Args:
       objects_count: number of object slots, 1 to 5 (static: fixes shapes and the contact set).
       control_mode: "ee" (tool-centre delta xyz, a turn of the hand about the vertical, and a finger command;
-        5 actions; the tool keeps pointing down) or "joint" (7 joint-target deltas and a finger command; 8
-        actions). The finger command maps [-1, 1] to closed..open.
+        5 actions; the tool keeps pointing down) or "joint" (J joint-target deltas and a finger command; J + 1
+        actions, J the robot's arm joints). The finger command maps [-1, 1] to closed..open.
       blocker: adds a thin bar between the spawn region and the bins.
       tosser: puts the bins on a second table out of the arm's reach: objects must be thrown (layout.py); the
         fingers' contacts are stiffer and the physics steps 2.5 times finer (model.FIRM_GRIP_TIMESTEP), so that a
@@ -114,7 +115,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
       running_target: an action moves the target the servos chase (the tool-centre pose in `ee` mode, the joint
         targets in `joint` mode) by `ee_step`, `ee_yaw_step` or `joint_step` per unit, held within `max_lead`,
         `max_yaw_lead` or `max_joint_lead` of what is measured, so a step's action is the motion it gets once
-        under way; the observation adds the servos' lead (`SERVO_LEAD_OBS_SIZE`). Without it (the default) each
+        under way; the observation adds the servos' lead (J values). Without it (the default) each
         step's target starts from the measured pose and the servos cover about a third of the step.
       options: the physics, its buffers and the observation (`PandaOptions`; the module docstring says what each
         observation mode holds).
@@ -145,16 +146,20 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self.target_first = target_first
         self.running_target = running_target
         self.tosser = tosser
-        self.tool_obs_size = TOOL_OBS_SIZE + (SERVO_LEAD_OBS_SIZE if running_target else 0)
+        if tosser and options.robot != PANDA.name:
+            raise ValueError(f"the tosser's throw is the Panda's (its wind-up postures), not the {options.robot}'s")
+        arm_dof = len(robots.robot(options.robot).arm_joints)
+        self.tool_obs_size = TOOL_POSE_OBS_SIZE + arm_dof * (2 if running_target else 1)
         self.layout = make_layout(blocker=blocker, tosser=tosser)
-        mj_model = build_model(objects_count, self.layout, dynamics, firm_grip=tosser)
+        mj_model = build_model(objects_count, self.layout, dynamics, firm_grip=tosser, robot=options.robot)
         spawn_centre = (np.array(self.layout.spawn_low) + np.array(self.layout.spawn_high)) / 2
         start_tcp = np.r_[spawn_centre, START_HEIGHT]
-        ids = resolve_ids(mj_model, objects_count)
+        ids = resolve_ids(mj_model, objects_count, options.robot)
         super().__init__(mj_model, ids, start_tcp, options)
         self.grasp_qpos = self.solve_posture(np.r_[spawn_centre, GRASP_HEIGHT])
         state_size = OBJECT_OBS_SIZE * objects_count + self.tool_obs_size
-        self.spec = self.observation_spec(state_size, self.tool_obs_size, 5 if control_mode == MODE_EE else 8)
+        action_size = 5 if control_mode == MODE_EE else arm_dof + 1
+        self.spec = self.observation_spec(state_size, self.tool_obs_size, action_size)
 
     def default_params(self) -> PandaSortParams:
         return PandaSortParams()
@@ -207,16 +212,16 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
     # --- control ------------------------------------------------------------------------------------
 
     def _arm_targets(self, model, data, action, params) -> jax.Array:
-        """[7] arm joint targets from the action: IK towards the displaced and turned tool, or joint deltas;
+        """[J] arm joint targets from the action: IK towards the displaced and turned tool, or joint deltas;
         from the measured pose, or with `running_target` from the servos' targets (`data.ctrl`), held within
         the params' leads of the measured pose."""
         robot = self.ids.robot
         if self.control_mode == MODE_JOINT:
-            arm_q = data.qpos[robot.arm_qpos]
+            arm_q, step = data.qpos[robot.arm_qpos], action[: self.arm_dof] * params.joint_step
             if self.running_target:
-                joints = advanced_target(data.ctrl[:7], action[:7] * params.joint_step, arm_q, params.max_joint_lead)
+                joints = advanced_target(data.ctrl[: self.arm_dof], step, arm_q, params.max_joint_lead)
             else:
-                joints = arm_q + action[:7] * params.joint_step
+                joints = arm_q + step
             return jnp.clip(joints, robot.arm_limits[:, 0], robot.arm_limits[:, 1])
         tcp = data.site_xpos[robot.tcp_site]
         yaw = yaw_of_rotation(data.site_xmat[robot.tcp_site].reshape(3, 3))
@@ -247,9 +252,9 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self, model: mjx.Model, data: mjx.Data, sim: PandaSortSim, params: PandaSortParams, key: jax.Array
     ) -> Observation:
         """[OBJECT_OBS_SIZE N + tool_obs_size]: per object (zeros when out of play) OBJECT_OBS_SIZE values, then tool
-        centre position 3, orientation quaternion 4, linear and angular velocity 6, finger width 1, and the 7
-        arm joint angles (the arm is redundant, so the tool pose alone does not tell its posture or nearness
-        to joint limits); with `running_target`, then each arm joint's servo target minus its angle (7). Robot
+        centre position 3, orientation quaternion 4, linear and angular velocity 6, finger width 1, and the J
+        arm joint angles (the Panda is redundant, so the tool pose alone does not tell its posture or nearness
+        to joint limits); with `running_target`, then each arm joint's servo target minus its angle (J). Robot
         quantities come from `data`, object quantities from `sim`, the objects' positions off by the episode's
         pose-estimate error; `key` draws the params' object-pose and observation noise.
         """
@@ -285,7 +290,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             sim.qpos[robot.arm_qpos],
         ]
         if self.running_target:
-            tool.append(sim.ctrl[:7] - sim.qpos[robot.arm_qpos])
+            tool.append(sim.ctrl[: self.arm_dof] - sim.qpos[robot.arm_qpos])
         tool_obs = with_noise(jnp.concatenate(tool), tool_key, params.obs_noise)
         objects = with_noise(objects, objects_key, params.obs_noise) * in_play
         state = jnp.concatenate([objects[self.slot_order(sim)].ravel(), tool_obs]).astype(jnp.float32)
@@ -322,11 +327,12 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         # Resting on the table, 1 mm above it, turned about z.
         zero = jnp.zeros(n)
         pose = jnp.stack([xy[:, 0], xy[:, 1], size + 0.001, jnp.cos(yaw / 2), zero, zero, jnp.sin(yaw / 2)], -1)
-        noise = jax.random.uniform(arm_key, (7,), minval=-params.home_noise, maxval=params.home_noise)
+        noise = jax.random.uniform(arm_key, (self.arm_dof,), minval=-params.home_noise, maxval=params.home_noise)
         arm_q = (1.0 - start.blend) * self.grasp_qpos + start.blend * self.start_qpos + noise
-        own_bin = jnp.asarray(self.layout.bin_centers)[shape[start.focus]]
-        wound_up = arm_q + start.wind_up * (wound_up_posture(own_bin) + noise - arm_q)
-        arm_q = jnp.where(start.wound_up, wound_up, arm_q)
+        if self.tosser:
+            own_bin = jnp.asarray(self.layout.bin_centers)[shape[start.focus]]
+            wound_up = arm_q + start.wind_up * (wound_up_posture(own_bin) + noise - arm_q)
+            arm_q = jnp.where(start.wound_up, wound_up, arm_q)
         resting = self.resting(arm_q, self.robot.finger_open)
         qpos = resting.qpos.at[pose_index(ids)].set(pose)
         outcome = jnp.where(start.presorted, IN_CORRECT_BIN, IN_PLAY).astype(jnp.int32)
@@ -336,7 +342,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
             qvel=qvel,
             qacc_warmstart=resting.qacc_warmstart,
             ctrl=jnp.concatenate([arm_q, jnp.full((2,), self.robot.finger_open)]),
-            target_velocity=jnp.zeros(7),
+            target_velocity=jnp.zeros(self.arm_dof),
             shape=shape,
             size=size,
             colour=jax.random.uniform(colour_key, (n, 3), minval=0.15, maxval=0.95),
@@ -352,7 +358,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         )
         model = self.episode_model(sim, params)
         data = self.kinematics(model, sim)
-        sim = place_in_hand(ids, sim, model, data, start)
+        sim = place_in_hand(ids, self.robot, sim, model, data, start)
         sim = sim.replace(potential=self.shaping_potential(data, sim, params))
         # Moving the focus object to the hand changes no robot quantity, so `data` still serves the observation.
         noise_key, obs_key = jax.random.split(sim.noise_key)

@@ -26,10 +26,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from jaxarm import robots
 from jaxarm.envs.panda.franka_dynamics import NOMINAL, set_dynamics
 from jaxarm.envs.panda.robot import RobotIds, resolve_robot_ids, scene_spec
 from jaxarm.envs.panda_sort.layout import Layout
-from jaxarm.robots import PANDA
 
 ASSETS = Path(__file__).parent / "assets"
 OBJECT_GEOMS = ("box", "box45", "sphere")
@@ -159,13 +159,16 @@ def build_spec(
     layout: Layout,
     dynamics: str = NOMINAL,
     firm_grip: bool = False,
-    robot_xml: Path = PANDA.model_xml,
+    robot: str = "panda",
+    robot_xml: Path | None = None,
 ) -> mujoco.MjSpec:
-    """The scene as an MjSpec: robot and table from assets/scene.xml with the robot's `dynamics`
+    """The scene as an MjSpec: table from assets/scene.xml with `robot` (by name, `jaxarm.robots`) and its `dynamics`
     (`franka_dynamics.DYNAMICS`), the rest from `layout`; `firm_grip` sets FIRM_GRIP_TIMESTEP and
-    FIRM_GRIP_SOLREF; `robot_xml` replaces jaxarm's Panda (`robot.scene_spec`) with a Panda of the same names."""
-    spec = scene_spec(ASSETS / "scene.xml", robot_xml)
-    set_dynamics(spec, dynamics, PANDA)
+    FIRM_GRIP_SOLREF. The robot's model is its description's `model_xml`, or `robot_xml`, another with the names of
+    its description (`robot.scene_spec`)."""
+    description = robots.robot(robot)
+    spec = scene_spec(ASSETS / "scene.xml", robot_xml or description.model_xml)
+    set_dynamics(spec, dynamics, description)
     if firm_grip:
         spec.option.timestep = FIRM_GRIP_TIMESTEP
     static = _add_static(spec.worldbody, layout)
@@ -186,21 +189,22 @@ def build_model(
     layout: Layout,
     dynamics: str = NOMINAL,
     firm_grip: bool = False,
-    robot_xml: Path = PANDA.model_xml,
+    robot: str = "panda",
+    robot_xml: Path | None = None,
 ) -> mujoco.MjModel:
-    """Compiled model for `objects_count` object slots in `layout` with the robot's `dynamics`, with the firm grip
-    of a thrower if `firm_grip` (FIRM_GRIP_TIMESTEP), the Panda of `robot_xml` (cached: every argument is
-    hashable)."""
-    return build_spec(objects_count, layout, dynamics, firm_grip, robot_xml).compile()
+    """Compiled model for `objects_count` object slots in `layout` with `robot` and its `dynamics`, with the firm
+    grip of a thrower if `firm_grip` (FIRM_GRIP_TIMESTEP), from `robot_xml` where given (`build_spec`; cached:
+    every argument is hashable)."""
+    return build_spec(objects_count, layout, dynamics, firm_grip, robot, robot_xml).compile()
 
 
-def resolve_ids(model: mujoco.MjModel, objects_count: int) -> ModelIds:
-    """Looks up every id the env uses, by name."""
+def resolve_ids(model: mujoco.MjModel, objects_count: int, robot: str = "panda") -> ModelIds:
+    """Looks up every id the env uses, by name, with `robot`'s by its description's names."""
     joint = model.joint
     gripper_geoms = {model.geom(name).id for name in ("left_pad", "right_pad", "hand")}
     is_finger_pair = np.array([int(model.pair_geom1[k]) in gripper_geoms for k in range(model.npair)])
     return ModelIds(
-        robot=resolve_robot_ids(model, PANDA),
+        robot=resolve_robot_ids(model, robots.robot(robot)),
         object_qpos=np.array([joint(f"object{k}").qposadr[0] for k in range(objects_count)], dtype=np.int64),
         object_qvel=np.array([joint(f"object{k}").dofadr[0] for k in range(objects_count)], dtype=np.int64),
         object_body=np.array([model.body(f"object{k}").id for k in range(objects_count)], dtype=np.int64),

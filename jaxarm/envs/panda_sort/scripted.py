@@ -14,7 +14,6 @@ from flax import struct
 from jaxarm.envs.base import EnvState
 from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE, OBJECT_RELATIVE_YAW, PandaSort
 from jaxarm.envs.panda_sort.params import PandaSortParams
-from jaxarm.robots import PANDA
 
 PHASE_NAMES = ("above", "down", "close", "lift", "to bin", "open")
 OPEN, CLOSED = 1.0, -1.0
@@ -67,7 +66,7 @@ def scripted_action(
     phase = script.phase
     obj, tcp = obs[0:3], tcp_of(env, obs)
     over_bin = jnp.append(bin_xy, CARRY_Z)
-    grasp = obj - jnp.array([0.0, 0.0, PANDA.pad_above_tcp])
+    grasp = obj - jnp.array([0.0, 0.0, env.robot.pad_above_tcp])
     targets = jnp.stack([obj.at[2].add(ABOVE), grasp, script.hold, script.hold.at[2].set(CARRY_Z), over_bin, over_bin])
     error = targets[phase] - tcp
     # The hand turns by the object's yaw relative to it, folded into (−45°, 45°], before it closes.

@@ -19,7 +19,6 @@ from flax import struct
 
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda_sort.curriculum import wound_up_posture
-from jaxarm.envs.panda_sort.env import SERVO_LEAD_OBS_SIZE
 from jaxarm.envs.panda_sort.params import PandaSortParams
 from jaxarm.robots import PANDA
 
@@ -94,7 +93,7 @@ def planned_targets(throw: Throw, step: jax.Array) -> jax.Array:
 def servo_targets(obs: jax.Array) -> jax.Array:
     """[O] observation of a `running_target` env -> [7] the joint targets the servos chase: it ends with the arm's
     joint angles and then each servo's lead (`PandaSort._observe`)."""
-    lead = SERVO_LEAD_OBS_SIZE
+    lead = len(PANDA.arm_joints)
     return obs[-2 * lead : -lead] + obs[-lead:]
 
 

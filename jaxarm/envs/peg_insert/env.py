@@ -28,6 +28,7 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
+from jaxarm.deploy.camera import LUMA
 from jaxarm.envs.base import Observation, Transition
 from jaxarm.envs.panda.base import PandaBase, PandaOptions
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
@@ -45,7 +46,7 @@ from jaxarm.envs.peg_insert.model import (
     resolve_ids,
 )
 from jaxarm.envs.peg_insert.params import PegInsertParams
-from jaxarm.envs.peg_insert.render import place_block
+from jaxarm.envs.peg_insert.render import paint_surfaces, place_block
 
 START_TIP_HEIGHT = 0.15
 """The peg tip starts this high above the table (10 cm above the block), over the nominal hole."""
@@ -62,7 +63,7 @@ class PegInsertSim(struct.PyTreeNode):
       qpos: [nq] joint positions (arm J, fingers 2; J: the robot's arm joints, `PandaBase.arm_dof`).
       qvel: [nv] joint velocities.
       qacc_warmstart: [nv] the solver's warm start.
-      ctrl: [9] actuator targets (arm joints, then the fingers).
+      ctrl: [J + 2] actuator targets (arm joints, then the fingers).
       target_velocity: [J] the arm's targets' rate of change over the last step (rad/s), as the sorter's.
       tcp_target: [3] where the tool centre is being driven.
       hole: [2] (x, y) of the hole's centre this episode.
@@ -72,6 +73,7 @@ class PegInsertSim(struct.PyTreeNode):
       noise_key: PRNG key of the observation noise.
       hole_error: [3] the hole's position-estimate error per metre of `hole_pose_bias` (standard normal), drawn at
         reset and kept for the episode.
+      surface_gray: [2] the block's and the table's gray this episode (0-1; `surface_gray_spread`).
       overflow: [] int32 Warp's overflow bits of every step since the first reset (`PandaSimState.overflow`).
     """
 
@@ -87,6 +89,7 @@ class PegInsertSim(struct.PyTreeNode):
     queued_actions: jax.Array
     noise_key: jax.Array
     hole_error: jax.Array
+    surface_gray: jax.Array
     overflow: jax.Array
 
 
@@ -142,6 +145,21 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
 
     def _pose_for_drawing(self, model: mujoco.MjModel, sim: PegInsertSim, params: PegInsertParams) -> None:
         place_block(model, self.ids, np.asarray(sim.hole), np.asarray(params.clearance))
+        paint_surfaces(model, self.ids, np.asarray(sim.surface_gray))
+
+    def surface_gray(self, key: jax.Array, params: PegInsertParams) -> jax.Array:
+        """[2] the block's and the table's gray of an episode drawn from `key`: each its modelled gray (`mj_model`'s
+        rgba luma) moved by U(−`surface_gray_spread`, spread), within 0-1."""
+        modelled = self.mj_model.geom_rgba[[self.ids.block_geoms[0], self.ids.table_geom], :3] @ LUMA
+        shift = jax.random.uniform(key, (2,), minval=-1.0, maxval=1.0) * params.surface_gray_spread
+        return jnp.clip(modelled + shift, 0.0, 1.0)
+
+    def episode_luma(self, sim: PegInsertSim) -> jax.Array:
+        """The cameras' brightness of each geom with the block's and the table's this episode's (`sim.surface_gray`)."""
+        scene = self.camera_scene
+        block = np.isin(scene.geoms, self.ids.block_geoms)
+        table = scene.geoms == self.ids.table_geom
+        return jnp.where(block, sim.surface_gray[0], jnp.where(table, sim.surface_gray[1], scene.luma))
 
     def table_contact(self, data: mjx.Data) -> jax.Array:
         """[] bool: the peg penetrates the table top in the last collision pass (whose poses `data` holds).
@@ -217,6 +235,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
             noise_key=jax.random.fold_in(key, 2),
             # A stream of its own, so every other draw of the episode stays as it was.
             hole_error=jax.random.normal(jax.random.fold_in(key, 3), (3,)),
+            surface_gray=self.surface_gray(jax.random.fold_in(key, 4), params),
             overflow=jnp.zeros((), jnp.int32),
         )
         model = self.episode_model(sim, params)

@@ -50,6 +50,7 @@ class PegIds:
       table_geom: geom id of the table top.
       block_body: body id of the block with the hole.
       wall_geoms: [4] geom ids of the walls, in WALL_NAMES order.
+      block_geoms: [5] geom ids of the block's boxes, in BLOCK_GEOMS order.
       block_pairs: [5] ids of the peg-vs-block pairs.
     """
 
@@ -59,6 +60,7 @@ class PegIds:
     table_geom: int
     block_body: int
     wall_geoms: np.ndarray
+    block_geoms: np.ndarray
     block_pairs: np.ndarray
 
 
@@ -151,6 +153,7 @@ def resolve_ids(model: mujoco.MjModel, robot: str = "panda") -> PegIds:
         table_geom=model.geom("table").id,
         block_body=model.body("block").id,
         wall_geoms=np.array([model.geom(name).id for name in WALL_NAMES]),
+        block_geoms=np.array([model.geom(name).id for name in BLOCK_GEOMS]),
         block_pairs=np.array(
             [k for k in range(model.npair) if {int(model.pair_geom1[k]), int(model.pair_geom2[k])} & block_geoms],
             dtype=np.int64,

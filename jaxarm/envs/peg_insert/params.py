@@ -11,7 +11,7 @@ import jax
 from flax import struct
 
 from jaxarm.envs.panda.params import ArmParams
-from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, ranged
+from jaxarm.ranges import COUNT, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, ranged
 
 RUNNING_TARGET_MAX_LEAD = 0.03
 """`max_lead` of a `running_target` peg (its presets set it; metres). The lead is what bounds the tool's speed: with
@@ -46,6 +46,9 @@ class PegInsertParams(ArmParams):
         step, as a detector would give it.
       hole_pose_bias: standard deviation of a Gaussian error on the observed hole position (metres) drawn once per
         episode and kept, as a pose estimator's calibration would err.
+      surface_gray_spread: each episode the block and the table take a gray of their own (as the task's tutorial
+        drew their colours every episode), each U(−spread, spread) off its modelled gray and within 0-1: what the
+        cameras see, nothing else.
     """
 
     max_episode_steps: jax.Array = ranged(100, COUNT)
@@ -61,6 +64,7 @@ class PegInsertParams(ArmParams):
     obs_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
     hole_pose_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
     hole_pose_bias: jax.Array = ranged(0.0, NON_NEGATIVE)
+    surface_gray_spread: jax.Array = ranged(0.0, UNIT_INTERVAL)
 
     ORDERED: ClassVar = (("insert_distance", "max_distance"),)
     """(low, high) pairs of fields that must satisfy low <= high."""
