@@ -5,14 +5,14 @@ from flax import struct
 
 
 class PandaSortSim(struct.PyTreeNode):
-    """Physics and task state of one env (N = objects_count).
+    """Physics and task state of one env (N = objects_count; J = the robot's arm joints, `PandaBase.arm_dof`).
 
     Attributes:
-      qpos: [nq] generalized positions (arm 7, fingers 2, then 7 per object: position, quaternion).
-      qvel: [nv] generalized velocities (arm 7, fingers 2, then 6 per object: linear world, angular local).
+      qpos: [nq] generalized positions (arm J, fingers 2, then 7 per object: position, quaternion).
+      qvel: [nv] generalized velocities (arm J, fingers 2, then 6 per object: linear world, angular local).
       qacc_warmstart: [nv] the solver's warm start.
-      ctrl: [9] actuator targets (arm joints, then the two fingers).
-      target_velocity: [7] the arm's targets' rate of change over the last step (rad/s), which Franka's
+      ctrl: [J + 2] actuator targets (arm joints, then the two fingers).
+      target_velocity: [J] the arm's targets' rate of change over the last step (rad/s), which the robot's
         acceleration limits bound the next step's from (`PandaBase.limited_ctrl`).
       shape: [N] int32 SHAPE_* of each object.
       size: [N] half-size / radius of each object (metres).

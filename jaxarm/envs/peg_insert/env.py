@@ -1,5 +1,5 @@
-"""Peg-in-hole insertion in MJX: a robot arm (`robot`: the Panda, the UR5e) holds a peg over a block whose square hole
-moves every episode.
+"""Peg-in-hole insertion in MJX: a robot arm (`PandaOptions.robot`, the Panda by default) holds a peg over a block
+whose square hole moves every episode.
 
 One env step is `CONTROL_DT` = 0.04 s. The action [3] moves a tool-centre target by at most `ee_step` per
 axis; the target is held within `max_lead` of the measured tool centre (so a blocked peg presses with
