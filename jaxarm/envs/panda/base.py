@@ -9,12 +9,13 @@ model (`episode_model`), reset, transition, observation and reward, and how its 
 import abc
 import copy
 import dataclasses
-from typing import Generic, NamedTuple, Protocol, Self, TypeVar
+from typing import Generic, NamedTuple, Protocol, TypeVar
 
 import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
+from flax import struct
 from mujoco import mjx
 
 from jaxarm import robots
@@ -51,36 +52,34 @@ CAMERAS = ("scene", "hand_camera")
 """The MJCF cameras a pixel observation stacks by default: the task's fixed scene camera and the wrist's."""
 
 
-class PandaSimState(Protocol):
-    """What `PandaBase` reads of a task's sim state: the physics that persists between steps."""
+class ArmSim(struct.PyTreeNode):
+    """The robot's share of every task's sim state: the physics that persists between steps, what the arm's
+    control carries from one step to the next, and the noise and Warp records `PandaBase` keeps. A task's sim
+    subclasses it and adds its own fields (J = the robot's arm joints, `PandaBase.arm_dof`; A = the task's actions).
 
-    @property
-    def qpos(self) -> jax.Array: ...
+    Attributes:
+      qpos: [nq] generalized positions (the arm's J joints, then the fingers' 2, then the task's bodies).
+      qvel: [nv] generalized velocities, in the same order.
+      qacc_warmstart: [nv] the solver's warm start.
+      ctrl: [J + 2] actuator targets (arm joints, then the fingers).
+      target_velocity: [J] the arm's targets' rate of change over the last step (rad/s), which the robot's
+        acceleration limits bound the next step's from (`PandaBase.limited_ctrl`).
+      queued_actions: [L, A] the last L actions, newest first, not yet all applied (L = the env's
+        `max_action_latency`; `action_latency` picks which one the servos receive).
+      noise_key: PRNG key of the observation noise, split by the task at each step; the cameras' noise derives
+        from it.
+      overflow: [] int32: the Warp overflow bits (`mjx_impl.overflow_bits`) of every step since the first reset,
+        which auto-resets keep (`PandaBase.carried_over`) until `PandaBase.checked` raises on them.
+    """
 
-    @property
-    def qvel(self) -> jax.Array: ...
-
-    @property
-    def ctrl(self) -> jax.Array: ...
-
-    @property
-    def qacc_warmstart(self) -> jax.Array: ...
-
-    @property
-    def target_velocity(self) -> jax.Array: ...
-
-    @property
-    def noise_key(self) -> jax.Array:
-        """PRNG key of the observation noise, split by the task at each step; the cameras' noise derives from it."""
-        ...
-
-    @property
-    def overflow(self) -> jax.Array:
-        """[] int32: the Warp overflow bits (`mjx_impl.overflow_bits`) of every step since the first reset, which
-        auto-resets keep (`PandaBase.carried_over`) until `PandaBase.checked` raises on them."""
-        ...
-
-    def replace(self, **changes) -> Self: ...
+    qpos: jax.Array
+    qvel: jax.Array
+    qacc_warmstart: jax.Array
+    ctrl: jax.Array
+    target_velocity: jax.Array
+    queued_actions: jax.Array
+    noise_key: jax.Array
+    overflow: jax.Array
 
 
 class CameraParams(Protocol):
@@ -183,7 +182,7 @@ class PandaOptions:
 
 
 ParamsT = TypeVar("ParamsT", bound=IkParams)
-SimT = TypeVar("SimT", bound=PandaSimState)
+SimT = TypeVar("SimT", bound=ArmSim)
 IdsT = TypeVar("IdsT", bound=TaskIds)
 
 
@@ -269,11 +268,11 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
             qacc_warmstart=jnp.zeros_like(self._data0.qacc_warmstart),
         )
 
-    def kinematics(self, model: mjx.Model, sim: PandaSimState) -> mjx.Data:
+    def kinematics(self, model: mjx.Model, sim: ArmSim) -> mjx.Data:
         """mjx.Data at the sim's state with positions, orientations and com-frame quantities (for Jacobians)."""
         return mjx.com_pos(model, self.poses(model, sim))
 
-    def poses(self, model: mjx.Model, sim: PandaSimState) -> mjx.Data:
+    def poses(self, model: mjx.Model, sim: ArmSim) -> mjx.Data:
         """mjx.Data at the sim's state with the bodies' and geoms' positions and orientations only."""
         data = self._data0.replace(qpos=sim.qpos, qvel=sim.qvel, ctrl=sim.ctrl, qacc_warmstart=sim.qacc_warmstart)
         with jax.named_scope("kinematics"):  # a phase of `bench profile`

@@ -30,7 +30,7 @@ from mujoco import mjx
 
 from jaxarm.deploy.camera import LUMA
 from jaxarm.envs.base import Observation, Transition
-from jaxarm.envs.panda.base import PandaBase, PandaOptions
+from jaxarm.envs.panda.base import ArmSim, PandaBase, PandaOptions
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import check_no_overflow, overflow_bits, with_geom_sizes
 from jaxarm.envs.panda.robot import advanced_target
@@ -56,41 +56,26 @@ STATE_OBS_SIZE = 12
 """Values in the state observation (the module docstring lists them)."""
 
 
-class PegInsertSim(struct.PyTreeNode):
-    """Physics and task state of one env.
+class PegInsertSim(ArmSim):
+    """Physics and task state of one env: the robot's share (`ArmSim`; the peg is fixed in the hand, so qpos is the
+    arm's and the fingers'), and the peg task's.
 
     Attributes:
-      qpos: [nq] joint positions (arm J, fingers 2; J: the robot's arm joints, `PandaBase.arm_dof`).
-      qvel: [nv] joint velocities.
-      qacc_warmstart: [nv] the solver's warm start.
-      ctrl: [J + 2] actuator targets (arm joints, then the fingers).
-      target_velocity: [J] the arm's targets' rate of change over the last step (rad/s), as the sorter's.
       tcp_target: [3] where the tool centre is being driven.
       hole: [2] (x, y) of the hole's centre this episode.
       initial_distance: [] tip-to-hole-bottom distance at reset (metres).
       distance: [] tip-to-hole-bottom distance after the last step.
-      queued_actions: [L, 3] the last L actions, newest first (L = the env's `max_action_latency`).
-      noise_key: PRNG key of the observation noise.
       hole_error: [3] the hole's position-estimate error per metre of `hole_pose_bias` (standard normal), drawn at
         reset and kept for the episode.
       surface_gray: [2] the block's and the table's gray this episode (0-1; `surface_gray_spread`).
-      overflow: [] int32 Warp's overflow bits of every step since the first reset (`PandaSimState.overflow`).
     """
 
-    qpos: jax.Array
-    qvel: jax.Array
-    qacc_warmstart: jax.Array
-    ctrl: jax.Array
-    target_velocity: jax.Array
     tcp_target: jax.Array
     hole: jax.Array
     initial_distance: jax.Array
     distance: jax.Array
-    queued_actions: jax.Array
-    noise_key: jax.Array
     hole_error: jax.Array
     surface_gray: jax.Array
-    overflow: jax.Array
 
 
 class PegInsertInfo(struct.PyTreeNode):
