@@ -19,7 +19,7 @@ import numpy as np
 
 from jaxarm.deploy.clock import Schedule
 from jaxarm.deploy.reading import ArmReading
-from jaxarm.robots import PANDA, RobotDescription
+from jaxarm.robots import PANDA, UR5E, RobotDescription
 
 GRIPPER_SPEED = 0.1
 """Franka Hand's finger speed for a new width (m/s; its maximum is about 0.1)."""
@@ -153,9 +153,10 @@ class RtdeReceive(Protocol):
 
 
 class RtdeRobot:
-    """A UR5e through ur_rtde, as a `loop.Robot` of 6 joints and no gripper (its readings' `finger_q` is empty): each
-    tick's targets go to servoJ, whose lookahead filter smooths them over the control period. jaxarm's tasks are the
-    Panda's; a UR5e needs a task trained on it, whose controller sends [6] joint targets.
+    """A UR5e through ur_rtde, as a `loop.Robot` of its 6 joints and no gripper (its readings' `finger_q` is empty):
+    each tick's targets go to servoJ, whose lookahead filter smooths them over the control period. A task built on
+    the UR5e (`env_kwargs.robot=ur5e`, `jaxarm.robots.UR5E`) sends its 6 joint targets, then the fingers', which no
+    gripper driver here receives.
 
     Args:
       control, receive: connected `rtde_control.RTDEControlInterface` and `rtde_receive.RTDEReceiveInterface`.
@@ -164,7 +165,7 @@ class RtdeRobot:
       gain: servoJ's proportional gain (100-2000).
     """
 
-    JOINTS = 6
+    JOINTS = len(UR5E.arm_joints)
 
     def __init__(
         self,
@@ -194,7 +195,8 @@ class RtdeRobot:
         return ArmReading(np.asarray(q, np.float64), np.asarray(qd, np.float64), np.zeros(0))
 
     def command(self, ctrl: np.ndarray) -> None:
-        """Sends joint targets [6] (any further entries are ignored); starts the schedule at the first."""
+        """Sends the arm's joint targets (the first `JOINTS` of `ctrl`; the fingers' are ignored); starts the schedule
+        at the first."""
         if not self._started:
             self.schedule.start()
             self._started = True
