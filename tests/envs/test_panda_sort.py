@@ -260,7 +260,7 @@ def curriculum_start(env, state, params, shape: int, held: bool):
         wind_up=jnp.float32(1.0),
         blend=jnp.float32(1.0 if held else 0.0),
     )
-    sim = place_in_hand(env.ids, sim, model, data, start)
+    sim = place_in_hand(env.ids, env.robot, sim, model, data, start)
     return state.replace(sim=sim.replace(potential=env.shaping_potential(data, sim, params)))
 
 
@@ -272,7 +272,7 @@ def test_the_pose_in_hand_of_a_tool_pointing_down_is_the_held_starts_upright_pos
     state = reset(jax.random.key(0), held)
     model = env.episode_model(state.sim, held)
     data = env.kinematics(model, state.sim)
-    pose = np.asarray(pose_in_hand(env.ids, model, data))
+    pose = np.asarray(pose_in_hand(env.ids, env.robot, model, data))
     placed = np.asarray(state.sim.qpos[env.ids.object_qpos[0] + np.arange(7)])
     np.testing.assert_allclose(pose[:3], placed[:3], atol=2e-4)
     tilt = np.arccos(-float(data.site_xmat[env.ids.robot.tcp_site].reshape(3, 3)[2, 2]))
