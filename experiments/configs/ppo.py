@@ -103,6 +103,8 @@ SORTER_EVAL_ENV_PARAMS = (("held_start_prob", 0.0), ("ready_start_prob", 0.0), (
 FRANKA_ARM = (("dynamics", "franka"), ("running_target", True))
 """env_kwargs of the Panda nearer the real arm: Franka's own link inertials and joint friction, and actions that
 move the target the servos chase, so a policy gets the motion it asks for."""
+UR5E = (("robot", "ur5e"),)
+"""env_kwargs of a task on the UR5e (`jaxarm.robots.ur5e`) in place of the Panda."""
 SORTER_ENGINE = (("impl", "auto"), ("max_envs", 8192))
 """MJX Warp on an NVIDIA GPU where warp-lang imports, MJX-JAX elsewhere; Warp's buffers sized for 8,192 envs."""
 SORTER_PPO = PPOConfig(
@@ -154,7 +156,7 @@ def ppo_sorter_ur5e() -> PPOConfig:
     # ppo_sorter's task and learner on the UR5e (`jaxarm.robots.ur5e`, its identified dynamics through
     # `dynamics=franka`): the same task code, 5 actions; the observation holds its 6 joints where the Panda's 7 are.
     # The library's scripted pick-and-place, written for the Panda, placed 4 of 8 objects with it (CPU, MJX-JAX).
-    return dataclasses.replace(SORTER_PPO, env_kwargs=(*SORTER_PPO.env_kwargs, ("robot", "ur5e")))
+    return dataclasses.replace(SORTER_PPO, env_kwargs=(*SORTER_PPO.env_kwargs, *UR5E))
 
 
 @preset("PPO on the Panda sorter, 3 objects, warm-started from a ppo_sorter run it trains first (one GPU)")

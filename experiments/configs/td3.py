@@ -2,7 +2,7 @@
 
 import dataclasses
 
-from experiments.configs.ppo import FRANKA_ARM, ROBOT_RANDOMIZE, SORTER_ENV_PARAMS, SORTER_EVAL_ENV_PARAMS
+from experiments.configs.ppo import FRANKA_ARM, ROBOT_RANDOMIZE, SORTER_ENV_PARAMS, SORTER_EVAL_ENV_PARAMS, UR5E
 from experiments.configs.registry import preset
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
@@ -156,10 +156,6 @@ def td3_peg_pixels() -> TD3Config:
         updates_per_chunk=1_000,
         checkpoint_every_updates=5_000,
     )
-
-
-UR5E = (("robot", "ur5e"),)
-"""env_kwargs of a task on the UR5e (`jaxarm.robots.ur5e`) in place of the Panda."""
 
 
 @preset("TD3 inserting the peg with a UR5e, Universal Robots' link inertials (CPU or one GPU)")
