@@ -9,7 +9,7 @@ import dataclasses
 import functools
 import pathlib
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import jax
 
@@ -129,16 +129,27 @@ def warm_start_run(config: RunConfig, run_dir: pathlib.Path) -> pathlib.Path:
     return run_dir / rundir.WARM_START_DIR if warm_start_preset(config) else pathlib.Path(config.init_from)
 
 
+def preset_config(
+    setting: str, name: str, presets: Callable[[str], RunConfig] | None, overrides: Sequence[str]
+) -> RunConfig:
+    """Preset `name`'s config with `overrides`, for a stage the config field `setting` names (`setting=preset:NAME`);
+    ValueError in one line, naming the setting, without a lookup of presets, for an unknown preset or a bad
+    override."""
+    if presets is None:
+        raise ValueError(
+            f"{setting}=preset:{name}: give Options(presets=...) a lookup of presets (experiments.configs.get)"
+        )
+    try:
+        return apply_overrides(presets(name), overrides)
+    except ValueError as error:
+        raise ValueError(f"{setting}=preset:{name}: {error}") from None
+
+
 def warm_start_config(config: RunConfig, presets: Callable[[str], RunConfig] | None) -> RunConfig:
     """The config of the run `config` warm-starts from, named by preset, with `config`'s seed (each seed of the run
     its own first stage); ValueError in one line for an unknown preset, or one with a preset stage of its own."""
     name = warm_start_preset(config)
-    if presets is None:
-        raise ValueError(f"init_from=preset:{name}: give Options(presets=...) a lookup of presets")
-    try:
-        stage = apply_overrides(presets(name), [f"seed={config.seed}"])
-    except ValueError as error:
-        raise ValueError(f"init_from=preset:{name}: {error}") from None
+    stage = preset_config("init_from", name, presets, [f"seed={config.seed}"])
     if warm_start_preset(stage) or teacher_preset(stage):
         raise ValueError(f"init_from=preset:{name} trains a stage of its own first; train it and give init_from=RUN")
     learner = registry.learner_for(config)
@@ -155,14 +166,7 @@ def teacher_config(config: RunConfig, presets: Callable[[str], RunConfig] | None
     an unknown preset, a bad override, a teacher with a preset teacher of its own, or one that does not observe
     what this run's env gives a teacher (`jaxarm.agents.common.teachers.teacher_input`)."""
     name = teacher_preset(config)
-    if presets is None:
-        raise ValueError(
-            f"teacher=preset:{name}: give Options(presets=...) a lookup of presets (experiments.configs.get)"
-        )
-    try:
-        teacher = apply_overrides(presets(name), registry.teacher_overrides_of(config))
-    except ValueError as error:
-        raise ValueError(f"teacher=preset:{name}: {error}") from None
+    teacher = preset_config("teacher", name, presets, registry.teacher_overrides_of(config))
     if teacher_preset(teacher):
         raise ValueError(
             f"teacher=preset:{name} has a teacher preset of its own; train that run first and give teacher=RUN_DIR"
