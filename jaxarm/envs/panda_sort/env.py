@@ -29,7 +29,6 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from jaxarm import robots
 from jaxarm.envs.base import Env, Observation, Transition
 from jaxarm.envs.panda.base import PandaBase, PandaOptions
 from jaxarm.envs.panda.franka_dynamics import NOMINAL
@@ -148,8 +147,6 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         self.tosser = tosser
         if tosser and options.robot != PANDA.name:
             raise ValueError(f"the tosser's throw is the Panda's (its wind-up postures), not the {options.robot}'s")
-        arm_dof = len(robots.robot(options.robot).arm_joints)
-        self.tool_obs_size = TOOL_POSE_OBS_SIZE + arm_dof * (2 if running_target else 1)
         self.layout = make_layout(blocker=blocker, tosser=tosser)
         mj_model = build_model(objects_count, self.layout, dynamics, firm_grip=tosser, robot=options.robot)
         spawn_centre = (np.array(self.layout.spawn_low) + np.array(self.layout.spawn_high)) / 2
@@ -157,8 +154,9 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         ids = resolve_ids(mj_model, objects_count, options.robot)
         super().__init__(mj_model, ids, start_tcp, options)
         self.grasp_qpos = self.solve_posture(np.r_[spawn_centre, GRASP_HEIGHT])
+        self.tool_obs_size = TOOL_POSE_OBS_SIZE + self.arm_dof * (2 if running_target else 1)
         state_size = OBJECT_OBS_SIZE * objects_count + self.tool_obs_size
-        action_size = 5 if control_mode == MODE_EE else arm_dof + 1
+        action_size = 5 if control_mode == MODE_EE else self.arm_dof + 1
         self.spec = self.observation_spec(state_size, self.tool_obs_size, action_size)
 
     def default_params(self) -> PandaSortParams:
