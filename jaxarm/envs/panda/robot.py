@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from jaxarm.envs.panda.franka_dynamics import set_dynamics
 from jaxarm.robots import PANDA, RobotDescription
 
 
@@ -44,15 +45,20 @@ SCENE_ROBOT_INCLUDE = 'file="../../panda/assets/panda.xml"'
 """How every task's scene.xml includes its robot: jaxarm's Panda, which `scene_spec` replaces with another model."""
 
 
-def scene_spec(scene_xml: Path, robot_xml: Path) -> mujoco.MjSpec:
-    """The MjSpec of a task's `scene_xml` with the robot model `robot_xml` (any robot's, jaxarm's or another with
-    the names of its description) included in place of jaxarm's Panda."""
-    if robot_xml == PANDA.model_xml:
-        return mujoco.MjSpec.from_file(str(scene_xml))
-    text = scene_xml.read_text()
-    if SCENE_ROBOT_INCLUDE not in text:
-        raise ValueError(f"{scene_xml} does not include its robot as {SCENE_ROBOT_INCLUDE}")
-    return mujoco.MjSpec.from_string(text.replace(SCENE_ROBOT_INCLUDE, f'file="{robot_xml.resolve()}"'))
+def scene_spec(scene_xml: Path, robot: RobotDescription, dynamics: str, robot_xml: Path | None = None) -> mujoco.MjSpec:
+    """The MjSpec of a task's `scene_xml` with `robot` in it and its `dynamics` (`franka_dynamics.DYNAMICS`): the
+    robot's model is its description's `model_xml`, or `robot_xml` (another with the names of its description),
+    included in place of jaxarm's Panda."""
+    model_xml = robot_xml or robot.model_xml
+    if model_xml == PANDA.model_xml:
+        spec = mujoco.MjSpec.from_file(str(scene_xml))
+    else:
+        text = scene_xml.read_text()
+        if SCENE_ROBOT_INCLUDE not in text:
+            raise ValueError(f"{scene_xml} does not include its robot as {SCENE_ROBOT_INCLUDE}")
+        spec = mujoco.MjSpec.from_string(text.replace(SCENE_ROBOT_INCLUDE, f'file="{model_xml.resolve()}"'))
+    set_dynamics(spec, dynamics, robot)
+    return spec
 
 
 def resolve_robot_ids(model: mujoco.MjModel, robot: RobotDescription) -> RobotIds:

@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 
 from jaxarm import robots
-from jaxarm.envs.panda.franka_dynamics import NOMINAL, set_dynamics
+from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.robot import RobotIds, resolve_robot_ids, scene_spec
 from jaxarm.envs.panda_sort.layout import Layout
 
@@ -166,9 +166,7 @@ def build_spec(
     (`franka_dynamics.DYNAMICS`), the rest from `layout`; `firm_grip` sets FIRM_GRIP_TIMESTEP and
     FIRM_GRIP_SOLREF. The robot's model is its description's `model_xml`, or `robot_xml`, another with the names of
     its description (`robot.scene_spec`)."""
-    description = robots.robot(robot)
-    spec = scene_spec(ASSETS / "scene.xml", robot_xml or description.model_xml)
-    set_dynamics(spec, dynamics, description)
+    spec = scene_spec(ASSETS / "scene.xml", robots.robot(robot), dynamics, robot_xml)
     if firm_grip:
         spec.option.timestep = FIRM_GRIP_TIMESTEP
     static = _add_static(spec.worldbody, layout)

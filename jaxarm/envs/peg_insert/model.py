@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from jaxarm import robots
-from jaxarm.envs.panda.franka_dynamics import NOMINAL, set_dynamics
+from jaxarm.envs.panda.franka_dynamics import NOMINAL
 from jaxarm.envs.panda.robot import RobotIds, resolve_robot_ids, scene_spec
 from jaxarm.robots import RobotDescription
 
@@ -124,8 +124,7 @@ def build_spec(
     `dynamics` (`franka_dynamics.DYNAMICS`), then the peg and the block. The robot's model is its description's
     `model_xml`, or `robot_xml`, another with the names of its description (`robot.scene_spec`)."""
     description = robots.robot(robot)
-    spec = scene_spec(ASSETS / "scene.xml", robot_xml or description.model_xml)
-    set_dynamics(spec, dynamics, description)
+    spec = scene_spec(ASSETS / "scene.xml", description, dynamics, robot_xml)
     _add_peg(spec, description)
     _add_block(spec, clearance)
     spec.add_pair(geomname1="table", geomname2="peg", condim=3, friction=PEG_FRICTION)
