@@ -78,7 +78,7 @@ SORTER_ENV_PARAMS = (
     # 250 steps of 0.04 s: the scripted pick-and-place needs ~170 (the arm moves ~6.5 mm per step at a
     # 2 cm command without the running target, the fastest at which every object stays in the grip).
     ("max_episode_steps", 250),
-    # With the running target (FRANKA_ARM) the tool moves the whole ee_step per step: 1 cm, about 1.5x the
+    # With the running target (IDENTIFIED_ARM) the tool moves the whole ee_step per step: 1 cm, about 1.5x the
     # ~6.5 mm a 2 cm command gave without it.
     ("ee_step", 0.01),
     # A small time cost (the default 1 makes pushing the object off the table, −50, the cheapest ending).
@@ -100,7 +100,7 @@ SORTER_ENV_PARAMS = (
 )
 SORTER_EVAL_ENV_PARAMS = (("held_start_prob", 0.0), ("ready_start_prob", 0.0), ("presorted_prob", 0.0))
 """Every evaluation runs the real task: the curricula's starts switched off."""
-FRANKA_ARM = (("dynamics", "franka"), ("running_target", True))
+IDENTIFIED_ARM = (("dynamics", "identified"), ("running_target", True))
 """env_kwargs of the Panda nearer the real arm: Franka's own link inertials and joint friction, and actions that
 move the target the servos chase, so a policy gets the motion it asks for."""
 UR5E = (("robot", "ur5e"),)
@@ -109,7 +109,7 @@ SORTER_ENGINE = (("impl", "auto"), ("max_envs", 8192))
 """MJX Warp on an NVIDIA GPU where warp-lang imports, MJX-JAX elsewhere; Warp's buffers sized for 8,192 envs."""
 SORTER_PPO = PPOConfig(
     env="panda_sort",
-    env_kwargs=(*SORTER_ENGINE, *FRANKA_ARM),
+    env_kwargs=(*SORTER_ENGINE, *IDENTIFIED_ARM),
     env_params=SORTER_ENV_PARAMS,
     eval_env_params=SORTER_EVAL_ENV_PARAMS,
     # Warp's physics steps more envs per second as the batch grows (MJX-JAX's does not): 8,192 envs step 1.5x
@@ -154,7 +154,7 @@ def ppo_sorter() -> PPOConfig:
 @preset("PPO sorting with a UR5e in the Panda's place, 1 object (one NVIDIA GPU: MJX Warp; elsewhere MJX-JAX)")
 def ppo_sorter_ur5e() -> PPOConfig:
     # ppo_sorter's task and learner on the UR5e (`jaxarm.robots.ur5e`, its identified dynamics through
-    # `dynamics=franka`): the same task code, 5 actions; the observation holds its 6 joints where the Panda's 7 are.
+    # `dynamics=identified`): the same task code, 5 actions; the observation holds its 6 joints where the Panda's 7 are.
     # The library's scripted pick-and-place, written for the Panda, placed 4 of 8 objects with it (CPU, MJX-JAX).
     return dataclasses.replace(SORTER_PPO, env_kwargs=(*SORTER_PPO.env_kwargs, *UR5E))
 
@@ -229,7 +229,7 @@ def ppo_sorter_toss() -> PPOConfig:
     return dataclasses.replace(
         SORTER_PPO,
         env="panda_sort_tosser",
-        env_kwargs=(*SORTER_ENGINE, *FRANKA_ARM, ("control_mode", "joint")),
+        env_kwargs=(*SORTER_ENGINE, *IDENTIFIED_ARM, ("control_mode", "joint")),
         env_params=TOSS_ENV_PARAMS,
         # The plain task: the sorter's evaluation, and the floor's full penalty.
         eval_env_params=(*SORTER_EVAL_ENV_PARAMS, ("floor_reward", -50.0)),
@@ -294,7 +294,7 @@ def ppo_peg() -> PPOConfig:
     # (118 s, 2026-11-25). The GPU default batches 16x the envs over a budget that ends in minutes.
     return PPOConfig(
         env="peg_insert",
-        env_kwargs=(("dynamics", "franka"),),
+        env_kwargs=(("dynamics", "identified"),),
         num_envs=2048,
         rollout_length=16,
         num_minibatches=8,
@@ -330,7 +330,7 @@ SORTER_PIXELS_PPO = dataclasses.replace(
     SORTER_PPO,
     env="panda_sort_pixels",
     # The teacher reads the state observation each step also returns (obs["privileged"]), the policy the images.
-    env_kwargs=(*SORTER_ENGINE, *FRANKA_ARM, ("privileged", True)),
+    env_kwargs=(*SORTER_ENGINE, *IDENTIFIED_ARM, ("privileged", True)),
     # A state teacher trained from nothing into <run dir>/teacher first (a few minutes on one GPU), then distilled
     # DAgger-style: the student drives, every observation is labelled with the teacher's action.
     teacher=f"{PRESET_TEACHER}ppo_sorter",

@@ -2,7 +2,7 @@
 
 import dataclasses
 
-from experiments.configs.ppo import FRANKA_ARM, ROBOT_RANDOMIZE, SORTER_ENV_PARAMS, SORTER_EVAL_ENV_PARAMS, UR5E
+from experiments.configs.ppo import IDENTIFIED_ARM, ROBOT_RANDOMIZE, SORTER_ENV_PARAMS, SORTER_EVAL_ENV_PARAMS, UR5E
 from experiments.configs.registry import preset
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
@@ -86,7 +86,7 @@ def td3_peg() -> TD3Config:
     # steps in 68.9 s (one H100, MJX-JAX, 2026-11-25; the nominal arm: 71.1 s).
     return TD3Config(
         env="peg_insert",
-        env_kwargs=(("dynamics", "franka"),),
+        env_kwargs=(("dynamics", "identified"),),
         num_envs=64,
         rollout_length=1,
         grad_steps_per_update=8,
@@ -161,7 +161,7 @@ def td3_peg_pixels() -> TD3Config:
 @preset("TD3 inserting the peg with a UR5e, Universal Robots' link inertials (CPU or one GPU)")
 def td3_peg_ur5e() -> TD3Config:
     # td3_peg on the arm of the tutorial the task comes from: the same task code, observation and actions (5 mm per
-    # step in x, y, z), the UR5e's model, limits and dynamics (`dynamics=franka` writes a robot's identified links).
+    # step in x, y, z), the UR5e's model, limits and dynamics (`dynamics=identified` writes a robot's identified links).
     peg = td3_peg()
     return dataclasses.replace(peg, env_kwargs=(*peg.env_kwargs, *UR5E))
 
@@ -187,7 +187,7 @@ def td3_sorter() -> TD3Config:
     # (BENCHMARKS.md#td3-sorter has the ablation).
     return TD3Config(
         env="panda_sort",
-        env_kwargs=(("impl", "auto"), ("max_envs", 4096), *FRANKA_ARM),
+        env_kwargs=(("impl", "auto"), ("max_envs", 4096), *IDENTIFIED_ARM),
         normalize_observations=True,
         env_params=SORTER_ENV_PARAMS,
         eval_env_params=SORTER_EVAL_ENV_PARAMS,

@@ -1,7 +1,7 @@
 """A Panda env's camera image of a stock-MuJoCo scene, drawn by MuJoCo's own OpenGL renderer (`mujoco.Renderer`):
 what the deployment loop gives a policy that reads cameras. Imports numpy and mujoco alone.
 
-The env's image (`PandaBase.camera_image`) stacks, per camera, its gray then its depth: uint8 [R, R, 2 per
+The env's image (`ArmBase.camera_image`) stacks, per camera, its gray then its depth: uint8 [R, R, 2 per
 camera]. Gray is the Rec. 601 luma (`LUMA`) of a surface's colour lit by a head light, `AMBIENT` plus the rest
 times the cosine of the light's angle to the surface; depth is metres along the optical axis over `DEPTH_RANGE`;
 each clipped to 0-1 and scaled to 0-255. Here MuJoCo draws each named camera (its MJCF pose on its body, its

@@ -77,7 +77,7 @@ def servo_ik_targets(
     posture: np.ndarray,
 ) -> np.ndarray:
     """[J] arm joint targets from the arm posed at its servos' targets (`servo_pose`): `ik_arm_targets`, then a
-    second damped step from the first's joints without the posture pull, as `PandaBase.servo_ik_targets`."""
+    second damped step from the first's joints without the posture pull, as `ArmBase.servo_ik_targets`."""
     limits = kinematics.arm_limits
     joints = ik_arm_targets(servo_pose, tcp_target, tcp_rotation, damping, posture_gain, posture, limits)
     return ik_arm_targets(kinematics.pose(joints), tcp_target, tcp_rotation, damping, 0.0, posture, limits)

@@ -4,7 +4,7 @@ the env's controller -> servo targets within the arm's limits, timed. Imports nu
 Servo targets (`ctrl`, [J + F]) are the J arm joints' targets (rad) then the F fingers' openings (m), J and F the
 lengths of the robot description's `arm_joints` and `finger_joints` (the Panda's 7 and 2 by default).
 
-The limits are the envs' own (`PandaBase.limited_ctrl` applies `limits.limit_targets` to the same targets), so with
+The limits are the envs' own (`ArmBase.limited_ctrl` applies `limits.limit_targets` to the same targets), so with
 `clip` the robot gets the targets the env's servos got, and the counts tell how often the policy asked for more.
 A policy's action that is not finite is refused (`UnsafeAction`): nothing is sent, and the robot stops at the last
 targets it was sent."""

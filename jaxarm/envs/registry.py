@@ -3,7 +3,7 @@ edits params. A namespace (`register_namespace`) names a family of envs another 
 (`playground:PandaPickCube`): each is built on demand and none is listed, so that listing never imports that library.
 
 Env kwargs are flat (`env_kwargs.impl=warp` in a config): an env whose constructor takes an options record (the
-Panda tasks' `PandaOptions`) gets those naming its fields gathered into it (`constructor_kwargs`).
+Panda tasks' `ArmOptions`) gets those naming its fields gathered into it (`constructor_kwargs`).
 
 Factories import their module lazily so that making arm2d never imports MuJoCo.
 """

@@ -79,8 +79,8 @@ class RobotDescription:
       home_qpos: [J] float32, the arm's home posture, from which its IK starts.
       joint_limits: the arm joints' motion limits (`JointLimits`).
       identified_links: [J] the arm's identified link inertials and joint friction, in `arm_joints` order: the
-        dynamics an env may be built with in place of the model's own (`dynamics=franka`,
-        `jaxarm.envs.panda.franka_dynamics`).
+        dynamics an env may be built with in place of the model's own (`dynamics=identified`,
+        `jaxarm.envs.panda.dynamics`).
       ik_damping: default damping λ of the damped-least-squares IK (metres-radians).
       ik_posture_gain: default null-space pull of the arm towards its start posture per step (fraction of the
         error).

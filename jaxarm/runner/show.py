@@ -96,7 +96,7 @@ def env_param_lines(config: RunConfig) -> list[str]:
 
 
 def env_kwarg_lines(config: RunConfig) -> list[str]:
-    """One line per constructor argument of the config's env (each field of its options record, `PandaOptions`, as
+    """One line per constructor argument of the config's env (each field of its options record, `ArmOptions`, as
     one): name, the value the config builds it with (and the default where it differs), doc (from the class's
     `Args:`, the options record's `Attributes:`)."""
     env, _ = config.make_env(randomized=False)  # the env itself, no Randomized wrapper

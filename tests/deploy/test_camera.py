@@ -27,7 +27,7 @@ from jaxarm.deploy.camera import CameraController, CameraRenderer
 from jaxarm.deploy.loop import DeploymentLoop
 from jaxarm.deploy.mujoco_robot import MujocoRobot
 from jaxarm.deploy.reading import HoleEstimate
-from jaxarm.envs.panda.base import CAMERAS, CONTROL_DT, PandaOptions
+from jaxarm.envs.panda.base import CAMERAS, CONTROL_DT, ArmOptions
 from jaxarm.envs.panda.robot import resolve_robot_ids
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.panda_sort.layout import SHAPE_CUBE
@@ -43,7 +43,7 @@ RESOLUTION = 32
 def both_images():
     """(MuJoCo's image, the caster's image, the drawn image as the MJCF declares it) of the peg's scene, the arm
     at its start posture, uint8 [R, R, 4] each."""
-    env = PegInsert(options=PandaOptions(obs_mode="pixels", resolution=RESOLUTION))
+    env = PegInsert(options=ArmOptions(obs_mode="pixels", resolution=RESOLUTION))
     model = copy.copy(env.mj_model)
     data = mujoco.MjData(model)
     data.qpos[env.ids.robot.arm_qpos] = env.start_qpos
@@ -84,7 +84,7 @@ def test_a_camera_the_scene_lacks_is_named():
 
 @pytest.mark.parametrize("model_name", MODELS)
 def test_the_loop_drives_a_camera_policy_with_either_pandas_scene(model_name):
-    env = PegInsert(options=PandaOptions(obs_mode="pixels+proprio", resolution=16))
+    env = PegInsert(options=ArmOptions(obs_mode="pixels+proprio", resolution=16))
     params = env.default_params()
     robot = MujocoRobot(plant_model(env, params, model_name), CONTROL_DT)
     robot.data.qpos[resolve_robot_ids(robot.model, PANDA).arm_qpos] = env.start_qpos
@@ -111,7 +111,7 @@ def test_the_loop_drives_a_camera_policy_with_either_pandas_scene(model_name):
 
 
 def test_a_sorter_camera_policy_reads_the_state_observations_tool_part():
-    env = PandaSort(options=PandaOptions(obs_mode="pixels+proprio", resolution=8))
+    env = PandaSort(options=ArmOptions(obs_mode="pixels+proprio", resolution=8))
     params = env.default_params()
     controller = deployable.controller(env, params)
     image = np.zeros((8, 8, 4), np.uint8)
@@ -129,7 +129,7 @@ def test_a_sorter_camera_policy_reads_the_state_observations_tool_part():
 
 
 def test_a_sorter_object_recoloured_for_videos_is_drawn_as_the_caster_sees_it():
-    env = PandaSort(options=PandaOptions(obs_mode="pixels", resolution=64))
+    env = PandaSort(options=ArmOptions(obs_mode="pixels", resolution=64))
     model = copy.copy(env.mj_model)  # the env's model stays as built
     renderer = CameraRenderer(model, CAMERAS, 64)
     size, ids = 0.05, env.ids

@@ -15,7 +15,7 @@ import pytest
 from jaxarm import deployable
 from jaxarm.deploy import limits, peg, sort
 from jaxarm.deploy.reading import ArmReading, HoleEstimate, ObjectEstimate
-from jaxarm.envs.panda.base import CONTROL_DT, PandaOptions
+from jaxarm.envs.panda.base import CONTROL_DT, ArmOptions
 from jaxarm.envs.panda.robot import tcp_pose_at
 from jaxarm.envs.panda_sort import IN_CORRECT_BIN, IN_PLAY, MODE_JOINT, PandaSort, PandaSortSim
 from jaxarm.envs.panda_sort.reward import next_outcome, next_target, shaping_potential
@@ -128,7 +128,7 @@ def test_the_sorter_observes_and_acts_as_the_env(control_mode):
 @pytest.mark.parametrize("running_target", [False, True])
 @pytest.mark.parametrize("robot", sorted(ROBOTS))
 def test_the_peg_observes_and_acts_as_the_env_on_every_robot(robot, running_target):
-    env = PegInsert(running_target=running_target, options=PandaOptions(robot=robot))
+    env = PegInsert(running_target=running_target, options=ArmOptions(robot=robot))
     params = env.default_params()
     rng = np.random.default_rng(2)
     joints = env.arm_dof

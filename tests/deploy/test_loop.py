@@ -13,7 +13,7 @@ from jaxarm.deploy import limits
 from jaxarm.deploy.loop import DeploymentLoop, Robot, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot
 from jaxarm.deploy.reading import ArmReading
-from jaxarm.envs.panda.base import PandaOptions
+from jaxarm.envs.panda.base import ArmOptions
 from jaxarm.envs.panda_sort import model as sort_model
 from jaxarm.envs.panda_sort.layout import make_layout
 from jaxarm.robots import PANDA, robot
@@ -29,7 +29,7 @@ def test_the_deployment_package_imports_no_jax():
 
 def test_the_envs_and_the_loop_read_the_datasheets_limits():
     loop_limits = inspect.signature(limits.limit_targets).parameters["limits"].default
-    assert robot(PandaOptions().robot).joint_limits is loop_limits is PANDA.joint_limits
+    assert robot(ArmOptions().robot).joint_limits is loop_limits is PANDA.joint_limits
     np.testing.assert_allclose(PANDA.joint_limits.speed, [2.175] * 4 + [2.61] * 3, rtol=1e-7)
     np.testing.assert_array_equal(PANDA.joint_limits.acceleration, [15, 7.5, 10, 12.5, 15, 20, 20])
 

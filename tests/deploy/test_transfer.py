@@ -22,7 +22,7 @@ from experiments.configs.td3 import td3_peg
 from jaxarm import deployable, headless
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.deployable import panda_sort
-from jaxarm.envs.panda.base import PandaOptions
+from jaxarm.envs.panda.base import ArmOptions
 from jaxarm.envs.panda.robot import resolve_robot_ids, tcp_pose_at
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.panda_sort import model as sort_model
@@ -37,7 +37,7 @@ from tests.deploy.exported import export_random_policy, sorter_run
 
 @pytest.mark.parametrize("robot", sorted(ROBOTS))
 def test_both_models_of_each_robot_have_the_same_kinematics_and_the_stock_solver(robot):
-    env = PegInsert(options=PandaOptions(robot=robot))
+    env = PegInsert(options=ArmOptions(robot=robot))
     params = env.default_params()
     models = [transfer.plant_model(env, params, name) for name in transfer.MODELS]
     default = mujoco.MjModel.from_xml_string("<mujoco/>").opt
@@ -136,7 +136,7 @@ def scripted_insertion(obs: np.ndarray) -> np.ndarray:
     [(PANDA.name, False), (PANDA.name, True), *((name, True) for name in ROBOTS if name != PANDA.name)],
 )
 def test_a_scripted_peg_inserts_in_stock_mujoco_with_both_models_of_each_robot(robot, running_target):
-    env = PegInsert(running_target=running_target, options=PandaOptions(robot=robot))
+    env = PegInsert(running_target=running_target, options=ArmOptions(robot=robot))
     params = env.default_params()
     if running_target:
         params = params.replace(max_lead=RUNNING_TARGET_MAX_LEAD)

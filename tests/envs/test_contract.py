@@ -18,7 +18,7 @@ import pytest
 
 from jaxarm import envs
 from jaxarm.envs.observation import IMAGE
-from jaxarm.envs.panda.base import PandaOptions
+from jaxarm.envs.panda.base import ArmOptions
 from jaxarm.envs.peg_insert import PegInsert
 from jaxarm.envs.randomize import ParamRange, Randomized
 from jaxarm.envs.registry import constructor_kwargs
@@ -197,9 +197,9 @@ def test_unknown_env_name_names_the_closest():
 
 
 def test_flat_env_kwargs_fill_a_panda_tasks_options_and_an_unknown_one_is_refused():
-    flat = {"impl": "jax", "dynamics": "franka", "max_action_latency": 1}
-    options = PandaOptions(impl="jax", max_action_latency=1)
-    assert constructor_kwargs(PegInsert, flat) == {"dynamics": "franka", "options": options}
+    flat = {"impl": "jax", "dynamics": "identified", "max_action_latency": 1}
+    options = ArmOptions(impl="jax", max_action_latency=1)
+    assert constructor_kwargs(PegInsert, flat) == {"dynamics": "identified", "options": options}
     assert constructor_kwargs(PegInsert, {"options": options}) == {"options": options}
     # One line naming the closest and every valid name (as `--show` lists them), not the constructor's own error.
     with pytest.raises(

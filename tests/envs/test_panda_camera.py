@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxarm.envs.panda.base import CAMERAS, DEPTH_RANGE, PandaOptions, image_channels
+from jaxarm.envs.panda.base import CAMERAS, DEPTH_RANGE, ArmOptions, image_channels
 from jaxarm.envs.panda.camera import AMBIENT, FAR, Camera, PoseOffset, Scene, ray_directions, render, rotation_of
 from jaxarm.envs.panda.sim_to_real import RobotParams
 from jaxarm.envs.panda_sort import PandaSort
@@ -188,17 +188,17 @@ def test_a_state_env_resolves_no_camera_and_says_so_when_asked_for_an_image():
 def test_a_privileged_sorter_declares_its_state_observation_beside_the_cameras():
     # Its values come from the same `_observe` as the state env's (see PandaSort._observe); stepping it would
     # compile MJX, minutes on a CPU.
-    spec = PandaSort(options=PandaOptions(obs_mode="pixels+proprio", resolution=16, privileged=True)).spec
+    spec = PandaSort(options=ArmOptions(obs_mode="pixels+proprio", resolution=16, privileged=True)).spec
     assert set(spec.observation) == {"image", "proprio", "privileged"}
     assert spec.observation["privileged"].shape == PandaSort().spec.observation_shape
 
 
 def test_a_privileged_peg_declares_its_state_observation_beside_the_cameras():
-    spec = PegInsert(options=PandaOptions(obs_mode="pixels", resolution=16, privileged=True)).spec
+    spec = PegInsert(options=ArmOptions(obs_mode="pixels", resolution=16, privileged=True)).spec
     assert set(spec.observation) == {"image", "privileged"}
     assert spec.observation["privileged"].shape == PegInsert().spec.observation_shape
     with pytest.raises(ValueError, match="privileged=True adds the state observation to a pixel obs_mode"):
-        PegInsert(options=PandaOptions(privileged=True))
+        PegInsert(options=ArmOptions(privileged=True))
 
 
 def test_the_cast_program_does_not_grow_with_the_number_of_geoms():
@@ -335,7 +335,7 @@ def vars_of(data: mujoco.MjData) -> dict[str, np.ndarray]:
 @pytest.fixture(scope="module")
 def peg_cameras():
     """(a pixel peg env, its model's geom sizes, its poses): posed by MuJoCo on the CPU, so only the caster compiles."""
-    env = PegInsert(options=PandaOptions(obs_mode="pixels", resolution=8))
+    env = PegInsert(options=ArmOptions(obs_mode="pixels", resolution=8))
     data = mujoco.MjData(env.mj_model)
     mujoco.mj_forward(env.mj_model, data)
     return env, SimpleNamespace(geom_size=env.mj_model.geom_size), SimpleNamespace(**vars_of(data))

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from jaxarm.envs.panda.base import CONTROL_DT
-from jaxarm.envs.panda.franka_dynamics import FRANKA
+from jaxarm.envs.panda.dynamics import IDENTIFIED
 from jaxarm.envs.panda.robot import yaw_of_quaternion
 from jaxarm.envs.panda_sort import MODE_JOINT, PandaSort
 from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE
@@ -74,7 +74,7 @@ def check_held_motion(motion: np.ndarray, step: float) -> None:
 @pytest.fixture(scope="module")
 def ee_rollouts():
     """ee mode: a held unit yaw (hand turning), a held unit move along x, random actions (uniform in [-1, 1])."""
-    env = PandaSort(objects_count=1, running_target=True, dynamics=FRANKA)
+    env = PandaSort(objects_count=1, running_target=True, dynamics=IDENTIFIED)
     actions = np.stack([held(np.array([0, 0, 0, 1.0, 1.0])), held(np.array([1.0, 0, 0, 0, 1.0])), random_actions(5)])
     return env.default_params(), rollouts(env, actions)
 
@@ -83,7 +83,7 @@ def ee_rollouts():
 def joint_rollouts():
     """joint mode: each wrist joint (5, 6, 7) held at a unit action away from its nearer limit, then the base (joint
     1) held at a unit action, which asks for 2.5 rad/s (joint_step 0.1 rad per 0.04 s) against its limit 2.175."""
-    env = PandaSort(objects_count=1, control_mode=MODE_JOINT, running_target=True, dynamics=FRANKA)
+    env = PandaSort(objects_count=1, control_mode=MODE_JOINT, running_target=True, dynamics=IDENTIFIED)
     signs = {4: 1.0, 5: -1.0, 6: -1.0}
     actions = [held(np.eye(8)[joint] * sign + np.eye(8)[7]) for joint, sign in signs.items()]
     return env.default_params(), signs, rollouts(env, np.stack([*actions, held(np.eye(8)[0] + np.eye(8)[7])]))

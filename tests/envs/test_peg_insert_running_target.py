@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxarm.envs.panda.franka_dynamics import FRANKA
+from jaxarm.envs.panda.dynamics import IDENTIFIED
 from jaxarm.envs.peg_insert import PegInsert
 from jaxarm.envs.peg_insert.env import POSITION_SCALE, STATE_OBS_SIZE
 from jaxarm.envs.peg_insert.params import RUNNING_TARGET_MAX_LEAD
@@ -37,7 +37,7 @@ def tip_paths(env: PegInsert, action: np.ndarray) -> np.ndarray:
 
 
 def test_a_held_action_moves_the_tool_under_tripled_damping():
-    env = PegInsert(FRANKA, running_target=True)  # td3_peg's arm
+    env = PegInsert(IDENTIFIED, running_target=True)  # td3_peg's arm
     ee_step = float(env.default_params().ee_step)
     assert env.spec.observation_shape == (STATE_OBS_SIZE,)
     motion = np.diff(tip_paths(env, np.array([1.0, 0.0, 0.0], np.float32)), axis=1)

@@ -35,7 +35,7 @@ ROWS = {
 
 
 class ArmState(NamedTuple):
-    """What `PandaBase.poses` reads of a sim: qpos [nq], qvel [nv], ctrl [nu], the solver's warm start [nv]."""
+    """What `ArmBase.poses` reads of a sim: qpos [nq], qvel [nv], ctrl [nu], the solver's warm start [nv]."""
 
     qpos: jax.Array
     qvel: jax.Array
@@ -45,7 +45,7 @@ class ArmState(NamedTuple):
 
 @pytest.fixture(scope="module")
 def franka_sorter() -> PandaSort:
-    return PandaSort(dynamics="franka")
+    return PandaSort(dynamics="identified")
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxarm.envs.panda.base import PandaOptions
+from jaxarm.envs.panda.base import ArmOptions
 from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_servo_scales
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.peg_insert import PegInsert
@@ -50,4 +50,4 @@ def test_noise_has_the_asked_spread_and_none_at_zero():
 @pytest.mark.parametrize("task", [PandaSort, PegInsert])
 def test_a_negative_latency_bound_is_refused(task):
     with pytest.raises(ValueError, match="max_action_latency"):
-        task(options=PandaOptions(max_action_latency=-1))
+        task(options=ArmOptions(max_action_latency=-1))

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from jaxarm import envs
-from jaxarm.envs.panda.base import CONTROL_DT, WARP_TIMESTEP, PandaOptions
+from jaxarm.envs.panda.base import CONTROL_DT, WARP_TIMESTEP, ArmOptions
 from jaxarm.envs.panda.mjx_impl import (
     Impl,
     constraint_capacity,
@@ -61,7 +61,7 @@ def test_an_unknown_impl_is_refused_by_name():
 @pytest.mark.skipif(warp_available(), reason="warp-lang is installed here")
 def test_warp_without_warp_lang_says_what_is_missing():
     with pytest.raises(ValueError, match="warp-lang"):
-        PegInsert(options=PandaOptions(impl="warp"))
+        PegInsert(options=ArmOptions(impl="warp"))
 
 
 def test_buffers_are_sized_from_the_scene_pairs():
@@ -132,7 +132,7 @@ def rollout(env, params, state, actions):
 
 def make_env(name: str, impl: str) -> PandaSort | PegInsert:
     """The env compared as `name` ("sort1", "sort3" or "peg") on MJX implementation `impl`."""
-    options = PandaOptions(impl=impl)
+    options = ArmOptions(impl=impl)
     if name == "peg":
         return PegInsert(options=options)
     if name == "sort3":
@@ -172,7 +172,7 @@ def test_scripted_pick_and_place_scores_500_on_warp():
     pytest.importorskip("warp")
     from tests.envs.test_panda_sort import JittedStep, scripted_pick_and_place, with_object
 
-    env = PandaSort(objects_count=1, options=PandaOptions(impl="warp"))
+    env = PandaSort(objects_count=1, options=ArmOptions(impl="warp"))
     params = env.default_params()
     size, yaw = 0.0375, np.pi / 4
     pose = [0.5, -0.1, size + 0.001, np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)]
@@ -186,9 +186,9 @@ def test_scripted_pick_and_place_scores_500_on_warp():
 
 def test_warp_steps_the_panda_at_its_own_timestep():
     pytest.importorskip("warp")
-    assert PegInsert(options=PandaOptions(impl="warp")).mj_model.opt.timestep == WARP_TIMESTEP
-    assert PandaSort(options=PandaOptions(impl="warp")).substeps == round(CONTROL_DT / WARP_TIMESTEP)
-    assert PandaSort(options=PandaOptions(impl="jax")).substeps == 4
+    assert PegInsert(options=ArmOptions(impl="warp")).mj_model.opt.timestep == WARP_TIMESTEP
+    assert PandaSort(options=ArmOptions(impl="warp")).substeps == round(CONTROL_DT / WARP_TIMESTEP)
+    assert PandaSort(options=ArmOptions(impl="jax")).substeps == 4
 
 
 def scripted_placements(env: PandaSort, num_envs: int, steps: int = 250) -> float:
@@ -226,21 +226,21 @@ def test_scripted_pick_and_place_places_most_objects_on_warp():
     # H100), 80% (64) and 72% (32) on the CPU, against 91-95% on MJX-JAX. Within Franka's speed and acceleration
     # limits, on an H200: 67.9% of 1,024 envs, 65.2% of 256, and 59.4% of 32, too few to tell 68% from 60%.
     num_envs = 1024 if jax.default_backend() == "gpu" else 32
-    env = PandaSort(objects_count=1, options=PandaOptions(impl="warp", max_envs=num_envs))
+    env = PandaSort(objects_count=1, options=ArmOptions(impl="warp", max_envs=num_envs))
     assert scripted_placements(env, num_envs) >= 0.6
 
 
 def test_warp_kernels_print_no_overflow_warnings():
     pytest.importorskip("warp")
     # The overflow bits stay set (the test below raises on them); only the GPU's printing is off.
-    assert PandaSort(options=PandaOptions(impl="warp")).mjx_model.opt._impl.warn_overflow == 0
-    assert PegInsert(options=PandaOptions(impl="warp")).mjx_model.opt._impl.warn_overflow == 0
+    assert PandaSort(options=ArmOptions(impl="warp")).mjx_model.opt._impl.warn_overflow == 0
+    assert PegInsert(options=ArmOptions(impl="warp")).mjx_model.opt._impl.warn_overflow == 0
 
 
 def test_a_contact_buffer_too_small_for_the_batch_raises():
     pytest.importorskip("warp")
     # Room for one env's worst case, shared by 64 envs whose objects rest on the table (4+ contacts each).
-    env = PandaSort(objects_count=1, options=PandaOptions(impl="warp", max_envs=1))
+    env = PandaSort(objects_count=1, options=ArmOptions(impl="warp", max_envs=1))
     params = env.default_params()
     batch = envs.VmapEnv(env, 64)
     state = jax.jit(batch.reset)(jax.random.key(0), params)
@@ -250,7 +250,7 @@ def test_a_contact_buffer_too_small_for_the_batch_raises():
 
 def test_a_contact_buffer_too_small_raises_once_after_steps_that_defer_their_checks():
     pytest.importorskip("warp")
-    env = PandaSort(objects_count=1, options=PandaOptions(impl="warp", max_envs=1))
+    env = PandaSort(objects_count=1, options=ArmOptions(impl="warp", max_envs=1))
     # Episodes of one step: the bits of the step that overflowed must outlive its episode.
     params = envs.override_params(env.default_params(), {"max_episode_steps": 1})
     batch = envs.VmapEnv(envs.AutoReset(env), 64)

@@ -1,7 +1,7 @@
-"""`PandaBase`: what every Panda task in MJX needs, once: its model on the device, ids, timing, IK, drawing.
+"""`ArmBase`: what every arm task in MJX needs, once: its model on the device, ids, timing, IK, drawing.
 
-A task builds its scene (an MjModel with the robot `PandaBase.robot` describes in it) and resolves its ids, whose
-`robot` field holds the `RobotIds`; its env subclasses `PandaBase` and keeps only what is its own: the per-episode
+A task builds its scene (an MjModel with the robot `ArmBase.robot` describes in it) and resolves its ids, whose
+`robot` field holds the `RobotIds`; its env subclasses `ArmBase` and keeps only what is its own: the per-episode
 model (`episode_model`), reset, transition, observation and reward, and how its per-episode geometry is drawn
 (`_pose_for_drawing`). Nothing here knows about a task, and no task module is imported here.
 """
@@ -54,8 +54,8 @@ CAMERAS = ("scene", "hand_camera")
 
 class ArmSim(struct.PyTreeNode):
     """The robot's share of every task's sim state: the physics that persists between steps, what the arm's
-    control carries from one step to the next, and the noise and Warp records `PandaBase` keeps. A task's sim
-    subclasses it and adds its own fields (J = the robot's arm joints, `PandaBase.arm_dof`; A = the task's actions).
+    control carries from one step to the next, and the noise and Warp records `ArmBase` keeps. A task's sim
+    subclasses it and adds its own fields (J = the robot's arm joints, `ArmBase.arm_dof`; A = the task's actions).
 
     Attributes:
       qpos: [nq] generalized positions (the arm's J joints, then the fingers' 2, then the task's bodies).
@@ -63,13 +63,13 @@ class ArmSim(struct.PyTreeNode):
       qacc_warmstart: [nv] the solver's warm start.
       ctrl: [J + 2] actuator targets (arm joints, then the fingers).
       target_velocity: [J] the arm's targets' rate of change over the last step (rad/s), which the robot's
-        acceleration limits bound the next step's from (`PandaBase.limited_ctrl`).
+        acceleration limits bound the next step's from (`ArmBase.limited_ctrl`).
       queued_actions: [L, A] the last L actions, newest first, not yet all applied (L = the env's
         `max_action_latency`; `action_latency` picks which one the servos receive).
       noise_key: PRNG key of the observation noise, split by the task at each step; the cameras' noise derives
         from it.
       overflow: [] int32: the Warp overflow bits (`mjx_impl.overflow_bits`) of every step since the first reset,
-        which auto-resets keep (`PandaBase.carried_over`) until `PandaBase.checked` raises on them.
+        which auto-resets keep (`ArmBase.carried_over`) until `ArmBase.checked` raises on them.
     """
 
     qpos: jax.Array
@@ -102,7 +102,7 @@ class CameraParams(Protocol):
 
 
 class IkParams(HasEpisodeLimit, CameraParams, Protocol):
-    """What `PandaBase` reads of a task's params (scalars): the time limit, the IK's settings (`ArmParams`') and
+    """What `ArmBase` reads of a task's params (scalars): the time limit, the IK's settings (`ArmParams`') and
     the cameras'."""
 
     @property
@@ -140,8 +140,8 @@ def image_channels(gray_and_depth: jax.Array, params: CameraParams, key: jax.Arr
 
 
 @dataclasses.dataclass(frozen=True)
-class PandaOptions:
-    """How a Panda env is built, whatever its task: its physics, its buffers and what it observes. Frozen and
+class ArmOptions:
+    """How an arm env is built, whatever its task and robot: its physics, its buffers and what it observes. Frozen and
     hashable; configs set each field by name as a flat env kwarg (`env_kwargs.impl=warp`, `jaxarm.envs.registry`).
 
     Attributes:
@@ -186,15 +186,15 @@ SimT = TypeVar("SimT", bound=ArmSim)
 IdsT = TypeVar("IdsT", bound=TaskIds)
 
 
-class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
-    """Base of the Panda envs: the compiled scene, its MJX copy and the robot's control, shared by every task.
+class ArmBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
+    """Base of the arm envs: the compiled scene, its MJX copy and the robot's control, shared by every task.
 
     Args:
       mj_model: the task's compiled scene.
       ids: the task's ids, resolved in `mj_model`.
       start_tcp: [3] tool-centre position of the arm's start posture (`start_qpos`), pointing down; the IK's
         null space pulls the arm towards that posture.
-      options: the construction choices every task shares (`PandaOptions`).
+      options: the construction choices every task shares (`ArmOptions`).
 
     Attributes:
       robot: the description of the robot the task is built on (`options.robot`: its home posture, joint limits,
@@ -220,7 +220,7 @@ class PandaBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
         mj_model: mujoco.MjModel,
         ids: IdsT,
         start_tcp: np.ndarray,
-        options: PandaOptions,
+        options: ArmOptions,
     ):
         self.robot: RobotDescription = robots.robot(options.robot)
         self.arm_dof = len(self.robot.arm_joints)

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from jaxarm.envs.panda.franka_dynamics import set_dynamics
+from jaxarm.envs.panda.dynamics import set_dynamics
 from jaxarm.robots import PANDA, RobotDescription
 
 
@@ -46,7 +46,7 @@ SCENE_ROBOT_INCLUDE = 'file="../../panda/assets/panda.xml"'
 
 
 def scene_spec(scene_xml: Path, robot: RobotDescription, dynamics: str, robot_xml: Path | None = None) -> mujoco.MjSpec:
-    """The MjSpec of a task's `scene_xml` with `robot` in it and its `dynamics` (`franka_dynamics.DYNAMICS`): the
+    """The MjSpec of a task's `scene_xml` with `robot` in it and its `dynamics` (`dynamics.DYNAMICS`): the
     robot's model is its description's `model_xml`, or `robot_xml` (another with the names of its description),
     included in place of jaxarm's Panda."""
     model_xml = robot_xml or robot.model_xml

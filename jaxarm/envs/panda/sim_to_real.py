@@ -35,7 +35,7 @@ class RobotParams:
       servo_gain_scale: factor on the arm servos' stiffness (kp).
       joint_damping_scale: factor on the arm's damping: the servos' kv and the joints' passive damping.
       joint_friction_scale: factor on the arm joints' Coulomb friction (frictionloss). The nominal arm has none
-        (only `dynamics="franka"` does), and MJX fixes which joints have friction rows when the model is put on
+        (only `dynamics="identified"` does), and MJX fixes which joints have friction rows when the model is put on
         the device, so on the nominal arm this changes nothing.
       force_limit_scale: factor on the arm servos' force limits (forcerange: 87 N·m on joints 1-4, 12 on 5-7).
       control_period_scale: factor on the physics timestep, so each env step spans `CONTROL_DT` times this of

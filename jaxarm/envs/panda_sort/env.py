@@ -2,7 +2,7 @@
 
 One env step is `CONTROL_DT` = 0.04 s: the action becomes joint position targets (through damped
 least-squares IK in `ee` mode), moved within Franka's joint speed and acceleration limits
-(`PandaBase.limited_ctrl`), then MJX takes several physics substeps. An object whose centre enters a bin
+(`ArmBase.limited_ctrl`), then MJX takes several physics substeps. An object whose centre enters a bin
 (inside its walls, below the rim) is scored: +500 in the bin of its shape, +200 in another. One that drops
 below the table top is penalised (-50). Either way it leaves play and is parked far away, at rest, for the
 rest of the episode, so it can never be scored twice or touch anything again. The episode terminates when
@@ -10,7 +10,7 @@ no object is left in play and succeeds when all of them went into their own bins
 potential-based, so no behaviour can farm it (reward.py).
 
 This module is the env's contract: spec, reset, transition, control and observation. The robot's set-up
-is `PandaBase`'s; the objects' geometry, spawning and parking are objects.py's; scoring and shaping
+is `ArmBase`'s; the objects' geometry, spawning and parking are objects.py's; scoring and shaping
 reward.py's; the training start states curriculum.py's.
 
 The env holds the mjx.Model (static). Per-episode object shapes and sizes, and the randomised params
@@ -19,7 +19,7 @@ states and params is per-env domain randomisation. The sim state keeps only what
 between steps (qpos, qvel, ctrl, solver warm start), not a whole mjx.Data.
 
 `obs_mode` "pixels" observes {"image": uint8 [R, R, 4]}, grayscale and depth of a fixed camera above the table
-and of the wrist camera (`PandaBase.camera_image`); "pixels+proprio" adds the tool's part of the state
+and of the wrist camera (`ArmBase.camera_image`); "pixels+proprio" adds the tool's part of the state
 observation, {"proprio": [21]} ([28] with `running_target`); the objects then show only in the images.
 """
 
@@ -30,8 +30,8 @@ import numpy as np
 from mujoco import mjx
 
 from jaxarm.envs.base import Env, Observation, Transition
-from jaxarm.envs.panda.base import PandaBase, PandaOptions
-from jaxarm.envs.panda.franka_dynamics import NOMINAL
+from jaxarm.envs.panda.base import ArmBase, ArmOptions
+from jaxarm.envs.panda.dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import overflow_bits, with_geom_sizes
 from jaxarm.envs.panda.robot import (
     advanced_target,
@@ -93,7 +93,7 @@ TCP_MIN_Z = 0.01
 """Lowest tool-centre target: the arm has no contact with the table, so IK must not drive it through."""
 
 
-class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
+class PandaSort(ArmBase[PandaSortParams, PandaSortSim, ModelIds]):
     """Franka Panda sorting `objects_count` objects into three shape bins.
 
     Args:
@@ -109,14 +109,14 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         objects starting from it (slots in cyclic order), and the shaping terms follow it alone, so a policy
         always finds the object to work on in the first slot and several objects become the one-object task
         repeated. With one object nothing changes.
-      dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
-        published values, `jaxarm.envs.panda.franka_dynamics`).
+      dynamics: the robot's link inertials and joint friction: "nominal" (its model file's) or "identified" (its
+        description's identified links, the Panda's from Franka's published values: `jaxarm.envs.panda.dynamics`).
       running_target: an action moves the target the servos chase (the tool-centre pose in `ee` mode, the joint
         targets in `joint` mode) by `ee_step`, `ee_yaw_step` or `joint_step` per unit, held within `max_lead`,
         `max_yaw_lead` or `max_joint_lead` of what is measured, so a step's action is the motion it gets once
         under way; the observation adds the servos' lead (J values). Without it (the default) each
         step's target starts from the measured pose and the servos cover about a third of the step.
-      options: the physics, its buffers and the observation (`PandaOptions`; the module docstring says what each
+      options: the physics, its buffers and the observation (`ArmOptions`; the module docstring says what each
         observation mode holds).
     """
 
@@ -134,7 +134,7 @@ class PandaSort(PandaBase[PandaSortParams, PandaSortSim, ModelIds]):
         dynamics: str = NOMINAL,
         running_target: bool = False,
         *,
-        options: PandaOptions = PandaOptions(),
+        options: ArmOptions = ArmOptions(),
     ):
         if not 1 <= objects_count <= 5:
             raise ValueError(f"objects_count must be in 1..5, got {objects_count}")

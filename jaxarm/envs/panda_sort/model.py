@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 
 from jaxarm import robots
-from jaxarm.envs.panda.franka_dynamics import NOMINAL
+from jaxarm.envs.panda.dynamics import NOMINAL
 from jaxarm.envs.panda.robot import RobotIds, resolve_robot_ids, scene_spec
 from jaxarm.envs.panda_sort.layout import Layout
 
@@ -163,7 +163,7 @@ def build_spec(
     robot_xml: Path | None = None,
 ) -> mujoco.MjSpec:
     """The scene as an MjSpec: table from assets/scene.xml with `robot` (by name, `jaxarm.robots`) and its `dynamics`
-    (`franka_dynamics.DYNAMICS`), the rest from `layout`; `firm_grip` sets FIRM_GRIP_TIMESTEP and
+    (`dynamics.DYNAMICS`), the rest from `layout`; `firm_grip` sets FIRM_GRIP_TIMESTEP and
     FIRM_GRIP_SOLREF. The robot's model is its description's `model_xml`, or `robot_xml`, another with the names of
     its description (`robot.scene_spec`)."""
     spec = scene_spec(ASSETS / "scene.xml", robots.robot(robot), dynamics, robot_xml)

@@ -1,6 +1,6 @@
 """Dresses a copy of the sorter's MjModel for drawing: this episode's object sizes, colours and shapes.
 
-Outside jit, on the CPU; `PandaBase.render` draws the dressed model (panda/render.py). Imports no env module.
+Outside jit, on the CPU; `ArmBase.render` draws the dressed model (panda/render.py). Imports no env module.
 """
 
 import mujoco

@@ -1,11 +1,11 @@
-"""Peg-in-hole insertion in MJX: a robot arm (`PandaOptions.robot`, the Panda by default) holds a peg over a block
+"""Peg-in-hole insertion in MJX: a robot arm (`ArmOptions.robot`, the Panda by default) holds a peg over a block
 whose square hole moves every episode.
 
 One env step is `CONTROL_DT` = 0.04 s. The action [3] moves a tool-centre target by at most `ee_step` per
 axis; the target is held within `max_lead` of the measured tool centre (so a blocked peg presses with
 bounded force) and followed through damped least-squares IK with the tool pointing down (from the measured pose, or
 with `running_target` from the servos' targets, as the sorter's), the joints' targets moved within the robot's speed
-and acceleration limits (`PandaBase.limited_ctrl`). Reward:
+and acceleration limits (`ArmBase.limited_ctrl`). Reward:
 `progress_weight` · (previous − current tip-to-hole-bottom distance) / initial distance, plus
 `success_bonus` every step the tip is within `insert_distance` of the hole bottom (inserted, a success).
 Terminated when the peg touches the table (its explicit contact pair reports penetration in any substep)
@@ -15,7 +15,7 @@ Observation [12], in units that keep it near [-1, 1]: hole bottom − tip (÷ 0.
 tool target − tool centre (÷ max_lead), tip − nominal hole bottom (÷ 0.1 m).
 
 `obs_mode` "pixels" observes {"image": uint8 [R, R, 4]}, grayscale and depth of the fixed scene camera and of
-the wrist camera (`PandaBase.camera_image`); "pixels+proprio" adds the arm's own state, {"proprio": [9]}: the
+the wrist camera (`ArmBase.camera_image`); "pixels+proprio" adds the arm's own state, {"proprio": [9]}: the
 tip velocity, the tool's lead and the tip's offset from the nominal hole; where the hole is this episode shows
 only in the images. With `privileged`, a pixel mode's observation also holds the state observation of the same
 step ({"privileged": [12]}, for a learner's critic: `jaxarm.envs.observation`).
@@ -30,8 +30,8 @@ from mujoco import mjx
 
 from jaxarm.deploy.camera import LUMA
 from jaxarm.envs.base import Observation, Transition
-from jaxarm.envs.panda.base import ArmSim, PandaBase, PandaOptions
-from jaxarm.envs.panda.franka_dynamics import NOMINAL
+from jaxarm.envs.panda.base import ArmBase, ArmOptions, ArmSim
+from jaxarm.envs.panda.dynamics import NOMINAL
 from jaxarm.envs.panda.mjx_impl import check_no_overflow, overflow_bits, with_geom_sizes
 from jaxarm.envs.panda.robot import advanced_target
 from jaxarm.envs.panda.sim_to_real import delayed_action, with_noise, with_robot_params
@@ -88,22 +88,20 @@ class PegInsertInfo(struct.PyTreeNode):
     table_contact: jax.Array
 
 
-class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
+class PegInsert(ArmBase[PegInsertParams, PegInsertSim, PegIds]):
     """A robot arm inserting a peg held in its hand into a square hole shifted at random every episode.
 
     Args:
-      dynamics: the robot's link inertials and joint friction: "nominal" (panda.xml's) or "franka" (Franka's
-        published values, `jaxarm.envs.panda.franka_dynamics`).
+      dynamics: the robot's link inertials and joint friction: "nominal" (its model file's) or "identified" (its
+        description's identified links, the Panda's from Franka's published values: `jaxarm.envs.panda.dynamics`).
       running_target: the IK starts from the servos' targets instead of the measured pose, and the target the
         servos chase is the tool centre at those targets, moved by the action (`_arm_targets`), as the sorter's
         `running_target`. Without it (the default) the IK starts from the measured pose.
-      options: the physics, its buffers and the observation (`PandaOptions`; the module docstring says what each
+      options: the physics, its buffers and the observation (`ArmOptions`; the module docstring says what each
         observation mode holds).
     """
 
-    def __init__(
-        self, dynamics: str = NOMINAL, running_target: bool = False, *, options: PandaOptions = PandaOptions()
-    ):
+    def __init__(self, dynamics: str = NOMINAL, running_target: bool = False, *, options: ArmOptions = ArmOptions()):
         self.running_target = running_target
         mj_model = build_model(dynamics=dynamics, robot=options.robot)
         start_tcp = np.array([*HOLE_NOMINAL, START_TIP_HEIGHT + PEG_LENGTH])
@@ -243,7 +241,7 @@ class PegInsert(PandaBase[PegInsertParams, PegInsertSim, PegIds]):
         """The applied `action` [3] -> (the next tool-centre target [3], the arm's joint targets [J]): the target
         the servos chase (`sim.tcp_target`, or with `running_target` the tool centre at the servos' targets) moved
         by the action, held within `max_lead` of the measured tool centre (`data`'s), and IK towards it from the
-        measured pose, or with `running_target` from the servos' targets (`PandaBase.servo_ik_targets`)."""
+        measured pose, or with `running_target` from the servos' targets (`ArmBase.servo_ik_targets`)."""
         tcp = data.site_xpos[self.ids.robot.tcp_site]
         step = action * params.ee_step
         if self.running_target:

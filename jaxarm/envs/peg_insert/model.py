@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from jaxarm import robots
-from jaxarm.envs.panda.franka_dynamics import NOMINAL
+from jaxarm.envs.panda.dynamics import NOMINAL
 from jaxarm.envs.panda.robot import RobotIds, resolve_robot_ids, scene_spec
 from jaxarm.robots import RobotDescription
 
@@ -121,7 +121,7 @@ def build_spec(
     clearance: float, dynamics: str = NOMINAL, robot: str = "panda", robot_xml: Path | None = None
 ) -> mujoco.MjSpec:
     """The scene as an MjSpec: table and camera from assets/scene.xml with `robot` (by name, `jaxarm.robots`) and its
-    `dynamics` (`franka_dynamics.DYNAMICS`), then the peg and the block. The robot's model is its description's
+    `dynamics` (`dynamics.DYNAMICS`), then the peg and the block. The robot's model is its description's
     `model_xml`, or `robot_xml`, another with the names of its description (`robot.scene_spec`)."""
     description = robots.robot(robot)
     spec = scene_spec(ASSETS / "scene.xml", description, dynamics, robot_xml)

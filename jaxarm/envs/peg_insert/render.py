@@ -1,7 +1,7 @@
 """Places the block of a copy of the peg-insertion MjModel for drawing: the hole where it was this episode, the block
 and the table in their gray of the episode.
 
-Outside jit, on the CPU; `PandaBase.render` draws the posed model (panda/render.py). Imports no env module.
+Outside jit, on the CPU; `ArmBase.render` draws the posed model (panda/render.py). Imports no env module.
 """
 
 import mujoco

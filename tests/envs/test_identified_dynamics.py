@@ -1,4 +1,4 @@
-"""The Panda's `dynamics="franka"` option: the compiled arm carries Franka's table (`PANDA.identified_links`), its
+"""The Panda's `dynamics="identified"` option: the compiled arm carries Franka's table (`PANDA.identified_links`), its
 joint-space inertia is the one that table implies, and nothing but the dynamics changed.
 
 MuJoCo C models only (the builders cache them) and no MJX program: the whole file runs in seconds on a CPU.
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from jaxarm import envs
-from jaxarm.envs.panda.franka_dynamics import FRANKA, NOMINAL
+from jaxarm.envs.panda.dynamics import IDENTIFIED, NOMINAL
 from jaxarm.envs.panda_sort.layout import make_layout
 from jaxarm.envs.panda_sort.model import build_model as build_sorter
 from jaxarm.envs.peg_insert.model import build_model as build_peg
@@ -53,9 +53,9 @@ UNCHANGED = (
 
 @pytest.fixture(scope="module", params=sorted(SCENES))
 def models(request) -> tuple[mujoco.MjModel, mujoco.MjModel]:
-    """(nominal, franka) compiled scene of one task."""
+    """(nominal, identified: Franka's) compiled scene of one task."""
     build = SCENES[request.param]
-    return build(NOMINAL), build(FRANKA)
+    return build(NOMINAL), build(IDENTIFIED)
 
 
 def link_bodies(model: mujoco.MjModel) -> list[int]:
@@ -191,8 +191,8 @@ def test_joint_space_inertia_is_the_one_the_table_implies(models):
 
 
 @pytest.mark.parametrize("name", sorted(SCENES))
-def test_the_env_option_builds_its_scene_with_franka_dynamics_and_defaults_to_nominal(name):
-    franka_env, default_env = envs.make(name, dynamics=FRANKA), envs.make(name)
+def test_the_env_option_builds_its_scene_with_identified_dynamics_and_defaults_to_nominal(name):
+    franka_env, default_env = envs.make(name, dynamics=IDENTIFIED), envs.make(name)
     dofs = arm_dofs(franka_env.mj_model)
     frictionloss = [link.frictionloss for link in PANDA.identified_links]
     np.testing.assert_array_equal(franka_env.mj_model.dof_frictionloss[dofs], frictionloss)
@@ -202,5 +202,5 @@ def test_the_env_option_builds_its_scene_with_franka_dynamics_and_defaults_to_no
 
 @pytest.mark.parametrize("name", sorted(SCENES))
 def test_an_unknown_dynamics_is_refused_naming_the_choices(name):
-    with pytest.raises(ValueError, match="dynamics must be one of nominal, franka, got 'frank'"):
-        envs.make(name, dynamics="frank")
+    with pytest.raises(ValueError, match="dynamics must be one of nominal, identified, got 'identify'"):
+        envs.make(name, dynamics="identify")

@@ -1,7 +1,7 @@
 """The robot's own dynamics, as an option: its identified link inertials and joint friction (the Panda's: Franka's).
 
 panda.xml's links carry masses rounded from Franka's but the inertia of their capsules (centre of mass on the
-link axis), and every arm joint damping 1. `set_dynamics(spec, "franka", robot)` writes into a scene's MjSpec the
+link axis), and every arm joint damping 1. `set_dynamics(spec, "identified", robot)` writes into a scene's MjSpec the
 moving links' identified inertials (mass, centre of mass, full inertia tensor) and each arm joint's viscous
 (`damping`) and Coulomb (`frictionloss`) friction, as the robot's description declares them (`identified_links`,
 whose source `jaxarm.robots.panda` gives). It must change nothing else: geoms, kinematics, armature, actuators and
@@ -13,14 +13,14 @@ import mujoco
 from jaxarm.robots import RobotDescription
 
 NOMINAL = "nominal"
-FRANKA = "franka"
-DYNAMICS = (NOMINAL, FRANKA)
+IDENTIFIED = "identified"
+DYNAMICS = (NOMINAL, IDENTIFIED)
 """The dynamics an env may be built with: the robot's model file's own, or the identified ones of its description."""
 
 
 def set_dynamics(spec: mujoco.MjSpec, dynamics: str, robot: RobotDescription) -> None:
     """Writes `dynamics` into `robot` in `spec` (in place): nothing for "nominal", its description's
-    `identified_links` for "franka".
+    `identified_links` for "identified".
 
     Raises ValueError naming the valid choices for any other `dynamics`.
     """
