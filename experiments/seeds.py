@@ -2,7 +2,9 @@
 
 Trains one preset on several seeds, each as a user runs it: `python -m experiments.run --config NAME seed=S` in a
 process of its own, into OUT/seed-S. On a host of several GPUs the runs share them out, one run per GPU at a time
-(CUDA_VISIBLE_DEVICES); elsewhere they run one after another. Never vmapped together: float-level differences
+(CUDA_VISIBLE_DEVICES); elsewhere they run one after another. Studies started side by side on one host share its
+GPUs the same way, a GPU taken by one run of any of them at a time (`GpuPool`), so that several presets' studies
+keep every GPU busy without splitting CUDA_VISIBLE_DEVICES by hand. Never vmapped together: float-level differences
 between two programs decide fragile recipes, and a user runs one seed in one program.
 
 Writes OUT/summary.json and OUT/seeds.md: each seed's placed fraction (its eval.json's success on fresh episodes),
@@ -24,13 +26,16 @@ if __name__ == "__main__":
 
 import argparse
 import dataclasses
+import fcntl
 import json
 import os
 import pathlib
 import signal
 import subprocess
+import tempfile
 import time
 from collections.abc import Sequence
+from typing import IO
 
 import numpy as np
 
@@ -42,6 +47,8 @@ SEEDS_FILE = "seeds.json"
 """What was asked (preset, seeds, goal, overrides) and each seed's commands so far: `--resume` reads it."""
 MAX_SEEDS = 1000
 """More separate runs than a study of seeds needs; a bound checked before anything is written."""
+POLL_S = 0.5
+"""How often a study looks for an ended run or a GPU another study freed, seconds."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -205,32 +212,80 @@ def gpu_slots() -> list[str | None]:
     return list(distributed.local_gpus(count)) if count else [None]
 
 
+def gpu_lock_dir() -> pathlib.Path:
+    """Where this host's studies lock the GPUs they run on: one directory per user, as GPUs are the host's."""
+    return pathlib.Path(tempfile.gettempdir()) / f"jaxarm-gpus-{os.getuid()}"
+
+
+class GpuPool:
+    """The slots a study starts runs in (`gpu_slots`), shared with every other study on this host: a GPU is taken
+    by holding an exclusive lock on its file in `lock_dir` while a run uses it, so two studies never put runs on
+    one GPU at once; the OS drops the lock of a study that dies. The slot with no GPU (a host without one) is this
+    study's alone: runs on the CPU share it by taking turns within a study, as before."""
+
+    def __init__(self, slots: list[str | None], lock_dir: pathlib.Path):
+        self.slots = slots
+        self.lock_dir = lock_dir
+        self.held: dict[str | None, IO | None] = {}
+
+    def take(self) -> tuple[bool, str | None]:
+        """(True, a slot) for a slot neither this study nor another holds, now taken; (False, None) if none."""
+        for slot in self.slots:
+            if slot in self.held:
+                continue
+            if slot is None:
+                self.held[slot] = None
+                return True, slot
+            self.lock_dir.mkdir(parents=True, exist_ok=True)
+            handle = (self.lock_dir / f"gpu-{slot}.lock").open("w")
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                handle.close()
+                continue
+            self.held[slot] = handle
+            return True, slot
+        return False, None
+
+    def give_back(self, slot: str | None) -> None:
+        """Frees `slot` (taken by `take`) for this study and the others."""
+        handle = self.held.pop(slot)
+        if handle is not None:
+            handle.close()
+
+
 def train_seeds(
     protocol: Protocol, out: pathlib.Path, walls: dict[int, list[float]], stop_after: float | None, record
 ) -> None:
-    """Runs every unfinished seed's next command, as many at once as there are GPUs, appending each command's wall
-    clock to `walls[seed]` and calling `record()` after each ends, an interrupted one too: on Ctrl-C or SIGTERM
-    the runs are told to stop (they checkpoint) and waited for, so that none is left running."""
+    """Runs every unfinished seed's next command, as many at once as there are GPUs free of other studies'
+    runs (`GpuPool`), appending each command's wall clock to `walls[seed]` and calling `record()` after each ends,
+    an interrupted one too: on Ctrl-C or SIGTERM the runs are told to stop (they checkpoint) and waited for, so
+    that none is left running."""
     queue = [(seed, command) for seed in protocol.seeds if (command := next_command(protocol, out, seed, stop_after))]
-    free = gpu_slots()
+    pool = GpuPool(gpu_slots(), gpu_lock_dir())
     running: dict[subprocess.Popen, tuple[int, str | None, float]] = {}
 
     def finish(process: subprocess.Popen) -> None:
         seed, gpu, started = running.pop(process)
         walls.setdefault(seed, []).append(time.perf_counter() - started)
         record()
-        free.append(gpu)
+        pool.give_back(gpu)
         result = seed_result(out, seed, walls[seed])
         state = f"placed {result.placed:.3f}" if result.finished and result.placed is not None else "not finished"
         print(f"seed {seed}: rc {process.returncode}, {state} after {result.wall_s:.0f} s", flush=True)
 
     try:
         while queue or running:
-            while queue and free:
+            while queue:
+                taken, gpu = pool.take()
+                if not taken:
+                    break
                 seed, command = queue.pop(0)
-                gpu = free.pop(0)
                 running[start_run(out, seed, command, gpu)] = (seed, gpu, time.perf_counter())
-            finish(wait_any(list(running)))
+            if ended := first_ended(list(running)):
+                finish(ended)
+            else:  # a run of this study may end, or another study may free a GPU
+                time.sleep(POLL_S)
     except KeyboardInterrupt:
         signal_all(running, signal.SIGTERM)  # each run checkpoints at its next chunk end and stops
         raise
@@ -259,13 +314,16 @@ def start_run(out: pathlib.Path, seed: int, command: list[str], gpu: str | None)
         return subprocess.Popen([sys.executable, *command[1:]], env=env, stdout=log, stderr=log, start_new_session=True)
 
 
+def first_ended(processes: list[subprocess.Popen]) -> subprocess.Popen | None:
+    """One of `processes` that has ended, or None while all run."""
+    return next((process for process in processes if process.poll() is not None), None)
+
+
 def wait_any(processes: list[subprocess.Popen]) -> subprocess.Popen:
     """The first of `processes` to end."""
-    while True:
-        for process in processes:
-            if process.poll() is not None:
-                return process
-        time.sleep(0.5)
+    while (process := first_ended(processes)) is None:
+        time.sleep(POLL_S)
+    return process
 
 
 def parse_args(argv) -> argparse.Namespace:

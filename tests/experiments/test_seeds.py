@@ -54,6 +54,25 @@ def test_a_study_is_met_only_when_its_worst_seed_meets_the_goal_in_time():
     assert "**met**" in seeds.markdown(met) and "(not finished)" in seeds.markdown(stopped)
 
 
+def test_studies_side_by_side_take_each_gpu_for_one_run_at_a_time(tmp_path):
+    first, second = seeds.GpuPool(["0", "1"], tmp_path), seeds.GpuPool(["0", "1"], tmp_path)
+    assert first.take() == (True, "0")
+    assert second.take() == (True, "1")  # "0" is the first study's
+    assert first.take() == second.take() == (False, None)
+    first.give_back("0")
+    assert second.take() == (True, "0")
+    assert first.take() == (False, None)
+
+
+def test_a_host_without_gpus_runs_one_run_at_a_time_per_study_and_locks_nothing(tmp_path):
+    first, second = seeds.GpuPool([None], tmp_path / "locks"), seeds.GpuPool([None], tmp_path / "locks")
+    assert first.take() == second.take() == (True, None)
+    assert first.take() == (False, None)
+    first.give_back(None)
+    assert first.take() == (True, None)
+    assert not (tmp_path / "locks").exists()
+
+
 def test_a_damaged_study_file_is_named_in_one_line(tmp_path):
     (tmp_path / seeds.SEEDS_FILE).write_text(json.dumps({"config": "ppo_arm2d"}))
     with pytest.raises(ValueError, match=f"{seeds.SEEDS_FILE} is damaged"):
