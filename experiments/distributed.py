@@ -174,7 +174,13 @@ def local_process_count(given: int | None, joined: bool, spreads: bool, gpus: in
 
 def join(args: argparse.Namespace) -> None:
     """Joins the other processes (`jax.distributed.initialize`) and opens the collectives between them
-    (`open_collectives`); ValueError in one line where that fails."""
+    (`open_collectives`); ValueError in one line where that fails.
+
+    JAX's preemption service is left off: it sets a C++ SIGTERM handler that only records the signal for sync
+    points this code never asks about, so a SIGTERM between joining and the chunk loop was lost (a joined process
+    lived on after it, measured), and a local process whose launcher died then would train on alone. It also logs
+    a warning and an error of its own as the coordination service goes."""
+    jax.config.update("jax_enable_preemption_service", False)
     try:
         jax.distributed.initialize(
             coordinator_address=args.coordinator,
@@ -385,17 +391,25 @@ def joined() -> bool:
 
 
 def _run_forked(main: Callable[[list[str]], int], argv: list[str], gpu: str, launcher: int) -> NoReturn:
-    """The body of one forked process: `main(argv)` on GPU `gpu`, then out at once with its exit code."""
+    """The body of one forked process: `main(argv)` on GPU `gpu`, then out at once with its exit code.
+
+    SIGTERM is a Ctrl-C here, whenever it comes: during training the chunk loop takes both as a request to stop at
+    the next chunk end (jaxarm.runner.signals), outside it `main` ends on KeyboardInterrupt in one line. Left to
+    its default, a SIGTERM after the loop (the final evaluation) ended the process without a word; the launcher
+    sends it on, and its death sends one per launcher thread it passes through (1-3 with two extra threads)."""
     code = 1
     try:
         # Its own process group: a Ctrl-C at the terminal reaches the launcher alone, which passes it on once (a
         # second SIGINT would make each process exit without its checkpoint).
         os.setpgid(0, 0)
+        signal.signal(signal.SIGTERM, signal.default_int_handler)
         _die_with_parent(launcher)
         os.environ["CUDA_VISIBLE_DEVICES"] = gpu
         code = main(argv)
     except SystemExit as exit_:
         code = exit_code(exit_.code)
+    except KeyboardInterrupt:  # before `main` began: nothing started yet to report
+        code = STOPPED
     except BaseException:
         traceback.print_exc()
     finally:
@@ -414,7 +428,9 @@ def exit_code(code: object) -> int:
 
 REPORTED_ERROR = 2
 """The exit status of a command that stopped on an error it reported in one line (`experiments.run`)."""
-ENDED_TOGETHER = (0, 130)
+STOPPED = 130
+"""The exit status of a command stopped by Ctrl-C or SIGTERM (128 + SIGINT, as a shell reports it)."""
+ENDED_TOGETHER = (0, STOPPED)
 """Exit statuses of a process that ended where every process of its job ends: finished, or stopped at a chunk end
 all agreed on (a signal passed on to all, 130). Such a process waits for the others at JAX's shutdown barrier."""
 

@@ -464,6 +464,35 @@ def test_local_processes_stop_when_their_launcher_is_killed(tmp_path):
         time.sleep(0.1)
 
 
+SIGTERM_OUTSIDE_THE_LOOP = textwrap.dedent("""
+    import pathlib, sys, time
+    from experiments import distributed
+
+    def main(argv):
+        marker = pathlib.Path(argv[0]) / argv[argv.index("--process-id") + 1]
+        marker.write_text("started")
+        try:
+            time.sleep(120)  # as a process compiling, or evaluating once its chunk loop has ended
+        except KeyboardInterrupt:
+            marker.write_text("interrupted")
+            return 130
+
+    sys.exit(distributed.spawn(main, [sys.argv[1]], 2))
+""")
+
+
+def test_a_local_process_takes_sigterm_outside_its_chunk_loop_as_a_ctrl_c(tmp_path):
+    launcher = subprocess.Popen([sys.executable, "-c", SIGTERM_OUTSIDE_THE_LOOP, str(tmp_path)])
+    markers = [tmp_path / "0", tmp_path / "1"]
+    start = time.monotonic()
+    while not all(marker.exists() and marker.read_text() for marker in markers):
+        assert time.monotonic() - start < 60 and launcher.poll() is None
+        time.sleep(0.1)
+    launcher.send_signal(signal.SIGTERM)  # passed on to each: its main ends in its own words, not killed unheard
+    assert launcher.wait(timeout=60) == distributed.STOPPED
+    assert [marker.read_text() for marker in markers] == ["interrupted", "interrupted"]
+
+
 def test_a_jax_error_of_a_lost_peer_is_one_line():
     lost = RuntimeError("UNKNOWN: Gloo AllGather failed: [pair.cc:538] Read error: Connection reset by peer\nmore")
     assert distributed.peer_lost_message(lost, 0, "python -m experiments.run --resume RUN") == (
