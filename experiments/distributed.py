@@ -34,6 +34,10 @@ from jaxarm.envs.panda.mjx_impl import Impl
 LOCAL_PROCESSES = "--local-processes"
 STOP_GRACE_S = 60.0
 """How long the others get to checkpoint and stop once one local process has failed (then they are killed)."""
+REPORT_GRACE_S = 60.0
+"""How long a process that stopped on an error it reported waits for the others to report theirs before it leaves
+(`others_reported`): gone first, process 0 would take JAX's coordination service with it, and JAX aborts a
+process that loses it (SIGABRT, after a block of C++ logs) before that process has said why it stops."""
 POLL_S = 0.2
 MAX_PORT = 65535
 PR_SET_PDEATHSIG = 1
@@ -332,8 +336,8 @@ def _failure(children: list[int], codes: dict[int, int], resume: str) -> int:
     killed = [(children.index(pid), pid, -code) for pid, code in codes.items() if code < 0]
     if REPORTED_ERROR in codes.values() and all(number == signal.SIGABRT for *_, number in killed):
         # JAX aborts a process whose coordination service left with the peer that hosted it: here a peer that
-        # stopped on an error it reported (a config every process refused, one of them first). That error is the
-        # failure (2-core CPU: 1 of 2 CI runs reported the abort instead).
+        # stopped on an error it reported and waited REPORT_GRACE_S for the others in vain. That error is the
+        # failure (2-core CPU, before that wait: 1 of 2 CI runs reported the abort instead).
         return REPORTED_ERROR
     if killed:
         index, pid, number = killed[0]
@@ -441,12 +445,29 @@ def _leave(code: int) -> NoReturn:
     nothing of this process is left to write (a 4-GPU sorter run's processes took ~5 s from their last output to
     their exit, ~1 s this way; H200s, 2026-11-27). A failed process leaves at once: its peers may have gone, and
     the barrier would wait for them. A stopped one waits too: process 0, gone first, took JAX's coordination
-    service with it, and JAX aborted process 1 with a block of C++ logs (launcher killed, 1 of 2 loaded runs)."""
+    service with it, and JAX aborted process 1 with a block of C++ logs (launcher killed, 1 of 2 loaded runs). One
+    that reported an error waits for the others to report theirs (`others_reported`) for the same reason."""
     sys.stdout.flush()
     sys.stderr.flush()
-    if code in ENDED_TOGETHER:
+    if code in ENDED_TOGETHER or (code == REPORTED_ERROR and others_reported(REPORT_GRACE_S)):
         shut_down()
     os._exit(code)
+
+
+def others_reported(timeout_s: float) -> bool:
+    """Whether every process of the job came, within `timeout_s`, to where it stops on an error it reported (a
+    barrier of JAX's coordination service): an error of the config or of the run directory, which every process
+    meets, one later than another. False where this process joined no job, or one of the others is still running
+    (in a collective, waiting for this one) or has gone."""
+    client = jax_distributed.global_state.client
+    if client is None:
+        return False
+    try:
+        with c_output_hidden(2):  # the service's error block naming the processes that did not come
+            client.wait_at_barrier("jaxarm: reported errors", int(timeout_s * 1000))
+    except jax.errors.JaxRuntimeError:
+        return False
+    return True
 
 
 def shut_down() -> None:
