@@ -447,6 +447,10 @@ def _leave(code: int) -> NoReturn:
     the barrier would wait for them. A stopped one waits too: process 0, gone first, took JAX's coordination
     service with it, and JAX aborted process 1 with a block of C++ logs (launcher killed, 1 of 2 loaded runs). One
     that reported an error waits for the others to report theirs (`others_reported`) for the same reason."""
+    # Said and done: a Ctrl-C or SIGTERM now (the launcher stopping the others as one fails) would raise in the
+    # barrier's wait and out of `_run_forked`, into the launcher's code this process was forked from.
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_IGN)
     sys.stdout.flush()
     sys.stderr.flush()
     if code in ENDED_TOGETHER or (code == REPORTED_ERROR and others_reported(REPORT_GRACE_S)):
