@@ -26,7 +26,6 @@ if __name__ == "__main__":
 
 import argparse
 import dataclasses
-import fcntl
 import json
 import os
 import pathlib
@@ -41,7 +40,7 @@ import numpy as np
 
 from experiments import distributed
 from experiments.run import minutes
-from jaxarm.runner import rundir, stats
+from jaxarm.runner import filelock, rundir, stats
 
 SEEDS_FILE = "seeds.json"
 """What was asked (preset, seeds, goal, overrides) and each seed's commands so far: `--resume` reads it."""
@@ -238,9 +237,7 @@ class GpuPool:
                 return True, slot
             self.lock_dir.mkdir(parents=True, exist_ok=True)
             handle = (self.lock_dir / f"gpu-{slot}.lock").open("w")
-            try:
-                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
+            if not filelock.try_lock(handle):
                 handle.close()
                 continue
             self.held[slot] = handle

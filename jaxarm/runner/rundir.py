@@ -33,7 +33,6 @@ Nothing here deletes or overwrites a file that is not one of the above.
 import contextlib
 import dataclasses
 import errno
-import fcntl
 import hashlib
 import json
 import os
@@ -47,6 +46,7 @@ from typing import TypeVar
 from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
+from jaxarm.runner import filelock
 
 PROVENANCE_FILE = "provenance.json"
 RUN_FILES = (
@@ -223,17 +223,13 @@ def locked(
     except PermissionError:
         raise RunDirError(f"{run_dir} is not writable; copy the run somewhere writable and retry") from None
     try:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as error:
-            if error.errno not in (errno.EAGAIN, errno.EACCES):
-                raise
+        if not filelock.try_lock(handle):
             handle.seek(0)
             holder = handle.read().strip() or "unknown"
             raise RunDirError(
                 f"{run_dir} is in use by another process (pid {holder}, holding {path}); wait for it to finish "
                 "or use another directory (nothing was written)"
-            ) from None
+            )
         handle.seek(0)
         handle.truncate()
         handle.write(str(os.getpid()))
