@@ -392,7 +392,7 @@ def ppo_sorter_pixels_dr() -> PPOConfig:
 # in our terms where brax's differ: brax gathers 32 minibatches of 512 envs x 10 steps per update (163,840 env
 # steps, minibatches of 5,120); here each update takes 2,048 envs x 10 steps in 4 minibatches of the same 5,120,
 # so that an update is 8x smaller and a 20M-step budget makes 8x more of them. brax's other settings are kept:
-# its clipping (0.3), a constant learning rate, swish, no reward scaling, no gradient clipping (brax clips only
+# its ratio clip (0.3), a constant learning rate, swish, no reward scaling, no gradient clipping (brax clips only
 # when asked; 1e6 never binds) and its initial pre-tanh scale softplus(0) = 0.69. With jaxarm's defaults there
 # (clipped at 0.5, scale 1.0), seed 0 stayed at 0% success over 20M env steps on an H200 where Playground's recipe
 # reached 90.5%; with brax's, tuning seed 100 reached 87.5% (BENCHMARKS.md#playground).
