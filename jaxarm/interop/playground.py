@@ -6,7 +6,10 @@ keeps jaxarm's contract (jaxarm.envs.base), so jaxarm's learners, evaluation, sw
 
 - The time limit is ours: `params.max_episode_steps`, by default the task's `episode_length` (brax's EpisodeWrapper
   does this for Playground's own trainers). Playground's `done` (the box out of bounds, NaN physics) is
-  `terminated`; `AutoReset` samples every new episode afresh with Playground's `reset`.
+  `terminated`; `AutoReset` samples every new episode afresh with Playground's `reset`. Playground's own training
+  wrapper (`BraxAutoResetWrapper`) resets data and observation only, so what a task accumulates in its `info` (the
+  pick's `reached_box`, which turns on its box-to-target reward) outlives the episode; `carry_info` names the
+  `info` keys a new episode keeps from the last here likewise.
 - `impl` is chosen as the Panda envs choose theirs (`jaxarm.envs.panda.mjx_impl.resolve_impl`: "jax" by default,
   "warp", or "auto") and handed to Playground's config; its Warp buffers are Playground's own config keys
   (`naconmax`, `njmax`), overridable like any other (`env_kwargs.naconmax=...`).
@@ -25,7 +28,7 @@ offline. Tasks of other robots still need menagerie at Playground's own path.
 
 import contextlib
 import dataclasses
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -219,6 +222,17 @@ def observation(obs: mjx_env.Observation, privileged: bool) -> Observation:
     return parts[STATE] if parts.keys() == {STATE} else parts
 
 
+def carried_info_keys(carry_info: str | Sequence[str], info: Mapping[str, Any]) -> tuple[str, ...]:
+    """The `info` keys named by `carry_info` (a comma-separated string, as the CLI gives it, or a sequence), in
+    order. ValueError naming the keys `info` has for one it lacks."""
+    listed = carry_info.split(",") if isinstance(carry_info, str) else carry_info
+    names = tuple(name.strip() for name in listed if name.strip())
+    for name in names:
+        if name not in info:
+            raise ValueError(f"carry_info: the task's info has no key {name!r} (it has {', '.join(sorted(info))})")
+    return names
+
+
 def checked_overrides(task: str, impl: Impl, overrides: Mapping[str, Any]) -> dict[str, Any]:
     """`overrides` of the Playground task `task`'s config, with `impl` where the config has one. KeyError naming the
     closest task for an unknown one, TypeError the closest key for one the config lacks; ValueError for a task that
@@ -248,19 +262,29 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
       impl: MJX implementation: "jax", "warp" or "auto" (`jaxarm.envs.panda.mjx_impl.Impl`).
       privileged: observe Playground's `privileged_state` as the `privileged` part, for an asymmetric critic
         (only for tasks whose observation has one).
+      carry_info: keys of the task's `info` that a new episode keeps from the one before it, as Playground's
+        training wrapper keeps all of them (comma-separated or a sequence; none by default).
       config_overrides: Playground config keys (dotted where nested) -> values.
 
     Attributes:
       task: the Playground registry name.
       playground: the Playground `MjxEnv`.
       impl: the MJX implementation in use.
+      carry_info: the `info` keys a new episode keeps from the one before it, in order.
       mj_model: the task's compiled MuJoCo model.
     """
 
     uses_mjx = True
     draws_with_gl = True
 
-    def __init__(self, task: str, impl: str = Impl.JAX, privileged: bool = False, **config_overrides: Any):
+    def __init__(
+        self,
+        task: str,
+        impl: str = Impl.JAX,
+        privileged: bool = False,
+        carry_info: str | Sequence[str] = (),
+        **config_overrides: Any,
+    ):
         self.task = task
         self.impl = resolve_impl(impl)
         self.privileged = privileged
@@ -278,6 +302,7 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
         self._end_criterion = END_CRITERIA[task](self.mj_model) if task in END_CRITERIA else None
         state = jax.jit(lambda key: strongly_typed(self.playground.reset(key)))(jax.random.key(0))
         self.layout = StateLayout.of(state)
+        self.carry_info = carried_info_keys(carry_info, state.info)
         self.spec = self._make_spec(observation(state.obs, self.privileged))
 
     def _make_spec(self, obs: Any) -> EnvSpec:
@@ -308,6 +333,14 @@ class PlaygroundEnv(Env[PlaygroundParams, PlaygroundSim]):
             state = strongly_typed(playground.reset(key))
         sim = PlaygroundSim(arrays=self.layout.pack(state), steps=jnp.zeros((), jnp.int32))
         return sim, observation(state.obs, self.privileged), state.metrics
+
+    def carried_over(self, ended: PlaygroundSim, fresh: PlaygroundSim) -> PlaygroundSim:
+        """`fresh` with the `carry_info` keys of its Playground info taken from `ended`'s."""
+        if not self.carry_info:
+            return fresh
+        started = self.playground_state(fresh)
+        kept = {name: self.playground_state(ended).info[name] for name in self.carry_info}
+        return PlaygroundSim(arrays=self.layout.pack(started.replace(info={**started.info, **kept})), steps=fresh.steps)
 
     def _transition(self, sim: PlaygroundSim, action: jax.Array, params: PlaygroundParams) -> Transition:
         # Playground's step updates its state's metrics and info dicts in place: it gets a state rebuilt from the

@@ -200,3 +200,20 @@ def test_warp_follows_mjx_jax_and_its_physics_params():
     warp = trajectory("warp", nominal)
     np.testing.assert_allclose(warp, trajectory("jax", nominal), atol=1e-4)
     assert np.max(np.abs(trajectory("warp", slippery) - warp)) > 1e-3
+
+
+def test_carry_info_keeps_the_named_info_keys_into_the_next_episode():
+    # As Playground's training wrapper keeps its info: a pick that reached the box keeps its box-to-target reward on.
+    env = envs.make(TASK, carry_info="reached_box")
+    assert env.carry_info == ("reached_box",) and envs.make(TASK).carry_info == ()
+    ended, _, _ = env._reset(jax.random.key(0), env.default_params())
+    state = env.playground_state(ended)
+    ended = ended.replace(arrays=env.layout.pack(state.replace(info={**state.info, "reached_box": jnp.float32(1.0)})))
+    fresh, _, _ = env._reset(jax.random.key(1), env.default_params())
+    carried = env.playground_state(env.carried_over(ended, fresh))
+    assert float(carried.info["reached_box"]) == 1.0
+    np.testing.assert_array_equal(carried.info["target_pos"], env.playground_state(fresh).info["target_pos"])
+    np.testing.assert_array_equal(carried.data.qpos, env.playground_state(fresh).data.qpos)
+    assert float(envs.make(TASK).playground_state(envs.make(TASK).carried_over(ended, fresh)).info["reached_box"]) == 0
+    with pytest.raises(ValueError, match="no key 'reached'.*reached_box"):
+        envs.make(TASK, carry_info="reached")
