@@ -30,6 +30,7 @@ from jax._src import xla_bridge
 from jax.experimental import multihost_utils
 
 from jaxarm.envs.panda.mjx_impl import Impl
+from jaxarm.exits import STOPPED_BY_SIGNAL
 
 LOCAL_PROCESSES = "--local-processes"
 STOP_GRACE_S = 60.0
@@ -413,7 +414,7 @@ def _run_forked(main: Callable[[list[str]], int], argv: list[str], gpu: str, lau
     except SystemExit as exit_:
         code = exit_code(exit_.code)
     except KeyboardInterrupt:  # before `main` began: nothing started yet to report
-        code = STOPPED
+        code = STOPPED_BY_SIGNAL
     except BaseException:
         traceback.print_exc()
     finally:
@@ -432,11 +433,9 @@ def exit_code(code: object) -> int:
 
 REPORTED_ERROR = 2
 """The exit status of a command that stopped on an error it reported in one line (`experiments.run`)."""
-STOPPED = 130
-"""The exit status of a command stopped by Ctrl-C or SIGTERM (128 + SIGINT, as a shell reports it)."""
-ENDED_TOGETHER = (0, STOPPED)
+ENDED_TOGETHER = (0, STOPPED_BY_SIGNAL)
 """Exit statuses of a process that ended where every process of its job ends: finished, or stopped at a chunk end
-all agreed on (a signal passed on to all, 130). Such a process waits for the others at JAX's shutdown barrier."""
+all agreed on (a signal passed on to all). Such a process waits for the others at JAX's shutdown barrier."""
 
 
 def _leave(code: int) -> NoReturn:

@@ -28,6 +28,7 @@ from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.envs.panda.mjx_impl import warp_available
+from jaxarm.exits import STOPPED_BY_SIGNAL
 from jaxarm.runner import loop, processes, resumes, rundir, show
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.sinks import WandbOptions
@@ -183,7 +184,7 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("\ninterrupted: checkpoints saved so far are kept", file=sys.stderr)
         quiet_libraries()
-        return 130
+        return STOPPED_BY_SIGNAL
 
 
 def _main(argv) -> int:
@@ -220,7 +221,7 @@ def _main(argv) -> int:
     except loop.TrainingInterrupted as error:
         print(cli_message(error), file=sys.stderr)
         quiet_libraries()
-        return 130
+        return STOPPED_BY_SIGNAL
     except jax.errors.JaxRuntimeError as error:  # a collective's, where a peer has gone
         distributed.leave_if_peers_lost(error, resume_command(args.resume or args.out))
         raise

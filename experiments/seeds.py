@@ -40,6 +40,7 @@ import numpy as np
 
 from experiments import distributed
 from experiments.run import minutes
+from jaxarm.exits import STOPPED_BY_SIGNAL
 from jaxarm.runner import filelock, rundir, stats
 
 SEEDS_FILE = "seeds.json"
@@ -421,7 +422,7 @@ def study(args: argparse.Namespace) -> int:
         train_seeds(protocol, out, walls, args.stop_after_minutes, record)
     except KeyboardInterrupt:
         print(f"\ninterrupted; continue with: python -m experiments.seeds --resume {out}", file=sys.stderr)
-        return 130
+        return STOPPED_BY_SIGNAL
     results = [seed_result(out, seed, walls.get(seed, [])) for seed in protocol.seeds]
     summary = summarise(protocol, results)
     rundir.write_json(out / "summary.json", summary)

@@ -5,10 +5,12 @@ import os
 import signal
 import sys
 
+from jaxarm.exits import STOPPED_BY_SIGNAL
+
 
 def _exit_during_start_up(signum, frame):
     print("\ninterrupted while starting: nothing was written", file=sys.stderr, flush=True)
-    os._exit(130)
+    os._exit(STOPPED_BY_SIGNAL)
 
 
 def exit_on_ctrl_c() -> None:

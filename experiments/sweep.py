@@ -47,6 +47,7 @@ from jaxarm.agents.common.config import PAIR_FIELDS, RunConfig, apply_overrides
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.sharding import ENV_AXIS, gathered, members_mesh, over_members
 from jaxarm.agents.common.trainer import Trainer, run_updates
+from jaxarm.exits import STOPPED_BY_SIGNAL
 from jaxarm.runner import learners, plots, processes, provenance, rundir, signals
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.progress import explain_gspmd
@@ -404,7 +405,7 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:  # before the sweep trains (or in a process that is not the main thread's)
         print(f"\ninterrupted{resumable(out) or ': nothing was trained'}", file=sys.stderr)
         quiet_libraries()
-        return 130
+        return STOPPED_BY_SIGNAL
     except checkpoint.CheckpointError as error:  # a group's checkpoint could not be written (a full disk)
         distributed.leave_if_peers_lost(error, resume_command(out))  # or a peer gone while it was written
         print(f"error: {error}{resumable(out)}", file=sys.stderr)
@@ -446,13 +447,13 @@ def run_sweep(args: argparse.Namespace, out: pathlib.Path, asked: dict, base: Ru
 
 
 def stopped_status(stopped: Stopped, out: pathlib.Path | None) -> int:
-    """Says how the sweep in `out` goes on after `stopped` (process 0); the exit status: 130 where a signal stopped
-    it, 0 where its time limit did."""
+    """Says how the sweep in `out` goes on after `stopped` (process 0); the exit status: STOPPED_BY_SIGNAL where a
+    signal stopped it, 0 where its time limit did."""
     if stopped.interrupted:
         if processes.is_primary():
             print(f"{stopped}{continue_with(out)}", file=sys.stderr)
         quiet_libraries()
-        return 130
+        return STOPPED_BY_SIGNAL
     if processes.is_primary():
         print(f"{stopped}{continue_with(out)}")
     return 0

@@ -8,10 +8,12 @@ import sys
 import threading
 from collections.abc import Iterator
 
+from jaxarm.exits import STOPPED_BY_SIGNAL
+
 
 class StopRequests:
     """Ctrl-C (SIGINT) and SIGTERM, while installed, ask the loop to stop at the next chunk end; a second Ctrl-C
-    ends the process at once with status 130, keeping the checkpoints saved so far. Installed only in the main
+    ends the process at once (STOPPED_BY_SIGNAL), keeping the checkpoints saved so far. Installed only in the main
     thread (signals cannot be caught elsewhere). `aborted` ends the line said then (e.g. how to resume)."""
 
     def __init__(self, aborted: str = ""):
@@ -28,7 +30,7 @@ class StopRequests:
             # Not KeyboardInterrupt: unwinding while XLA compiles or runs on other threads printed a traceback
             # (rc -2, 3 of 3 tries during compilation) or segfaulted at interpreter exit (rc -11), and nothing is
             # left to clean up that a resume does not (rows past the last checkpoint dropped, TensorBoard's purged).
-            os._exit(130)
+            os._exit(STOPPED_BY_SIGNAL)
         self.requested = True
         print(
             f"\n{signal.Signals(signum).name}: stopping at the next chunk end with a checkpoint "

@@ -20,6 +20,7 @@ import pytest
 from experiments import configs, distributed, run, sweep
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
+from jaxarm.exits import STOPPED_BY_SIGNAL
 from jaxarm.runner import load_run, progress, read_metrics, rundir
 from tests.experiments.test_rundir import assert_same_learner
 
@@ -492,7 +493,7 @@ def test_a_local_process_takes_sigterm_outside_its_chunk_loop_as_a_ctrl_c(tmp_pa
         assert time.monotonic() - start < 60 and launcher.poll() is None
         time.sleep(0.1)
     launcher.send_signal(signal.SIGTERM)  # passed on to each: its main ends in its own words, not killed unheard
-    assert launcher.wait(timeout=60) == distributed.STOPPED
+    assert launcher.wait(timeout=60) == STOPPED_BY_SIGNAL
     assert [marker.read_text() for marker in markers] == ["interrupted", "interrupted"]
 
 
