@@ -89,21 +89,23 @@ class SeedResult:
 
 
 def parse_seeds(text: str) -> tuple[int, ...]:
-    """`--seeds`: "0-4", "0,3,7" or "0-2,10" to the seeds in that order; ArgumentTypeError for anything else,
-    a repeated seed or more than MAX_SEEDS."""
+    """`--seeds`: "0-4", "0,3,7" or "0-2,10" to the seeds in that order; ArgumentTypeError for anything else, a
+    range that runs backwards, a repeated seed or more than MAX_SEEDS (counted before any range is made)."""
     seeds: list[int] = []
     try:
-        for part in text.split(","):
-            low, _, high = part.partition("-")
-            seeds.extend(range(int(low), int(high or low) + 1))
+        spans = [(int(low), int(high or low)) for low, _, high in (part.partition("-") for part in text.split(","))]
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected seeds as 0-4, 0,3,7 or 0-2,10, got {text!r}") from None
-    if not seeds or min(seeds) < 0:
-        raise argparse.ArgumentTypeError(f"expected one or more seeds, each 0 or more, got {text!r}")
+    for low, high in spans:
+        if min(low, high) < 0:
+            raise argparse.ArgumentTypeError(f"expected seeds each 0 or more, got {text!r}")
+        if high < low:
+            raise argparse.ArgumentTypeError(f"seeds {low}-{high} run backwards; give {high}-{low}")
+        if len(seeds) + high - low + 1 > MAX_SEEDS:
+            raise argparse.ArgumentTypeError(f"seeds {text!r}: at most {MAX_SEEDS} seeds")
+        seeds.extend(range(low, high + 1))
     if len(set(seeds)) != len(seeds):
         raise argparse.ArgumentTypeError(f"seeds {text!r} name a seed twice")
-    if len(seeds) > MAX_SEEDS:
-        raise argparse.ArgumentTypeError(f"{len(seeds)} seeds: at most {MAX_SEEDS}")
     return tuple(seeds)
 
 
@@ -397,7 +399,8 @@ def open_study(args: argparse.Namespace) -> tuple[Protocol, pathlib.Path, dict[i
     # Validating builds the env, which starts JAX's backend: on the CPU, so that this process takes none of the
     # GPUs' memory from the runs (on a GPU, JAX takes most of it at start: two runs failed so, out of memory).
     jax.config.update("jax_platforms", "cpu")
-    apply_overrides(configs.get(args.config), [*args.overrides, "seed=0"])  # refused here, not once per seed
+    # Refused here, not once per seed: the largest seed, as any other, must be a seed the config takes.
+    apply_overrides(configs.get(args.config), [*args.overrides, f"seed={max(args.seeds)}"])
     out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"seeds-{args.config}")
     rundir.check_output_dir(out, "--out")
     if (out / SEEDS_FILE).exists():

@@ -24,7 +24,17 @@ def test_seeds_are_read_as_ranges_and_lists(text, expected):
     assert seeds.parse_seeds(text) == expected
 
 
-@pytest.mark.parametrize(("text", "message"), [("a", "expected seeds"), ("0-1,1", "twice"), ("0-5000", "at most")])
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("a", "expected seeds"),
+        ("0-1,1", "twice"),
+        ("0-5000", "at most"),
+        ("0-2,5-3", "seeds 5-3 run backwards; give 3-5"),
+        ("0--1", "each 0 or more"),
+        ("0-99999999999999", "at most 1000 seeds"),  # refused before a range of that length is made
+    ],
+)
 def test_bad_seeds_are_refused_in_one_line(text, message):
     with pytest.raises(argparse.ArgumentTypeError, match=message):
         seeds.parse_seeds(text)
@@ -71,6 +81,14 @@ def test_a_host_without_gpus_runs_one_run_at_a_time_per_study_and_locks_nothing(
     first.give_back(None)
     assert first.take() == (True, None)
     assert not (tmp_path / "locks").exists()
+
+
+def test_a_seed_the_config_refuses_is_one_line_before_any_run_starts(tmp_path, capsys):
+    out = tmp_path / "study"
+    assert seeds.main(["--config", "ppo_arm2d", "--seeds", "0,2147483648", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == "error: seed must fit in int32 (at most 2,147,483,647 in magnitude), got 2,147,483,648\n"
+    assert not out.exists()
 
 
 def test_a_damaged_study_file_is_named_in_one_line(tmp_path):
