@@ -405,6 +405,22 @@ def test_a_sweep_labels_its_settings_by_what_sets_them_apart():
     assert labels == ["learning_rate=0.0002", "learning_rate=0.0008"]
 
 
+@pytest.mark.parametrize(
+    ("assignments", "message"),
+    [
+        (["learning_rate=1e-3,0.001"], "gives learning_rate=0.001 twice"),
+        (["num_envs=8,8"], "gives num_envs=8 twice"),
+        (["learning_rate=1e-3", "learning_rate=2e-3,1e-4"], "learning_rate is assigned twice"),
+    ],
+)
+def test_a_sweep_refuses_settings_alike_in_one_line_before_anything_is_written(assignments, message, tmp_path, capsys):
+    out = tmp_path / "sweep"
+    assert sweep.main(["--config", "ppo_arm2d", "--seeds", "1", "--out", str(out), *assignments]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: sweep assignment") and message in err and err.count("\n") == 1
+    assert not out.exists()
+
+
 def test_prepare_names_the_presets_it_has_nothing_to_compile_for_and_refuses_an_unknown_one(capsys):
     from experiments import prepare
 
