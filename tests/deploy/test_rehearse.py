@@ -29,3 +29,8 @@ def test_the_rehearsal_cli_reports_placements_jitter_and_misses(tmp_path, capsys
     assert rehearse.main([str(tmp_path), "--episodes", "1", "--fault", "stall", "--fault-tick", "3"]) == 0
     result = json.loads((tmp_path / "rehearse-1-12345-24-20ms-stall.json").read_text())
     assert result["faults"] == ["missed"] and result["ticks"] < STEPS
+
+
+def test_a_seed_a_run_refuses_is_one_line_before_anything_runs(tmp_path, capsys):
+    assert rehearse.main([str(tmp_path), "--seed", "99999999999999999999999"]) == 2  # JAX's OverflowError before
+    assert capsys.readouterr().err.startswith("error: --seed must fit in int32")

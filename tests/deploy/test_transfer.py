@@ -176,6 +176,8 @@ def test_transfer_refuses_a_damaged_policy_too_many_episodes_and_a_video_without
     )
     assert transfer.main([str(tmp_path), "--episodes", "100000000"]) == 2
     assert capsys.readouterr().err == "error: --episodes must be in [1, 1048576], got 100000000\n"
+    assert transfer.main([str(tmp_path), "--seed", "99999999999999999999999"]) == 2  # JAX's OverflowError before
+    assert capsys.readouterr().err.startswith("error: --seed must fit in int32")
 
     # A policy without its record of the checkpoint it came from (an earlier version's export) is refused: its
     # results could not be told from another checkpoint's.

@@ -344,10 +344,21 @@ def test_a_run_over_several_devices_explains_xlas_gspmd_warnings_once(monkeypatc
     assert capsys.readouterr().err == f"{progress.GSPMD_NOTE}\n"
 
 
-def test_eval_refuses_more_episodes_than_it_can_step_at_once(tmp_path, capsys):
+@pytest.mark.parametrize(
+    ("flag", "value", "message"),
+    [
+        ("--episodes", "100000000", "--episodes must be in [1, 1048576], got 100000000"),
+        ("--seed", "99999999999999999999999", "--seed must fit in int32 (at most 2,147,483,647 in magnitude), got "),
+        ("--seed", "-1", "--seed must be >= 0, got -1"),
+    ],
+)
+def test_eval_refuses_more_episodes_than_it_can_step_at_once_and_a_seed_a_run_refuses(
+    flag, value, message, tmp_path, capsys
+):
     rundir.write_config(tmp_path, apply_overrides(td3_peg(), ["num_envs=2"]), "td3_peg")
-    assert eval_cli.main([str(tmp_path), "--episodes", "100000000"]) == 2
-    assert capsys.readouterr().err == "error: --episodes must be in [1, 1048576], got 100000000\n"
+    assert eval_cli.main([str(tmp_path), flag, value]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {message}") and err.count("\n") == 1, err
 
 
 @pytest.mark.parametrize(
