@@ -11,8 +11,8 @@ poses, as a detector would report them) from the socket. An episode ends when no
 step limit, or when the robot holds and stops after a fault (`--fault` injects one at tick K of every episode).
 Reports the objects placed, the policy's tick jitter (p50, p99) and deadline misses, the robot's servo-tick lateness,
 each episode's fault, and the streamed setpoints' largest speed, acceleration and jerk as fractions of Franka's
-limits; writes RUN/rehearse-<episodes>-<seed>-<update>-<budget>ms[-<fault>].json. An episode takes its steps × 40 ms
-of wall clock (up to 30 s for ppo_sorter_dr's 750).
+limits; writes RUN/rehearse-<episodes>-<seed>-<update>-<budget>ms[-<fault>-tick<K>].json. An episode takes its
+steps × 40 ms of wall clock (up to 30 s for ppo_sorter_dr's 750).
 """
 
 import argparse
@@ -38,6 +38,10 @@ from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda_sort.objects import pose_index, velocity_index
 from jaxarm.export import numpy_policy, origin
 from jaxarm.runner import rundir
+
+LATENCY_BUDGETS_MS = ranges.Range(gt=0, le=wire.Timing.connect_timeout * 1e3)
+"""The latency budgets a rehearsal takes, ms: past the robot's wait for its first command, a stalled policy would
+keep the robot (and the rehearsal) waiting longer than a policy that never started."""
 
 
 def driver_setup(env, params, sim, directory: pathlib.Path, timing: wire.Timing) -> DriverSetup:
@@ -145,10 +149,11 @@ def main(argv=None) -> int:
     try:
         ranges.check_value("--episodes", args.episodes, int, ranges.AT_ONCE)
         ranges.check_value("--seed", args.seed, int, ranges.NON_NEGATIVE)  # as a run's seed
+        ranges.check_value("--latency-budget", args.latency_budget, float, LATENCY_BUDGETS_MS)
         fault = Fault(args.fault, args.fault_tick) if args.fault else None
         timing = wire.Timing(control_period=CONTROL_DT, latency_budget=args.latency_budget / 1e3)
         result = rehearse_run(run_dir, args.episodes, args.seed, fault, timing)
-        suffix = f"-{args.fault}" if args.fault else ""
+        suffix = f"-{args.fault}-tick{args.fault_tick}" if args.fault else ""
         budget = f"{args.latency_budget:g}ms"
         path = run_dir / f"rehearse-{args.episodes}-{args.seed}-{result['checkpoint']}-{budget}{suffix}.json"
         rundir.write_json(path, result)

@@ -30,6 +30,8 @@ class Fault:
     def __post_init__(self):
         if self.kind not in FAULT_KINDS:
             raise ValueError(f"fault {self.kind!r} is none of {', '.join(FAULT_KINDS)}")
+        if self.tick < 0:  # a tick no episode reaches: the rehearsal reported no fault, as if it had none
+            raise ValueError(f"a fault's tick counts the policy's ticks from 0, got {self.tick}")
 
 
 class RobotStopped(RuntimeError):

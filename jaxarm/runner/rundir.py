@@ -18,7 +18,7 @@ Layout of `runs/<config>-<timestamp>/`:
   eval-<episodes>-<seed>-<update|best>.json, video.gif, video.mp4   written by `experiments.eval`
   robustness-<episodes>-<seed>-<update|best>-<digest>.json, .md, .png   written by `experiments.eval --perturb`
   transfer-<model>-<episodes>-<seed>-<update|best>[-noclip].json, .gif, .mp4   written by `experiments.transfer`
-  rehearse-<episodes>-<seed>-<update>-<budget>ms[-<fault>].json   written by `experiments.rehearse`
+  rehearse-<episodes>-<seed>-<update>-<budget>ms[-<fault>-tick<K>].json   written by `experiments.rehearse`
   export/          the policy exported by `experiments.export`, and export.json: the checkpoint it came from
   teacher/         the run of a teacher named by preset (`teacher=preset:NAME`), trained first; kept when the
                    student starts afresh

@@ -27,10 +27,22 @@ def test_the_rehearsal_cli_reports_placements_jitter_and_misses(tmp_path, capsys
     assert "rehearsed in real time" in capsys.readouterr().out
     # A stall: the robot holds and stops, and the episodes end early.
     assert rehearse.main([str(tmp_path), "--episodes", "1", "--fault", "stall", "--fault-tick", "3"]) == 0
-    result = json.loads((tmp_path / "rehearse-1-12345-24-20ms-stall.json").read_text())
+    result = json.loads((tmp_path / "rehearse-1-12345-24-20ms-stall-tick3.json").read_text())
     assert result["faults"] == ["missed"] and result["ticks"] < STEPS
 
 
-def test_a_seed_a_run_refuses_is_one_line_before_anything_runs(tmp_path, capsys):
-    assert rehearse.main([str(tmp_path), "--seed", "99999999999999999999999"]) == 2  # JAX's OverflowError before
-    assert capsys.readouterr().err.startswith("error: --seed must fit in int32")
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--seed", "99999999999999999999999"], "--seed must fit in int32"),  # JAX's OverflowError before
+        (["--latency-budget", "nan"], "--latency-budget must be finite"),  # rehearse-...-nanms.json before
+        (["--latency-budget", "-1"], "--latency-budget must be in (0, 20000], got -1.0"),
+        (["--latency-budget", "1e300"], "--latency-budget must be in (0, 20000], got 1e+300"),
+        (["--fault", "stall", "--fault-tick", "-1"], "a fault's tick counts the policy's ticks from 0, got -1"),
+    ],
+)
+def test_bad_options_are_one_line_before_anything_runs(options, message, tmp_path, capsys):
+    assert rehearse.main([str(tmp_path), *options]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {message}") and err.count("\n") == 1, err
+    assert list(tmp_path.iterdir()) == []

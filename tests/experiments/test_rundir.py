@@ -358,7 +358,7 @@ def test_what_the_commands_write_beside_a_run_is_part_of_it(tmp_path):
         "robustness-200-777.md",
         "transfer-menagerie-200-12345.json",
         "transfer-jaxarm.gif",
-        "rehearse-20-12345-24-20ms-stall.json",  # refused eval and resume of the rehearsed run before
+        "rehearse-20-12345-24-20ms-stall-tick50.json",  # refused eval and resume of the rehearsed run before
     ]
     for name in [*written, "config.json", "notes.txt"]:
         (tmp_path / name).write_text("{}")
