@@ -275,6 +275,8 @@ def read_config(
         raise RunDirError(f"{run_dir} is not a run directory: no config.json")
     try:
         data = json.loads(path.read_text())
+        if not isinstance(data, dict):  # null gave an AttributeError traceback
+            raise TypeError(f"a JSON {type(data).__name__}, not an object")
         preset, agent = data.pop("preset"), data.pop("agent")
         cls = registry.get(agent).config_class
         hints = typing.get_type_hints(cls)
@@ -294,7 +296,7 @@ def read_config(
 
 def finished_evaluation(run_dir: pathlib.Path, config: RunConfig) -> dict | None:
     """The final evaluation (eval.json) of a run that trained all of `config`'s updates and evaluated their end;
-    None where there is more to train or to evaluate (no such file, an unreadable one, or a stopped run's)."""
+    None where there is more to train or to evaluate (no such file, an unreadable or edited one, or a stopped run's)."""
     latest = checkpoint.latest_step(run_dir / "checkpoints")
     path = run_dir / "eval.json"
     if latest is None or latest < config.num_updates or not path.exists():
@@ -303,7 +305,7 @@ def finished_evaluation(run_dir: pathlib.Path, config: RunConfig) -> dict | None
         result = json.loads(path.read_text())
     except json.JSONDecodeError:
         return None
-    return result if result.get("finished") else None
+    return result if isinstance(result, dict) and result.get("finished") else None
 
 
 def write_json(path: pathlib.Path, data: dict) -> None:

@@ -363,6 +363,19 @@ def test_a_budget_below_the_work_done_is_refused(reference):
     assert snapshot(reference) == before
 
 
+def test_a_finished_runs_eval_json_edited_to_another_shape_is_evaluated_again(reference):
+    config, _ = rundir.read_config(reference, validate=False)
+    assert rundir.finished_evaluation(reference, config) is not None
+    edited = reference / "eval.json"
+    kept = edited.read_text()
+    try:
+        for content in ["null", "[1]"]:  # null gave an AttributeError traceback on --resume
+            edited.write_text(content)
+            assert rundir.finished_evaluation(reference, config) is None
+    finally:
+        edited.write_text(kept)
+
+
 def test_show_with_resume_shows_the_overrides(reference, capsys):
     assert run.main(["--resume", str(reference), "--show", "eval_episodes=7"]) == 0
     assert "eval_episodes (int, in [1, 1048576]) = 7" in capsys.readouterr().out
