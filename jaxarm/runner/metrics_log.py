@@ -11,11 +11,15 @@ import numpy as np
 
 from jaxarm.runner.rundir import RunDirError
 
+ROW_NUMBERS: dict[str, type | tuple[type, ...]] = {"updates": int, "env_steps": int, "wall_time": (int, float)}
+"""The columns every row holds (runlog.py), with their types: a resume reads them (an edited row's "updates"
+of "x" or a row without it ended the resume in a traceback)."""
+
 
 def read_metrics(run_dir: pathlib.Path, drop_partial_last: bool = False) -> list[dict]:
     """The rows of `run_dir/metrics.jsonl` ([] if there is none). RunDirError naming the file and line for a row
-    that is not JSON; with `drop_partial_last`, a last line without its newline (a process killed while writing
-    it) is left out instead."""
+    that is not JSON, or lacks a number of `ROW_NUMBERS`; with `drop_partial_last`, a last line without its
+    newline (a process killed while writing it) is left out instead."""
     path = run_dir / "metrics.jsonl"
     if not path.exists():
         return []
@@ -31,6 +35,9 @@ def read_metrics(run_dir: pathlib.Path, drop_partial_last: bool = False) -> list
             row = json.loads(line)
             if not isinstance(row, dict):
                 raise TypeError(f"a JSON {type(row).__name__}, not an object")
+            wrong = [name for name, kind in ROW_NUMBERS.items() if not isinstance(row.get(name), kind)]
+            if wrong:
+                raise TypeError(f"no {' or '.join(wrong)} of the right type")
         except (ValueError, TypeError) as error:  # ValueError: JSONDecodeError, UnicodeDecodeError
             raise RunDirError(f"{path} line {number} is not a JSON row ({error}); delete that line and retry") from None
         rows.append(row)

@@ -367,10 +367,13 @@ def test_what_the_commands_write_beside_a_run_is_part_of_it(tmp_path):
 
 def test_damaged_side_files_are_named_in_one_line_and_kept(tmp_path):
     metrics = tmp_path / "metrics.jsonl"
+    row = b'{"updates": 1, "env_steps": 8, "wall_time": 0.5}\n'
     for content, problem in [
         (bytes(range(256)), "line 1 is not a JSON row ("),
-        (b'{"updates": 1}\n3\n', "line 2 is not a JSON row (a JSON int, not an object)"),
-        (b'{"updates": 1}\n\xff\xfe{"updates": 2}\n', "line 2 is not a JSON row ("),
+        (row + b"3\n", "line 2 is not a JSON row (a JSON int, not an object)"),
+        (row + b'\xff\xfe{"updates": 2}\n', "line 2 is not a JSON row ("),
+        (b'{"updates": "x", "env_steps": 8, "wall_time": 1}\n', "line 1 is not a JSON row (no updates of the right"),
+        (b"{}\n", "line 1 is not a JSON row (no updates or env_steps or wall_time of the right type)"),
     ]:
         metrics.write_bytes(content)
         with pytest.raises(rundir.RunDirError) as raised:
