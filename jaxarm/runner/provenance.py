@@ -16,7 +16,7 @@ import sys
 
 import jax
 
-from jaxarm.runner.rundir import PROVENANCE_FILE, RunDirError, write_json
+from jaxarm.runner.rundir import PROVENANCE_FILE, damaged, write_json
 
 PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint", "numpy", "warp-lang")
 """Distributions whose versions a record holds (None for one not installed, as warp-lang often is)."""
@@ -79,9 +79,7 @@ def read_provenance(path: pathlib.Path) -> list:
         if not isinstance(records, list):
             raise TypeError("records is not a list")
     except (ValueError, KeyError, TypeError) as error:  # ValueError: JSONDecodeError, UnicodeDecodeError
-        raise RunDirError(
-            f"{path} is corrupt or from another version ({type(error).__name__}: {error}); fix or restore that file"
-        ) from None
+        raise damaged(path, error) from None
     return records
 
 

@@ -84,6 +84,11 @@ class RunDirError(ValueError):
     """A run directory cannot be used as asked (foreign files, in use, damaged); the message says what to do."""
 
 
+def damaged(path: pathlib.Path, error: Exception) -> RunDirError:
+    """The error of a run's file at `path` that reading it found damaged or edited (`error` says how), in one line."""
+    return RunDirError(f"{path} is corrupt or of another version ({type(error).__name__}: {error}); fix or restore it")
+
+
 ErrorT = TypeVar("ErrorT", bound=BaseException)
 
 
@@ -286,9 +291,7 @@ def read_config(
         }
         config = cls(**fields)
     except (json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
-        raise RunDirError(
-            f"{path} is corrupt or from another version ({type(error).__name__}: {error}); fix or restore that file"
-        ) from None
+        raise damaged(path, error) from None
     if validate:
         config.validate()
     return config, preset

@@ -389,7 +389,7 @@ def test_damaged_side_files_are_named_in_one_line_and_kept(tmp_path):
         provenance_path.write_text(content)
         with pytest.raises(rundir.RunDirError) as raised:
             provenance.append_provenance(tmp_path, "resume")
-        assert str(raised.value).startswith(f"{provenance_path} is corrupt or from another version ({problem}")
+        assert str(raised.value).startswith(f"{provenance_path} is corrupt or of another version ({problem}")
         assert provenance_path.read_text() == content, "a damaged history is never written over"
     config_path = tmp_path / "config.json"
     for content in ["null", "[1, 2]"]:  # null gave an AttributeError traceback, a list a TypeError about ints
@@ -397,9 +397,7 @@ def test_damaged_side_files_are_named_in_one_line_and_kept(tmp_path):
         with pytest.raises(rundir.RunDirError) as raised:
             rundir.read_config(tmp_path, validate=False)
         kind = type(json.loads(content)).__name__
-        assert str(raised.value).startswith(
-            f"{config_path} is corrupt or from another version (TypeError: a JSON {kind}"
-        )
+        assert str(raised.value).startswith(f"{config_path} is corrupt or of another version (TypeError: a JSON {kind}")
 
 
 def test_robustness_tables_of_other_checkpoints_or_requests_never_replace_each_other(tmp_path):
