@@ -4,6 +4,7 @@ run starts and how it ends is the run loop's (loop.py)."""
 
 import contextlib
 import dataclasses
+import json
 import pathlib
 import time
 from typing import Any
@@ -130,14 +131,33 @@ def evaluate(
     return best
 
 
+def read_best(run_dir: pathlib.Path) -> dict | None:
+    """The best evaluation so far (run_dir/best.json), None before the first; RunDirError naming the file where it
+    is damaged or edited (a resume took `null` for none, and a worse state replaced best/)."""
+    path = run_dir / "best.json"
+    if not path.exists():
+        return None
+    try:
+        best = json.loads(path.read_text())
+        if not isinstance(best, dict) or not all(isinstance(best.get(name), (int, float)) for name in SCORES):
+            raise TypeError(f"no {' and '.join(SCORES)} numbers")
+    except (ValueError, TypeError) as error:  # ValueError: JSONDecodeError, UnicodeDecodeError
+        raise rundir.damaged(path, error) from None
+    return best
+
+
 def crossed(multiple: int, before: int, after: int) -> bool:
     """Whether a multiple of `multiple` (> 0) lies in (before, after]: cadences that do not move on resume."""
     return multiple > 0 and after // multiple > before // multiple
 
 
+SCORES = ("success_rate", "return_mean")
+"""What ranks evaluations, in order (`better`)."""
+
+
 def better(result: dict, best: dict | None) -> bool:
     """Whether an evaluation beats the best so far: higher success rate, then higher mean return."""
-    return best is None or (result["success_rate"], result["return_mean"]) > (best["success_rate"], best["return_mean"])
+    return best is None or tuple(result[name] for name in SCORES) > tuple(best[name] for name in SCORES)
 
 
 def save(directory: pathlib.Path, step: int, state, run_dir: pathlib.Path) -> None:

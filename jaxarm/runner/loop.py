@@ -19,7 +19,6 @@ final evaluation. The rest is one concern a module: the chunk loop (chunks.py), 
 
 import contextlib
 import dataclasses
-import json
 import pathlib
 import sys
 import time
@@ -34,7 +33,7 @@ from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over
 from jaxarm.agents.common.trainer import Trainer
 from jaxarm.runner import learners, metrics_log, plots, processes, progress, provenance, resumes, rundir, teacher
-from jaxarm.runner.chunks import Start, TrainingDiverged, TrainingInterrupted, train_chunks
+from jaxarm.runner.chunks import Start, TrainingDiverged, TrainingInterrupted, read_best, train_chunks
 from jaxarm.runner.options import Options
 from jaxarm.runner.programs import ChunkRunners, Evaluators, eval_key, state_like
 
@@ -198,6 +197,7 @@ def _start(
         state = learners.restore_state(run_dir, trainer, config, shardings=shardings)
         done_updates = int(state.updates)
         resumes.check_budget(config, done_updates)
+        best = read_best(run_dir)  # checked before this resume writes anything
         if primary:
             provenance.append_provenance(run_dir, "resume")
             if overrides:
@@ -208,8 +208,6 @@ def _start(
             if gap:
                 print(f"warning: {gap}", file=sys.stderr)
         wall_offset = max([row["wall_time"] for row in metrics_log.read_metrics(run_dir)], default=0.0)
-        best_path = run_dir / "best.json"
-        best = json.loads(best_path.read_text()) if best_path.exists() else None
         return Start(state, done_updates, wall_offset, best)
     state = jax.jit(trainer.init, out_shardings=shardings)(jax.random.PRNGKey(config.seed), config.hparams())
     if config.init_from:

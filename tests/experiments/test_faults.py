@@ -353,6 +353,18 @@ def test_metrics_cut_short_or_deleted_are_named_on_resume_and_the_rows_left_are_
     assert metrics_log.read_metrics(cut) == rows[: kept or 0], "the rows left are kept as they were"
 
 
+@pytest.mark.parametrize("content", ["null", "{", '{"updates": 8}'])
+def test_a_damaged_best_json_is_named_in_one_line_before_the_resume_writes(reference, tmp_path, capsys, content):
+    damaged = tmp_path / "damaged"
+    shutil.copytree(reference, damaged)
+    (damaged / "best.json").write_text(content)  # null was taken for no best: a worse state replaced best/
+    before = snapshot(damaged)
+    assert run.main(["--resume", str(damaged), "eval_episodes=4"]) == 2
+    (line,) = error_lines(capsys)
+    assert line.startswith(f"error: {damaged / 'best.json'} is corrupt or of another version (")
+    assert snapshot(damaged) == before
+
+
 def test_a_budget_below_the_work_done_is_refused(reference):
     config, preset = rundir.read_config(reference)
     # What `--resume RUN total_env_steps=4096` asks of a run whose budget may change (no annealed schedule).
