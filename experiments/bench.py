@@ -7,6 +7,7 @@ import argparse
 import importlib
 import sys
 
+from experiments import start_up
 from jaxarm.runner.cache import enable_compilation_cache
 
 SUITES = (
@@ -55,4 +56,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    start_up.exit_with(main)

@@ -20,6 +20,7 @@ import sys
 
 import numpy as np
 
+from experiments import start_up
 from jaxarm.runner import metrics_log, plots, rundir
 
 
@@ -235,4 +236,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    start_up.exit_with(main)

@@ -25,6 +25,7 @@ import pathlib
 import sys
 import time
 
+from experiments import start_up
 from jaxarm import headless
 
 VIDEO_EPISODES = 3
@@ -234,4 +235,4 @@ def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> Non
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    start_up.exit_with(main)

@@ -19,6 +19,7 @@ import argparse
 import pathlib
 import sys
 
+from experiments import start_up
 from jaxarm import deployable
 from jaxarm.agents.common import checkpoint
 from jaxarm.deploy import files as deploy_files
@@ -85,4 +86,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    start_up.exit_with(main)

@@ -24,7 +24,7 @@ import time
 import mujoco
 import numpy as np
 
-from experiments import transfer
+from experiments import start_up, transfer
 from jaxarm import deployable, ranges
 from jaxarm.deploy import scoring, wire
 from jaxarm.deploy.driver import DriverSetup
@@ -176,4 +176,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    start_up.exit_with(main)

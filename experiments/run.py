@@ -235,4 +235,4 @@ def _main(argv) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    start_up.exit_with(main)

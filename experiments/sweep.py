@@ -599,4 +599,4 @@ def sweep(
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    start_up.exit_with(main)

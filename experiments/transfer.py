@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 from scipy import stats
 
+from experiments import start_up
 from jaxarm import deployable, envs, headless, ranges
 from jaxarm.deploy.loop import Controller, DeploymentLoop, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
@@ -225,4 +226,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    start_up.exit_with(main)
