@@ -157,6 +157,8 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
             start = time.perf_counter()
             result = learners.evaluate_state(trainer, config, state, args.episodes, args.seed)
             result["checkpoint_update"] = int(state.updates)
+            path = rundir.eval_path(run_dir, args.episodes, args.seed, checkpoint_name(state, args.best))
+            rundir.write_json(path, result)  # before it is printed: an output closed early (`| head`) loses nothing
             print(
                 f"{run_dir}: success_rate {result['success_rate']:.3f} return_mean {result['return_mean']:.2f} "
                 f"over {result['episodes']} episodes (update {result['checkpoint_update']}; "
@@ -164,8 +166,6 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
                 f"env and checkpoint: {', '.join(f'{name} {seconds:.1f} s' for name, seconds in phases.items())})",
                 flush=True,
             )
-            path = rundir.eval_path(run_dir, args.episodes, args.seed, checkpoint_name(state, args.best))
-            rundir.write_json(path, result)
             print(f"wrote {path}")
             if args.video:
                 env, env_params = config.make_eval_env()

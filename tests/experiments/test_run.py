@@ -1,6 +1,8 @@
 """The runner end to end: files of a run, CLI errors, resume after SIGKILL, NaN stop, bad checkpoints."""
 
 import dataclasses
+import errno
+import io
 import json
 import os
 import pathlib
@@ -88,6 +90,17 @@ def test_eval_cli_writes_its_own_file_keeps_eval_json_and_draws_a_video(finished
     assert json.loads((finished_run / "eval-7-12345-24.json").read_text())["episodes"] == 7
     assert (finished_run / "eval.json").read_text() == training_eval
     assert (finished_run / "video.gif").stat().st_size > 1000
+
+
+def test_an_evaluation_is_written_before_it_is_printed(finished_run, monkeypatch, capsys):
+    class Gone(io.StringIO):  # the output of `python -m experiments.eval RUN | head -1`, once head has gone
+        def write(self, text):
+            raise BrokenPipeError(errno.EPIPE, os.strerror(errno.EPIPE))
+
+    monkeypatch.setattr(sys, "stdout", Gone())
+    assert eval_cli.main([str(finished_run), "--episodes", "6"]) == 2
+    assert json.loads((finished_run / "eval-6-12345-24.json").read_text())["episodes"] == 6
+    assert capsys.readouterr().err == "error: Broken pipe\n"
 
 
 COUNT_CACHE_EVENTS = """
