@@ -21,7 +21,7 @@ import sys
 import numpy as np
 
 from experiments import start_up
-from jaxarm.runner import metrics_log, plots, rundir
+from jaxarm.runner import metrics_log, paths, plots, rundir
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,7 +172,7 @@ def figure_path(out: pathlib.Path) -> pathlib.Path:
     """Where `--out` puts the figure: `out` itself for a .png, .pdf or .svg name, `out/compare.png` for a
     directory, `out.png` for a name without a suffix. ValueError naming `out` for another suffix or a file in the
     way of its folder; missing folders are made."""
-    rundir.check_not_under_a_file(out, "--out")
+    paths.check_not_under_a_file(out, "--out")
     if out.is_dir():
         out = out / "compare.png"
     elif not out.suffix:
@@ -229,7 +229,7 @@ def main(argv=None) -> int:
         out.parent.mkdir(parents=True, exist_ok=True)
         plots.run_comparison(curves, out, f"{args.title} ({device})")
     except OSError as error:
-        print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
+        print(f"error: {paths.os_error_message(error)}", file=sys.stderr)
         return 2
     print(f"wrote {out}")
     return 0

@@ -130,7 +130,7 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
 
     from jaxarm import ranges
     from jaxarm.agents.common import checkpoint
-    from jaxarm.runner import learners, progress, rundir, video
+    from jaxarm.runner import learners, paths, progress, rundir, video
     from jaxarm.runner.cache import enable_compilation_cache
 
     phases = {"imports": time.perf_counter() - began}
@@ -176,7 +176,7 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
                 video.write_video(video_path, frames)
                 print(f"wrote {video_path} ({len(frames)} frames, {time.perf_counter() - start:.1f} s)")
     except (ValueError, OSError, checkpoint.CheckpointError, video.RenderError) as error:
-        print(f"error: {rundir.os_error_message(error) if isinstance(error, OSError) else error}", file=sys.stderr)
+        print(f"error: {paths.os_error_message(error) if isinstance(error, OSError) else error}", file=sys.stderr)
         # Imported here: experiments.run brings every preset and the training loop, 0.5-1 s an evaluation needs not.
         from experiments.run import quiet_libraries
 

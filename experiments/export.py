@@ -24,7 +24,7 @@ from jaxarm import deployable
 from jaxarm.agents.common import checkpoint
 from jaxarm.deploy import files as deploy_files
 from jaxarm.export import origin, policy
-from jaxarm.runner import learners, rundir
+from jaxarm.runner import learners, paths, rundir
 
 
 def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Path]:
@@ -70,13 +70,13 @@ def main(argv=None) -> int:
     run_dir = pathlib.Path(args.run_dir)
     out_dir = pathlib.Path(args.out) if args.out else run_dir / "export"
     try:
-        rundir.check_output_dir(out_dir, "--out")
+        paths.check_output_dir(out_dir, "--out")
         written = export_run(run_dir, out_dir)
     except (ValueError, checkpoint.CheckpointError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     except OSError as error:
-        print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
+        print(f"error: {paths.os_error_message(error)}", file=sys.stderr)
         return 2
     for path in written:
         print(f"wrote {path}")

@@ -37,7 +37,7 @@ from jaxarm.deployable import panda_sort
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda_sort.objects import pose_index, velocity_index
 from jaxarm.export import numpy_policy, origin
-from jaxarm.runner import rundir
+from jaxarm.runner import paths, rundir
 
 LATENCY_BUDGETS_MS = ranges.Range(gt=0, le=wire.Timing.connect_timeout * 1e3)
 """The latency budgets a rehearsal takes, ms: past the robot's wait for its first command, a stalled policy would
@@ -170,7 +170,7 @@ def main(argv=None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     except OSError as error:
-        print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
+        print(f"error: {paths.os_error_message(error)}", file=sys.stderr)
         return 2
     return 0
 

@@ -29,7 +29,7 @@ from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.envs.panda.mjx_impl import warp_available
 from jaxarm.exits import STOPPED_BY_SIGNAL
-from jaxarm.runner import loop, processes, resumes, rundir, show
+from jaxarm.runner import loop, paths, processes, resumes, rundir, show
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.sinks import WandbOptions
 
@@ -140,7 +140,7 @@ def start_local_processes(args: argparse.Namespace, argv: list[str], count: int)
     """Runs this command as `count` processes of one run on this host (`distributed.spawn`), all given the run
     directory they share: `--out`, or one named and made here as a run of one process would make it."""
     if args.out:
-        rundir.check_output_dir(pathlib.Path(args.out), "--out")  # here once, not in every process
+        paths.check_output_dir(pathlib.Path(args.out), "--out")  # here once, not in every process
     run_dir = args.resume or args.out
     if run_dir is None:
         run_dir = str(rundir.new_run_dir(args.config))
@@ -171,7 +171,7 @@ def train_or_resume(args: argparse.Namespace, options: loop.Options) -> tuple[pa
     preset = args.config
     config = apply_overrides(configs.get(preset), args.overrides)
     if args.out:
-        rundir.check_output_dir(pathlib.Path(args.out), "--out")
+        paths.check_output_dir(pathlib.Path(args.out), "--out")
     run_dir = pathlib.Path(args.out) if args.out else rundir.new_run_dir(preset)
     return run_dir, loop.train(config, run_dir, preset=preset, options=options)
 
@@ -215,7 +215,7 @@ def _main(argv) -> int:
         quiet_libraries()
         return 2
     except OSError as error:
-        print(f"error: {rundir.os_error_message(error, args.resume or args.out)}", file=sys.stderr)
+        print(f"error: {paths.os_error_message(error, args.resume or args.out)}", file=sys.stderr)
         quiet_libraries()
         return 2
     except loop.TrainingInterrupted as error:

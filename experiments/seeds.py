@@ -41,7 +41,7 @@ import numpy as np
 from experiments import distributed
 from experiments.run import minutes
 from jaxarm.exits import STOPPED_BY_SIGNAL
-from jaxarm.runner import filelock, rundir, stats
+from jaxarm.runner import filelock, paths, rundir, stats
 
 SEEDS_FILE = "seeds.json"
 """What was asked (preset, seeds, goal, overrides) and each seed's commands so far: `--resume` reads it."""
@@ -402,7 +402,7 @@ def open_study(args: argparse.Namespace) -> tuple[Protocol, pathlib.Path, dict[i
     # Refused here, not once per seed: the largest seed, as any other, must be a seed the config takes.
     apply_overrides(configs.get(args.config), [*args.overrides, f"seed={max(args.seeds)}"])
     out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"seeds-{args.config}")
-    rundir.check_output_dir(out, "--out")
+    paths.check_output_dir(out, "--out")
     if (out / SEEDS_FILE).exists():
         raise ValueError(f"{out} holds a study already; continue it with --resume {out}, or give another --out")
     out.mkdir(parents=True, exist_ok=True)

@@ -48,7 +48,7 @@ from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.sharding import ENV_AXIS, gathered, members_mesh, over_members
 from jaxarm.agents.common.trainer import Trainer, run_updates
 from jaxarm.exits import STOPPED_BY_SIGNAL
-from jaxarm.runner import learners, plots, processes, provenance, rundir, signals
+from jaxarm.runner import learners, paths, plots, processes, provenance, rundir, signals
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.progress import explain_gspmd
 from jaxarm.runner.stats import confidence_halfwidth
@@ -402,7 +402,7 @@ def main(argv=None) -> int:
         grid = parse_grid(base, assignments)
         check_envs_at_once(grid, seeds)
         if args.out:
-            rundir.check_output_dir(pathlib.Path(args.out), "--out")
+            paths.check_output_dir(pathlib.Path(args.out), "--out")
         enable_compilation_cache()
         if args.resume:
             out = pathlib.Path(args.resume)
@@ -427,7 +427,7 @@ def main(argv=None) -> int:
         distributed.leave_if_peers_lost(error, resume_command(out))
         raise
     except OSError as error:
-        print(f"error: {rundir.os_error_message(error, out)}{resumable(out)}", file=sys.stderr)
+        print(f"error: {paths.os_error_message(error, out)}{resumable(out)}", file=sys.stderr)
         quiet_libraries()
         return 2
     return 0

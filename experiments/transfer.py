@@ -37,7 +37,7 @@ from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
 from jaxarm.envs.observation import actor_observation
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.export import numpy_policy, origin
-from jaxarm.runner import rundir, video
+from jaxarm.runner import paths, rundir, video
 
 MODELS = ("jaxarm", "menagerie")
 VIDEO_SIZE = (240, 320)
@@ -220,7 +220,7 @@ def main(argv=None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     except OSError as error:
-        print(f"error: {rundir.os_error_message(error)}", file=sys.stderr)
+        print(f"error: {paths.os_error_message(error)}", file=sys.stderr)
         return 2
     return 0
 

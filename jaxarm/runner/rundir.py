@@ -1,7 +1,8 @@
 """A run directory, shared by training, eval and sweep: its layout, the checks and the lock that keep it whole,
 its config.json, its final evaluation and the names of the files eval, export and transfer write into it.
 Beside this module: metrics.jsonl is read by metrics_log.py, provenance.json written by provenance.py, what a
-resume may change checked by resumes.py, and a run's teacher found by teacher.py.
+resume may change checked by resumes.py, a run's teacher found by teacher.py, and the paths a command is given
+(an output directory, an OS error met there) checked by paths.py.
 
 Layout of `runs/<config>-<timestamp>/`:
   config.json      the resolved config (with "preset", and "agent": the learner's name in jaxarm.agents.registry)
@@ -33,7 +34,6 @@ Nothing here deletes or overwrites a file that is not one of the above.
 
 import contextlib
 import dataclasses
-import errno
 import hashlib
 import json
 import os
@@ -97,45 +97,6 @@ def resumable(error: ErrorT, run_dir: pathlib.Path) -> ErrorT:
     speak of the library (`resume`); a front end adds its own way to resume (the CLI its --resume command)."""
     error.resume_dir = pathlib.Path(run_dir)  # type: ignore[attr-defined]
     return error
-
-
-FILE_SUFFIXES = (".txt", ".json", ".jsonl", ".csv", ".md", ".png", ".pdf", ".svg", ".gif", ".mp4", ".npz", ".onnx")
-"""Name endings of files: a directory to be made with one of these names is more likely a mistake."""
-
-
-def check_output_dir(path: pathlib.Path, label: str = "directory") -> None:
-    """RunDirError, naming `path` as `label` (a CLI passes its flag), unless it can be (or is) a directory: not a
-    file, under no file, and, when it does not exist yet, with no file's name ending (`.txt`, ...). Missing parent
-    folders are made later."""
-    if path.exists() and not path.is_dir():
-        raise RunDirError(f"{label} {path} is a file; give a directory")
-    check_not_under_a_file(path, label)
-    if not path.exists() and path.suffix.lower() in FILE_SUFFIXES:
-        raise RunDirError(f"{label} {path} is the name of a {path.suffix} file; give a directory")
-
-
-def check_not_under_a_file(path: pathlib.Path, label: str = "directory") -> None:
-    """RunDirError, naming `path` as `label`, when a file stands where one of its parent folders should be."""
-    for parent in path.parents:
-        if parent.exists() and not parent.is_dir():
-            raise RunDirError(f"{label} {path} lies under {parent}, which is a file; give a directory")
-
-
-def os_error_message(error: OSError, directory: str | pathlib.Path | None = None) -> str:
-    """An OS error (permission, read-only, full disk, a file in a directory's place) in one line, naming its path
-    (or, for an error on an open file, which names none, the `directory` written to) and what to do."""
-    advice = {
-        errno.ENOSPC: "the disk is full; free space and retry (a resumed run goes on)",
-        errno.EDQUOT: "the disk quota is used up; free space and retry (a resumed run goes on)",
-        errno.EACCES: "not writable here; choose another place or fix its permissions",
-        errno.EPERM: "not writable here; choose another place or fix its permissions",
-        errno.EROFS: "choose a writable place (copy a run there to go on with it)",
-        errno.ENOTDIR: "a file stands where a directory is needed; choose another path",
-        errno.EEXIST: "a file of that name is in the way; choose another path",
-        errno.EISDIR: "a directory stands where a file is needed; choose another path",
-    }.get(error.errno or 0, "")
-    where = f"{error.filename}: " if error.filename else f"writing into {directory}: " if directory else ""
-    return f"{where}{error.strerror or error}" + (f"; {advice}" if advice else "")
 
 
 def new_run_dir(preset: str, root: str = "runs") -> pathlib.Path:

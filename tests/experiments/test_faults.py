@@ -24,7 +24,7 @@ from experiments import eval as eval_cli
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.exits import OUTPUT_CLOSED
-from jaxarm.runner import loop, metrics_log, plots, rundir, sinks
+from jaxarm.runner import loop, metrics_log, paths, plots, rundir, sinks
 from tests.experiments.test_run import SMALL
 from tests.experiments.test_rundir import assert_same_learner, run_cli, snapshot
 
@@ -478,11 +478,11 @@ def test_a_command_whose_reader_went_away_ends_quietly_as_a_closed_pipe_ends_oth
 
 def test_os_errors_name_the_path_or_the_directory_written_to():
     full = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # a write to an open file names no path
-    assert rundir.os_error_message(full, "runs/a") == (
+    assert paths.os_error_message(full, "runs/a") == (
         "writing into runs/a: No space left on device; the disk is full; free space and retry (a resumed run goes on)"
     )
     read_only = OSError(errno.EROFS, os.strerror(errno.EROFS), "/mnt/run/.lock")
-    assert rundir.os_error_message(read_only).startswith("/mnt/run/.lock: Read-only file system; choose a writable")
+    assert paths.os_error_message(read_only).startswith("/mnt/run/.lock: Read-only file system; choose a writable")
 
 
 def test_tensorboard_on_a_full_disk_raises_once_and_is_not_retried_at_exit(tmp_path, monkeypatch):
