@@ -2,6 +2,7 @@
 line naming it and what to do. Nothing here writes."""
 
 import errno
+import os
 import pathlib
 
 from jaxarm.runner.rundir import RunDirError
@@ -11,9 +12,14 @@ FILE_SUFFIXES = (".txt", ".json", ".jsonl", ".csv", ".md", ".png", ".pdf", ".svg
 
 
 def check_output_dir(path: pathlib.Path, label: str = "directory") -> None:
-    """RunDirError, naming `path` as `label` (a CLI passes its flag), unless it can be (or is) a directory: not a
-    file, under no file, and, when it does not exist yet, with no file's name ending (`.txt`, ...). Missing parent
-    folders are made later."""
+    """RunDirError, naming `path` as `label` (a CLI passes its flag), unless it can be (or is) a directory: named
+    in UTF-8, not a file, under no file, and, when it does not exist yet, with no file's name ending (`.txt`, ...).
+    Missing parent folders are made later."""
+    try:
+        str(path).encode()
+    except UnicodeEncodeError:  # orbax's checkpointer failed at the first save, after training, on such a path
+        shown = os.fsencode(path).decode(errors="backslashreplace")  # printable on any console, as x\xff
+        raise RunDirError(f"{label} {shown} is not a UTF-8 name; give a directory named in UTF-8") from None
     if path.exists() and not path.is_dir():
         raise RunDirError(f"{label} {path} is a file; give a directory")
     check_not_under_a_file(path, label)

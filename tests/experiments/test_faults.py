@@ -147,12 +147,14 @@ def test_bad_out_paths_are_refused_in_one_line_or_made(reference, tmp_path, caps
     bad = [(a_file, "is a file" if tool != "compare" else "name one of"), (a_file / "out", "which is a file")]
     if tool != "compare":
         bad.append((tmp_path / "results.txt", "the name of a .txt file"))
+        # A name of bytes that are not UTF-8 (as `--out $'x\\xff'` gives): a run failed at its first checkpoint.
+        bad.append((tmp_path / os.fsdecode(b"x\xff"), "is not a UTF-8 name"))
     else:
         bad.append((tmp_path / "results.txt", "name one of"))
     for out, message in bad:
         assert entry(str(out)) == 2, out
         (line,) = error_lines(capsys)
-        assert str(out) in line and message in line, line
+        assert os.fsencode(out).decode(errors="backslashreplace") in line and message in line, line
     assert a_file.read_text() == "mine" and not (tmp_path / "results.txt").exists()
     if tool in ("export", "compare"):  # quick ones: missing parents are made, and the message says what was written
         assert entry(str(tmp_path / "new" / "deeper")) == 0
