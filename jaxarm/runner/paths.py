@@ -46,6 +46,7 @@ def os_error_message(error: OSError, directory: str | pathlib.Path | None = None
         errno.ENOTDIR: "a file stands where a directory is needed; choose another path",
         errno.EEXIST: "a file of that name is in the way; choose another path",
         errno.EISDIR: "a directory stands where a file is needed; choose another path",
+        errno.EPIPE: "the output's reader went away (as `| head` does); what was written before is kept",
     }.get(error.errno or 0, "")
     where = f"{error.filename}: " if error.filename else f"writing into {directory}: " if directory else ""
     return f"{where}{error.strerror or error}" + (f"; {advice}" if advice else "")
