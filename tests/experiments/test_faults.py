@@ -23,7 +23,7 @@ from experiments import compare, configs, export, run, sweep
 from experiments import eval as eval_cli
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.exits import OUTPUT_CLOSED
+from jaxarm.exits import STOPPED_BY_SIGNAL
 from jaxarm.runner import loop, metrics_log, paths, plots, rundir, sinks
 from tests.experiments.test_run import SMALL
 from tests.experiments.test_rundir import assert_same_learner, run_cli, snapshot
@@ -464,7 +464,7 @@ def test_ctrl_c_during_start_up_imports_ends_the_run_at_once(tmp_path):
         time.sleep(0.005)
     process.send_signal(signal.SIGINT)
     _, err = process.communicate(timeout=120)
-    assert process.returncode == 130 and "interrupted while starting: nothing was written" in err
+    assert process.returncode == STOPPED_BY_SIGNAL == 130 and "interrupted while starting: nothing was written" in err
     assert not (tmp_path / "r").exists()
 
 
@@ -475,7 +475,7 @@ def test_a_command_whose_reader_went_away_ends_quietly_as_a_closed_pipe_ends_oth
     os.close(read)
     with os.fdopen(write, "w") as gone:
         done = subprocess.run([sys.executable, "-m", *command], stdout=gone, stderr=subprocess.PIPE, text=True)
-    assert done.returncode == OUTPUT_CLOSED == 141 and done.stderr == "", done.stderr
+    assert done.returncode == 128 + signal.SIGPIPE == 141 and done.stderr == "", done.stderr
 
 
 def test_os_errors_name_the_path_or_the_directory_written_to():
