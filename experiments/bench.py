@@ -3,11 +3,16 @@
 Each suite prints ratios against a peer measured in the same run, with the device named.
 """
 
-import argparse
-import importlib
 import sys
 
 from experiments import start_up
+
+if __name__ == "__main__":
+    start_up.exit_on_ctrl_c(start_up.AT_ONCE)  # first: Ctrl-C ends it at once, from its first import on
+
+import argparse
+import importlib
+
 from jaxarm.runner.cache import enable_compilation_cache
 
 SUITES = (

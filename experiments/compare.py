@@ -11,16 +11,21 @@ an env's first episode as a failure until it ends: `jaxarm.agents.common.trainer
 compares runs of one preset, not with evaluations; evaluations compare any runs of one task.
 """
 
+import sys
+
+from experiments import start_up
+
+if __name__ == "__main__":
+    start_up.exit_on_ctrl_c(start_up.AT_ONCE)  # first: Ctrl-C ends it at once, from its first import on
+
 import argparse
 import dataclasses
 import json
 import os
 import pathlib
-import sys
 
 import numpy as np
 
-from experiments import start_up
 from jaxarm.runner import metrics_log, paths, plots, rundir
 
 

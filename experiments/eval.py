@@ -18,14 +18,19 @@ are imported only after that check. Importing them first made a Panda run's fail
 CPU and 15-28 s on the busy one; what remains is importing jax and the env's module (mujoco.mjx).
 """
 
+import sys
+
+from experiments import start_up
+
+if __name__ == "__main__":
+    start_up.exit_on_ctrl_c(start_up.AT_ONCE)  # first: Ctrl-C ends it at once, from its first import on
+
 import argparse
 import json
 import os
 import pathlib
-import sys
 import time
 
-from experiments import start_up
 from jaxarm import headless
 
 VIDEO_EPISODES = 3

@@ -15,11 +15,16 @@ camera's as their parts by name (the uint8 image [B, H, W, C], the float32 propr
 one; the ONNX model's inputs are named "image" and "proprio", the numpy policy and jax.export module take a dict).
 """
 
-import argparse
-import pathlib
 import sys
 
 from experiments import start_up
+
+if __name__ == "__main__":
+    start_up.exit_on_ctrl_c(start_up.AT_ONCE)  # first: Ctrl-C ends it at once, from its first import on
+
+import argparse
+import pathlib
+
 from jaxarm import deployable
 from jaxarm.agents.common import checkpoint
 from jaxarm.deploy import files as deploy_files

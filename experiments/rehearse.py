@@ -15,16 +15,22 @@ limits; writes RUN/rehearse-<episodes>-<seed>-<update>-<budget>ms[-<fault>-tick<
 steps × 40 ms of wall clock (up to 30 s for ppo_sorter_dr's 750).
 """
 
+import sys
+
+from experiments import start_up
+
+if __name__ == "__main__":
+    start_up.exit_on_ctrl_c(start_up.AT_ONCE)  # first: Ctrl-C ends it at once, from its first import on
+
 import argparse
 import pathlib
-import sys
 import tempfile
 import time
 
 import mujoco
 import numpy as np
 
-from experiments import start_up, transfer
+from experiments import transfer
 from jaxarm import deployable, ranges
 from jaxarm.deploy import scoring, wire
 from jaxarm.deploy.driver import DriverSetup

@@ -1,6 +1,7 @@
 """How a command of experiments starts and ends. Ctrl-C while it starts: `python -m experiments.X` calls
-`exit_on_ctrl_c()` before its heavy imports, and its `main` puts Python's own handler back once start-up is over.
-Its output's reader gone: `exit_with(main)` ends it quietly. Imports nothing heavy, so that it runs first."""
+`exit_on_ctrl_c()` before its heavy imports, and the `main` of a command that trains puts Python's own handler back
+once start-up is over. Its output's reader gone: `exit_with(main)` ends it quietly. Imports nothing heavy, so that
+it runs first."""
 
 import os
 import signal
@@ -16,22 +17,30 @@ def ended_by(signum: int) -> int:
     return 128 + signum
 
 
-def _exit_during_start_up(signum, frame):
-    print("\ninterrupted while starting: nothing was written", file=sys.stderr, flush=True)
-    os._exit(ended_by(signum))
+WHILE_STARTING = "while starting: nothing was written"
+"""What Ctrl-C during the start-up of a command that trains says: its `main` takes Ctrl-C over from there."""
+AT_ONCE = "and ended at once; run the command again for its results"
+"""What Ctrl-C says at any moment of a command that trains nothing (eval, export, compare, transfer, rehearse,
+bench), which keeps `exit_on_ctrl_c` all along: a KeyboardInterrupt within it ended in tracebacks of up to 158
+lines, in a segfault once, or was swallowed (an evaluation went on to the end, rc 0)."""
 
 
-def exit_on_ctrl_c() -> None:
-    """Makes Ctrl-C end the process at once with 130 (`ended_by` SIGINT), saying that nothing was written: a
+def exit_on_ctrl_c(said: str = WHILE_STARTING) -> None:
+    """Makes Ctrl-C end the process at once with 130 (`ended_by` SIGINT), saying "interrupted" and `said`: a
     KeyboardInterrupt raised inside the imports of JAX and its libraries can be swallowed by a library's broad
     `except` (a run then trained to the end in 4 of 15 Ctrl-C during start-up)."""
-    signal.signal(signal.SIGINT, _exit_during_start_up)
+
+    def exit_at_once(signum, frame):
+        print(f"\ninterrupted {said}", file=sys.stderr, flush=True)
+        os._exit(ended_by(signum))
+
+    signal.signal(signal.SIGINT, exit_at_once)
 
 
 def exit_with(main: Callable[[], int]) -> None:  # never returns: typing's NoReturn took 3 ms of start-up
-    """Exits with `main()`'s status, or quietly with 141 (`ended_by` SIGPIPE) where the reader of the output went
-    away (`... | head -1`), as other commands end then: Python printed a BrokenPipeError traceback, and another as
-    it flushed the output at exit. What the command wrote before it printed is kept."""
+    """Exits with `main()`'s status, or quietly with 141 (`ended_by` SIGPIPE) where the reader of the output went away
+    (`... | head -1`), as other commands end then: Python printed a BrokenPipeError traceback, and another as it
+    flushed the output at exit. What the command wrote before it printed is kept."""
     try:
         code = main()
         if sys.stdout is not None:  # None where the command started with its output closed

@@ -19,10 +19,16 @@ metres; `jaxarm.deploy.camera`) of the robot's scene, and the proprio part compu
 an offscreen GL (MUJOCO_GL=egl). Object estimates are still read, to score the episode, but never shown to it.
 """
 
+import sys
+
+from experiments import start_up
+
+if __name__ == "__main__":
+    start_up.exit_on_ctrl_c(start_up.AT_ONCE)  # first: Ctrl-C ends it at once, from its first import on
+
 import argparse
 import copy
 import pathlib
-import sys
 import time
 
 import jax
@@ -30,7 +36,6 @@ import mujoco
 import numpy as np
 from scipy import stats
 
-from experiments import start_up
 from jaxarm import deployable, envs, headless, ranges
 from jaxarm.deploy.loop import Controller, DeploymentLoop, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver

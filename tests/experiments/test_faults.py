@@ -456,13 +456,8 @@ def test_a_second_ctrl_c_ends_the_process_at_once_with_130():
 def test_ctrl_c_during_start_up_imports_ends_the_run_at_once(tmp_path):
     command = [sys.executable, "-m", "experiments.run", "--config", "ppo_arm2d_fixed", "--out", str(tmp_path / "r")]
     process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
-    # Inside the imports: once jaxlib's library is mapped, with mujoco, flax and the presets still to come (a fixed
-    # 1.5 s wait landed after them on one CI run, the imports taking 1-6 s on a 2-core CPU).
-    maps = pathlib.Path(f"/proc/{process.pid}/maps")
-    deadline = time.monotonic() + (60 if maps.exists() else 1.5)  # without /proc (macOS): a wait
-    while time.monotonic() < deadline and not (maps.exists() and "jaxlib" in maps.read_text()):
-        time.sleep(0.005)
-    process.send_signal(signal.SIGINT)
+    # Inside the imports: a fixed 1.5 s wait landed after them on one CI run, the imports taking 1-6 s on a 2-core CPU.
+    signal_once_jax_loads(process, signal.SIGINT)
     _, err = process.communicate(timeout=120)
     assert process.returncode == STOPPED_BY_SIGNAL == 130 and "interrupted while starting: nothing was written" in err
     assert not (tmp_path / "r").exists()
@@ -476,6 +471,29 @@ def test_a_command_whose_reader_went_away_ends_quietly_as_a_closed_pipe_ends_oth
     with os.fdopen(write, "w") as gone:
         done = subprocess.run([sys.executable, "-m", *command], stdout=gone, stderr=subprocess.PIPE, text=True)
     assert done.returncode == 128 + signal.SIGPIPE == 141 and done.stderr == "", done.stderr
+
+
+def signal_once_jax_loads(process: subprocess.Popen, signum: int) -> None:
+    """Sends `signum` to `process` once jaxlib's library is mapped in it: amid the imports that follow (mujoco,
+    flax, the presets), where a KeyboardInterrupt could be swallowed or end in a traceback."""
+    maps = pathlib.Path(f"/proc/{process.pid}/maps")
+    deadline = time.monotonic() + (60 if maps.exists() else 1.5)  # without /proc (macOS): a wait
+    while time.monotonic() < deadline and not (maps.exists() and "jaxlib" in maps.read_text()):
+        time.sleep(0.005)
+    process.send_signal(signum)
+
+
+@pytest.mark.parametrize("command", ["eval", "export", "compare"])
+def test_ctrl_c_ends_a_command_that_trains_nothing_at_once_in_one_line(reference, tmp_path, command):
+    # A KeyboardInterrupt there ended in tracebacks of up to 158 lines, or was swallowed (an evaluation ran on, rc 0).
+    out = {"eval": [], "export": ["--out", str(tmp_path / "export")], "compare": ["--out", str(tmp_path / "c.png")]}
+    argv = [sys.executable, "-m", f"experiments.{command}", str(reference), *out[command]]
+    process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    signal_once_jax_loads(process, signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == STOPPED_BY_SIGNAL
+    assert err == "\ninterrupted and ended at once; run the command again for its results\n", err[-3000:]
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_os_errors_name_the_path_or_the_directory_written_to():
