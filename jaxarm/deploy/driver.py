@@ -14,6 +14,7 @@ J and F are the arm's joint and finger counts (`DriverSetup.description`'s `arm_
 """
 
 import dataclasses
+import multiprocessing
 import time
 from typing import Any
 
@@ -149,6 +150,20 @@ def stream_commands(robot: MujocoRobot, socket: zmq.Socket, setup: DriverSetup) 
     return log
 
 
+def first_message_comes(socket: zmq.Socket, timeout_s: float) -> bool:
+    """Whether the policy's first message comes within `timeout_s`; False at once where the process that started
+    this one has gone (a rehearsal stopped by Ctrl-C, or killed, before it connected: the robot process waited out
+    its 20 s alone)."""
+    parent = multiprocessing.parent_process()
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if socket.poll(100):
+            return True
+        if parent is not None and not parent.is_alive():
+            return False
+    return False
+
+
 def serve(setup: DriverSetup) -> None:
     """The robot process: binds `setup.address`, waits for the policy's first message (which starts its clock),
     streams until the arm has held and stopped, and writes the `StreamLog` (an empty one if no message came within
@@ -164,7 +179,7 @@ def serve(setup: DriverSetup) -> None:
     socket.bind(setup.address)
     try:
         log = StreamLog()
-        if socket.poll(round(setup.timing.connect_timeout * 1000)):
+        if first_message_comes(socket, setup.timing.connect_timeout):
             socket.recv()
             log = stream_commands(robot, socket, setup)
         log.save(setup.log_path)

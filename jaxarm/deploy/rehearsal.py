@@ -5,6 +5,7 @@ ruckig alone.
 
 import dataclasses
 import multiprocessing
+import signal
 from collections.abc import Callable
 from multiprocessing.process import BaseProcess
 
@@ -38,9 +39,16 @@ class Rehearsal:
 
 
 def start_driver(setup: DriverSetup) -> BaseProcess:
-    """The robot process, started: spawned, so that it runs none of its parent's state (JAX, threads)."""
+    """The robot process, started: spawned, so that it runs none of its parent's state (JAX, threads), and deaf to
+    Ctrl-C, which reaches every process of the terminal's group: it reacts to its policy's end as to any command
+    that does not come, holding and stopping (a Ctrl-C that ended it mid-stream printed its KeyboardInterrupt
+    traceback beside the rehearsal's one line)."""
     process = multiprocessing.get_context("spawn").Process(target=serve, args=(setup,), name="robot")
-    process.start()
+    ignored = signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited by the spawned interpreter from its start
+    try:
+        process.start()
+    finally:
+        signal.signal(signal.SIGINT, ignored)
     return process
 
 

@@ -1,7 +1,14 @@
 """`python -m experiments.rehearse`: an exported sorter policy rehearsed in real time against MuJoCo in its own
 process. The episodes' starts come from the env's reset (one MJX program: marked mjx)."""
 
+import contextlib
 import json
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -46,3 +53,34 @@ def test_bad_options_are_one_line_before_anything_runs(options, message, tmp_pat
     err = capsys.readouterr().err
     assert err.startswith(f"error: {message}") and err.count("\n") == 1, err
     assert list(tmp_path.iterdir()) == []
+
+
+def session_processes(session: int) -> list[int]:
+    """The processes still running in `session` (Linux's /proc)."""
+    alive = []
+    for entry in pathlib.Path("/proc").iterdir():
+        with contextlib.suppress(ValueError, ProcessLookupError, PermissionError):
+            if entry.name.isdigit() and os.getsid(int(entry.name)) == session:
+                alive.append(int(entry.name))
+    return alive
+
+
+@pytest.mark.mjx
+@pytest.mark.slow
+def test_ctrl_c_ends_a_rehearsal_and_its_robot_process_in_one_line(tmp_path):
+    export_random_policy(tmp_path, sorter_run(tmp_path, 250), "24")  # 10 s episodes: Ctrl-C comes mid-stream
+    command = [sys.executable, "-m", "experiments.rehearse", str(tmp_path), "--episodes", "1"]
+    process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while len(session_processes(process.pid)) < 3 and time.monotonic() < deadline:  # it, its tracker, the robot
+        time.sleep(0.1)
+    time.sleep(1.0)
+    os.killpg(process.pid, signal.SIGINT)  # as a terminal's Ctrl-C reaches every process of its group
+    _, err = process.communicate(timeout=60)
+    # The robot printed its own KeyboardInterrupt traceback, and lived on 20 s where it had not connected yet.
+    assert process.returncode == 130
+    assert err == "\ninterrupted and ended at once; run the command again for its results\n", err[-3000:]
+    deadline = time.monotonic() + 30  # the robot may still be importing, on a loaded CPU
+    while session_processes(process.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert session_processes(process.pid) == []
