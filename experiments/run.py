@@ -8,7 +8,6 @@ config field and env param with its default and meaning. On a host of several GP
 process per GPU by itself (`--local-processes 1` keeps one process); `num_envs` is the total over all of them.
 """
 
-import signal
 import sys
 
 from experiments import start_up
@@ -177,8 +176,7 @@ def train_or_resume(args: argparse.Namespace, options: loop.Options) -> tuple[pa
 
 
 def main(argv=None) -> int:
-    # Start-up is over: from here Ctrl-C raises KeyboardInterrupt (caught below), and the loop checkpoints on it.
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    start_up.start_up_over()  # from here Ctrl-C raises KeyboardInterrupt (caught below); the loop checkpoints on it
     try:
         return _main(sys.argv[1:] if argv is None else argv)
     except KeyboardInterrupt:

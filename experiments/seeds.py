@@ -375,7 +375,7 @@ def interrupt(signum, frame) -> None:
 def main(argv=None) -> int:
     # Start-up is over: Ctrl-C raises KeyboardInterrupt again. A cluster's time limit or `timeout` sends SIGTERM:
     # the study stops as on Ctrl-C.
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    start_up.start_up_over()
     previous = signal.signal(signal.SIGTERM, interrupt)
     try:
         return study(parse_args(sys.argv[1:] if argv is None else argv))

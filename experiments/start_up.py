@@ -17,6 +17,9 @@ def ended_by(signum: int) -> int:
     return 128 + signum
 
 
+_before: dict = {}
+"""The handlers `exit_on_ctrl_c` replaced, by signal, and its own ("handler"): `start_up_over` puts them back."""
+
 WHILE_STARTING = "while starting: nothing was written"
 """What Ctrl-C during the start-up of a command that trains says: its `main` takes Ctrl-C over from there."""
 AT_ONCE = "and ended at once; run the command again for its results"
@@ -26,15 +29,27 @@ lines, in a segfault once, or was swallowed (an evaluation went on to the end, r
 
 
 def exit_on_ctrl_c(said: str = WHILE_STARTING) -> None:
-    """Makes Ctrl-C end the process at once with 130 (`ended_by` SIGINT), saying "interrupted" and `said`: a
-    KeyboardInterrupt raised inside the imports of JAX and its libraries can be swallowed by a library's broad
-    `except` (a run then trained to the end in 4 of 15 Ctrl-C during start-up)."""
+    """Makes Ctrl-C and SIGTERM end the process at once with 130 (`ended_by` SIGINT, as the commands' own handlers
+    take both), saying "interrupted" and `said`: a KeyboardInterrupt raised inside the imports of JAX and its
+    libraries can be swallowed by a library's broad `except` (a run then trained to the end in 4 of 15 Ctrl-C
+    during start-up), and SIGTERM (a cluster's time limit, `timeout`) ended a command in its start-up without a
+    word (rc -15)."""
 
     def exit_at_once(signum, frame):
         print(f"\ninterrupted {said}", file=sys.stderr, flush=True)
-        os._exit(ended_by(signum))
+        os._exit(ended_by(signal.SIGINT))
 
-    signal.signal(signal.SIGINT, exit_at_once)
+    _before.update({signum: signal.signal(signum, exit_at_once) for signum in (signal.SIGINT, signal.SIGTERM)})
+    _before["handler"] = exit_at_once
+
+
+def start_up_over() -> None:
+    """Ends `exit_on_ctrl_c` in a command that trains, as its `main` begins: Ctrl-C raises KeyboardInterrupt again
+    (the command reports it; its chunk loop checkpoints on it), and SIGTERM, where start-up's handler still has it,
+    does what it did before (a process of several has its own handler by then, `distributed`)."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    if _before and signal.getsignal(signal.SIGTERM) is _before["handler"]:
+        signal.signal(signal.SIGTERM, _before[signal.SIGTERM])
 
 
 def exit_with(main: Callable[[], int]) -> None:  # never returns: typing's NoReturn took 3 ms of start-up

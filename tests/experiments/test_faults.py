@@ -453,11 +453,12 @@ def test_a_second_ctrl_c_ends_the_process_at_once_with_130():
     assert done.returncode == 130 and "SIGINT again: aborted" in done.stderr
 
 
-def test_ctrl_c_during_start_up_imports_ends_the_run_at_once(tmp_path):
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])  # SIGTERM ended it without a word (rc -15)
+def test_ctrl_c_or_sigterm_during_start_up_imports_ends_the_run_at_once(tmp_path, signum):
     command = [sys.executable, "-m", "experiments.run", "--config", "ppo_arm2d_fixed", "--out", str(tmp_path / "r")]
     process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
     # Inside the imports: a fixed 1.5 s wait landed after them on one CI run, the imports taking 1-6 s on a 2-core CPU.
-    signal_once_jax_loads(process, signal.SIGINT)
+    signal_once_jax_loads(process, signum)
     _, err = process.communicate(timeout=120)
     assert process.returncode == STOPPED_BY_SIGNAL == 130 and "interrupted while starting: nothing was written" in err
     assert not (tmp_path / "r").exists()
