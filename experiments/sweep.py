@@ -82,19 +82,21 @@ class Grid:
 
 
 def parse_grid(base: RunConfig, assignments: list[str]) -> Grid:
-    """Splits `key=v1,v2` assignments into static groups (cartesian product) and dynamic combinations; ValueError
-    for a key assigned twice or a value given twice (settings alike would share a label, and one's curve was lost)."""
+    """Splits `key=v1,v2` assignments into static groups (cartesian product) and dynamic combinations, a later
+    assignment of a key overriding an earlier one (a plain override, then the values swept); ValueError for a value
+    given twice, or several values overridden (settings alike would share a label, and one's curve was lost)."""
     static: list[list[str]] = [[]]
     dynamic: list[dict[str, float]] = [{}]
-    keys: set[str] = set()
+    swept: set[str] = set()
     for item in assignments:
         key, _, values = item.partition("=")
         options = [value for value in values.split(",") if value]
         if not options:
             raise ValueError(f"sweep assignment {item!r} has no values")
-        if key in keys:
-            raise ValueError(f"sweep assignment {item!r}: {key} is assigned twice; give all its values in one")
-        keys.add(key)
+        if key in swept:
+            raise ValueError(f"sweep assignment {item!r} overrides the values of {key} swept before; give them once")
+        if len(options) > 1:
+            swept.add(key)
         settings = [apply_overrides(base, [f"{key}={value}"], validate=False) for value in options]
         repeated = [value for index, value in enumerate(options) if settings[index] in settings[:index]]
         if repeated:

@@ -421,7 +421,8 @@ def test_a_sweep_labels_its_settings_by_what_sets_them_apart():
     [
         (["learning_rate=1e-3,0.001"], "gives learning_rate=0.001 twice"),
         (["num_envs=8,8"], "gives num_envs=8 twice"),
-        (["learning_rate=1e-3", "learning_rate=2e-3,1e-4"], "learning_rate is assigned twice"),
+        (["learning_rate=1e-3,2e-3", "learning_rate=5e-4"], "overrides the values of learning_rate swept before"),
+        (["num_minibatches=1,2", "num_minibatches=4"], "overrides the values of num_minibatches swept before"),
     ],
 )
 def test_a_sweep_refuses_settings_alike_in_one_line_before_anything_is_written(assignments, message, tmp_path, capsys):
@@ -430,6 +431,15 @@ def test_a_sweep_refuses_settings_alike_in_one_line_before_anything_is_written(a
     err = capsys.readouterr().err
     assert err.startswith("error: sweep assignment") and message in err and err.count("\n") == 1
     assert not out.exists()
+
+
+def test_a_plain_override_then_the_values_swept_of_one_key_sweep_those_values():
+    base = configs.get("ppo_arm2d")
+    grid = sweep.parse_grid(
+        base, ["num_minibatches=2", "num_minibatches=1,4", "learning_rate=1e-3", "learning_rate=2e-3,1e-4"]
+    )
+    assert [config.num_minibatches for config in grid.groups] == [1, 4]
+    assert [combo["learning_rate"] for combo in grid.dynamic] == pytest.approx([2e-3, 1e-4])
 
 
 def test_prepare_names_the_presets_it_has_nothing_to_compile_for_and_refuses_an_unknown_one(capsys):
