@@ -32,6 +32,7 @@ import pathlib
 import shutil
 import textwrap
 import time
+import zipfile
 from collections.abc import Callable
 
 import jax
@@ -538,13 +539,23 @@ def write_group(folder: pathlib.Path, rows: list[dict], curves: dict) -> None:
 
 
 def read_group(folder: pathlib.Path) -> tuple[list[dict], dict] | None:
-    """A finished group's (results rows, curves) kept in `folder`, or None where it has not finished."""
+    """A finished group's (results rows, curves) kept in `folder`, or None where it has not finished; ValueError in
+    one line where its files are damaged or edited (a resume met JSON's, numpy's or a KeyError's traceback)."""
     if not (folder / GROUP_FILE).exists():
         return None
-    kept = json.loads((folder / GROUP_FILE).read_text())
-    with np.load(folder / CURVES_FILE) as parts:
-        curves = {label: tuple(parts[f"{k}_{j}"] for j in range(3)) for k, label in enumerate(kept["labels"])}
-    return kept["rows"], curves
+    try:
+        kept = json.loads((folder / GROUP_FILE).read_text())
+        rows, labels = kept["rows"], kept["labels"]
+        if not (isinstance(rows, list) and isinstance(labels, list) and len(rows) == len(labels) > 0):
+            raise TypeError("no rows and labels, one of each per setting")
+        with np.load(folder / CURVES_FILE) as parts:
+            curves = {label: tuple(parts[f"{k}_{j}"] for j in range(3)) for k, label in enumerate(labels)}
+    except (FileNotFoundError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as error:
+        raise ValueError(
+            f"{folder}, a finished group, is damaged or edited ({type(error).__name__}: {error}); delete it to train "
+            "that group again"
+        ) from None
+    return rows, curves
 
 
 def silent(line: str) -> None:

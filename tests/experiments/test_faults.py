@@ -15,6 +15,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import orbax.checkpoint as ocp
 import pytest
 from tensorboardX.proto import event_pb2
@@ -296,6 +297,30 @@ def test_a_full_disk_at_a_sweeps_figure_is_one_line_and_the_resume_makes_it(tmp_
     assert sweep.main(["--resume", str(out)]) == 0, "space freed: the finished groups make the tables and figure"
     assert (out / "curves.png").stat().st_size > 1000 and (out / sweep.RESULTS_FILE).exists()
     assert sweep.main(["--resume", str(out)]) == 2 and "has finished" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("name", "content"),
+    [
+        (sweep.GROUP_FILE, b"{"),
+        (sweep.GROUP_FILE, b"null"),  # a TypeError traceback on --resume
+        (sweep.GROUP_FILE, b'{"rows": 3}'),  # a KeyError traceback
+        (sweep.GROUP_FILE, b'{"rows": [], "labels": ["x"]}'),  # the group's rows left out, rc 0
+        (sweep.CURVES_FILE, b"garbage"),
+        (sweep.CURVES_FILE, b"PK\x03\x04 cut short"),
+    ],
+)
+def test_a_finished_groups_damaged_files_are_named_in_one_line(tmp_path, name, content):
+    folder = tmp_path / "group-0"
+    curve = (np.arange(3.0), np.zeros(3), np.ones(3))
+    sweep.write_group(folder, [{"setting": "a"}, {"setting": "b"}], {"a": curve, "b": curve})
+    assert sweep.read_group(folder) is not None
+    (folder / name).write_bytes(content)
+    with pytest.raises(ValueError) as raised:
+        sweep.read_group(folder)
+    message = str(raised.value)
+    assert message.startswith(f"{folder}, a finished group, is damaged or edited (") and "\n" not in message
+    assert message.endswith("; delete it to train that group again")
 
 
 def test_eval_of_the_best_and_of_the_latest_checkpoint_write_different_files(reference, capsys):
