@@ -20,7 +20,6 @@ if __name__ == "__main__":
 
 import argparse
 import dataclasses
-import json
 import os
 import pathlib
 
@@ -81,7 +80,6 @@ def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
     wall = column("wall_time")
     rates = column("steps_per_second")[wall > wall[0]]
     rollout = getattr(config, "rollout_length", None)
-    eval_path = run_dir / "eval.json"
     return RunCurves(
         label=label or run_dir.name,
         batch=config.num_envs * rollout if rollout else None,
@@ -91,7 +89,7 @@ def load_run(run_dir: pathlib.Path, label: str | None = None) -> RunCurves:
         success=plots.rolling_mean(column("episodes/success_rate"), window, plots.success_weights(rows)),
         returns=plots.rolling_mean(column("episodes/return_mean"), window, episodes),
         steps_per_second=float(np.median(rates)) if len(rates) else float("nan"),
-        evaluation=json.loads(eval_path.read_text()) if eval_path.exists() else None,
+        evaluation=rundir.read_evaluation(run_dir) or None,
         eval_env_steps=np.array([row["env_steps"] for row in evaluations], float),
         eval_wall_seconds=np.array([row["wall_time"] for row in evaluations], float),
         eval_success=np.array([row["eval/success_rate"] for row in evaluations], float),

@@ -181,8 +181,7 @@ def seed_log(out: pathlib.Path, seed: int) -> pathlib.Path:
 
 def seed_result(out: pathlib.Path, seed: int, walls: Sequence[float]) -> SeedResult:
     """What seed-S's run directory holds now: its eval.json where the run evaluated its end."""
-    path = seed_dir(out, seed) / "eval.json"
-    evaluation = json.loads(path.read_text()) if path.exists() else {}
+    evaluation = rundir.read_evaluation(seed_dir(out, seed))
     return SeedResult(
         seed=seed,
         placed=evaluation.get("success_rate"),

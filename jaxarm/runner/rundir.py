@@ -262,14 +262,19 @@ def finished_evaluation(run_dir: pathlib.Path, config: RunConfig) -> dict | None
     """The final evaluation (eval.json) of a run that trained all of `config`'s updates and evaluated their end;
     None where there is more to train or to evaluate (no such file, an unreadable or edited one, or a stopped run's)."""
     latest = checkpoint.latest_step(run_dir / "checkpoints")
-    path = run_dir / "eval.json"
-    if latest is None or latest < config.num_updates or not path.exists():
-        return None
+    result = read_evaluation(run_dir)
+    return result if latest is not None and latest >= config.num_updates and result.get("finished") else None
+
+
+def read_evaluation(run_dir: pathlib.Path) -> dict:
+    """The last evaluation of the run in `run_dir` (its eval.json, "finished" where the run trained all its
+    updates); {} where there is none yet, or an unreadable or edited one, which a resume writes again (`null` in it
+    ended a resume, a seeds study or a comparison in a traceback)."""
     try:
-        result = json.loads(path.read_text())
-    except json.JSONDecodeError:
-        return None
-    return result if isinstance(result, dict) and result.get("finished") else None
+        result = json.loads((run_dir / "eval.json").read_text())
+    except (FileNotFoundError, ValueError):  # ValueError: JSONDecodeError, UnicodeDecodeError
+        return {}
+    return result if isinstance(result, dict) else {}
 
 
 def write_json(path: pathlib.Path, data: dict) -> None:

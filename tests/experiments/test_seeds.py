@@ -91,6 +91,14 @@ def test_a_seed_the_config_refuses_is_one_line_before_any_run_starts(tmp_path, c
     assert not out.exists()
 
 
+@pytest.mark.parametrize("content", ["null", "{", "[1]"])  # tracebacks from the study before
+def test_a_seed_whose_eval_json_is_damaged_counts_as_not_finished(tmp_path, content):
+    seeds.seed_dir(tmp_path, 3).mkdir()
+    (seeds.seed_dir(tmp_path, 3) / "eval.json").write_text(content)
+    assert seeds.seed_result(tmp_path, 3, [5.0]) == seeds.SeedResult(3, None, 5.0, False, None)
+    assert seeds.next_command(seeds.Protocol("ppo_arm2d", (3,), 0.9, None, ()), tmp_path, 3, None) is not None
+
+
 def test_a_damaged_study_file_is_named_in_one_line(tmp_path):
     (tmp_path / seeds.SEEDS_FILE).write_text(json.dumps({"config": "ppo_arm2d"}))
     with pytest.raises(ValueError, match=f"{seeds.SEEDS_FILE} is damaged"):
