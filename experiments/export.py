@@ -76,6 +76,8 @@ def main(argv=None) -> int:
     out_dir = pathlib.Path(args.out) if args.out else run_dir / "export"
     try:
         paths.check_output_dir(out_dir, "--out")
+        if (out_dir / "config.json").exists():  # its resume and eval then refused the run's foreign files
+            raise rundir.RunDirError(f"--out {out_dir} is a run directory; give a folder of the export's own")
         written = export_run(run_dir, out_dir)
     except (ValueError, checkpoint.CheckpointError) as error:
         print(f"error: {error}", file=sys.stderr)

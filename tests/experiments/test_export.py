@@ -181,6 +181,12 @@ def test_export_errors_are_one_line(tmp_path, capsys):
     assert export_cli.main([str(tmp_path)]) == 2
     assert "checkpoint" in capsys.readouterr().err
     assert not (tmp_path / "export").exists()
+    for out in (tmp_path, tmp_path / "another_run"):  # a run's files and the export's mixed: it then resumed no more
+        rundir.write_config(out, CONFIGS["ppo"], "tiny_ppo")
+        before = sorted(path.name for path in out.iterdir())
+        assert export_cli.main([str(tmp_path), "--out", str(out)]) == 2
+        assert capsys.readouterr().err == f"error: --out {out} is a run directory; give a folder of the export's own\n"
+        assert sorted(path.name for path in out.iterdir()) == before
 
 
 def test_a_camera_policy_the_numpy_policy_cannot_run_is_refused_before_anything_is_written(tmp_path, capsys):
