@@ -255,17 +255,20 @@ class GpuPool:
 
 def train_seeds(
     protocol: Protocol, out: pathlib.Path, walls: dict[int, list[float]], stop_after: float | None, record
-) -> None:
+) -> list[int]:
     """Runs every unfinished seed's next command, as many at once as there are GPUs free of other studies'
     runs (`GpuPool`), appending each command's wall clock to `walls[seed]` and calling `record()` after each ends,
     an interrupted one too: on Ctrl-C or SIGTERM the runs are told to stop (they checkpoint) and waited for, so
-    that none is left running."""
+    that none is left running. Returns the seeds whose command failed (a status but 0)."""
     queue = [(seed, command) for seed in protocol.seeds if (command := next_command(protocol, out, seed, stop_after))]
     pool = GpuPool(gpu_slots(), gpu_lock_dir())
     running: dict[subprocess.Popen, tuple[int, str | None, float]] = {}
+    failed: list[int] = []
 
     def finish(process: subprocess.Popen) -> None:
         seed, gpu, started = running.pop(process)
+        if process.returncode != 0:
+            failed.append(seed)
         walls.setdefault(seed, []).append(time.perf_counter() - started)
         record()
         pool.give_back(gpu)
@@ -294,6 +297,7 @@ def train_seeds(
                 finish(wait_any(list(running)))
             except KeyboardInterrupt:
                 signal_all(running, signal.SIGINT)  # a second Ctrl-C: the runs' second, which ends them at once
+    return failed
 
 
 def signal_all(running: dict[subprocess.Popen, tuple], signum: int) -> None:
@@ -421,7 +425,7 @@ def study(args: argparse.Namespace) -> int:
 
     record()
     try:
-        train_seeds(protocol, out, walls, args.stop_after_minutes, record)
+        failed = train_seeds(protocol, out, walls, args.stop_after_minutes, record)
     except KeyboardInterrupt:
         print(f"\ninterrupted; continue with: python -m experiments.seeds --resume {out}", file=sys.stderr)
         return STOPPED_BY_SIGNAL
@@ -430,12 +434,18 @@ def study(args: argparse.Namespace) -> int:
     rundir.write_json(out / "summary.json", summary)
     (out / "seeds.md").write_text(markdown(summary))
     print(markdown(summary), end="")
+    resume = f"python -m experiments.seeds --resume {out}"
+    if failed:  # a study whose runs failed (a seed the config refuses, a full disk, a crash) failed (rc 0 before)
+        logs = ", ".join(str(seed_log(out, seed)) for seed in failed)
+        print(
+            f"error: the runs of seeds {', '.join(map(str, failed))} failed (their logs say why: {logs}); fix that "
+            f"and continue with: {resume}",
+            file=sys.stderr,
+        )
+        return 2
     if not summary["finished"]:
         unfinished = ", ".join(str(seed_log(out, result.seed)) for result in results if not result.finished)
-        print(
-            f"some seeds did not finish (their logs say why: {unfinished}); continue them with: "
-            f"python -m experiments.seeds --resume {out}"
-        )
+        print(f"some seeds did not finish (their logs say why: {unfinished}); continue them with: {resume}")
     return 0
 
 

@@ -99,6 +99,19 @@ def test_a_seed_whose_eval_json_is_damaged_counts_as_not_finished(tmp_path, cont
     assert seeds.next_command(seeds.Protocol("ppo_arm2d", (3,), 0.9, None, ()), tmp_path, 3, None) is not None
 
 
+def test_a_study_whose_run_failed_says_so_in_one_line_and_fails(tmp_path, capsys):
+    out = tmp_path / "study"
+    (out / "seed-0").mkdir(parents=True)
+    (out / "seed-0" / "notes.txt").write_text("mine")  # the run refuses a directory of foreign files (rc 2)
+    assert seeds.main(["--config", "ppo_arm2d", "--seeds", "0", "--out", str(out), *SMALL]) == 2  # 0 before
+    (line,) = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+    assert line == (
+        f"error: the runs of seeds 0 failed (their logs say why: {seeds.seed_log(out, 0)}); fix that and continue "
+        f"with: python -m experiments.seeds --resume {out}"
+    )
+    assert "holds files but no run" in seeds.seed_log(out, 0).read_text()
+
+
 def test_a_damaged_study_file_is_named_in_one_line(tmp_path):
     (tmp_path / seeds.SEEDS_FILE).write_text(json.dumps({"config": "ppo_arm2d"}))
     with pytest.raises(ValueError, match=f"{seeds.SEEDS_FILE} is damaged"):
