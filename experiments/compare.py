@@ -215,6 +215,9 @@ def main(argv=None) -> int:
         if len(labels) != len(args.run_dirs):
             raise ValueError(f"{len(labels)} --label for {len(args.run_dirs)} runs")
         runs = [load_run(pathlib.Path(path), label) for path, label in zip(args.run_dirs, labels, strict=True)]
+        alike = sorted({run.label for run in runs if [other.label for other in runs].count(run.label) > 1})
+        if alike:  # the figure's curves are keyed by label: one of each pair was drawn, the other left out
+            raise ValueError(f"runs share the label {alike[0]!r}; give each a --label of its own, in order")
         device = device_name(runs, args.device)
         out = figure_path(pathlib.Path(args.out)) if args.out else default_out(args.run_dirs)
     except ValueError as error:

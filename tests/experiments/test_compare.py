@@ -141,6 +141,13 @@ def test_the_cli_draws_the_figure_and_names_the_device_or_refuses(tmp_path, caps
     assert "--device" in capsys.readouterr().err
     assert compare.main([str(first), str(second), "--label", "only one", "--device", "CPU"]) == 2
     assert "1 --label for 2 runs" in capsys.readouterr().err
+    # Runs of one name (seed-0 of two studies) drew one curve, the other left out; told apart, both are drawn.
+    twin = write_run(tmp_path / "other" / "first", 64, [(10.0, 100.0, 2, 0.2, 1.0)])
+    assert compare.main([str(first), str(twin), "--device", "CPU", "--out", str(out)]) == 2
+    assert capsys.readouterr().err == "error: runs share the label 'first'; give each a --label of its own, in order\n"
+    assert (
+        compare.main([str(first), str(twin), "--device", "CPU", "--out", str(out), "--label", "a", "--label", "b"]) == 0
+    )
     assert compare.main([str(first), str(second), "--device", "CPU", "--out", str(out)]) == 0
     assert out.stat().st_size > 0
     assert compare.main([str(tmp_path)]) == 2
