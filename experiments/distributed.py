@@ -99,8 +99,9 @@ def port_in_use(port: int) -> bool:
 
 def check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """Exits with the usage where the joining options come without `--distributed`, where `--process-id` is not
-    below `--num-processes`, or where this process is the coordinator (process 0) and its port is taken here: JAX
-    would find out only at its deadline, or abort."""
+    below `--num-processes`, where this process is the coordinator (process 0) and its port is taken here (JAX
+    would find out only at its deadline, or abort), or where `--local-processes` asks more processes than the host
+    has cores."""
     joining = (args.coordinator, args.num_processes, args.process_id)
     if any(option is not None for option in joining) and not args.distributed:
         parser.error("--coordinator, --num-processes and --process-id go with --distributed")
@@ -119,6 +120,10 @@ def check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -
             )
     if args.local_processes is not None and (args.distributed or args.local_processes < 1):
         parser.error(f"{LOCAL_PROCESSES} takes a count of 1 or more, without --distributed (it adds it)")
+    cores = os.cpu_count() or 1
+    if args.local_processes is not None and args.local_processes > cores:
+        # Each forks from this one and starts JAX: 100000 asked forked ~2,600 on a 2-core host (load 1,700).
+        parser.error(f"{LOCAL_PROCESSES} {args.local_processes}: more than this host's {cores} cores, one a process")
 
 
 def listed_gpus(listing: str) -> int:

@@ -153,6 +153,10 @@ def test_local_processes_are_checked_and_leave_the_children_their_arguments(monk
         timeout=120,
     )
     assert result.returncode == 2 and "--local-processes takes a count of 1 or more" in result.stderr
+    for entry in (run, sweep):  # 100000 forked ~2,600 JAX processes before: refused before any fork
+        with pytest.raises(SystemExit) as exited:
+            entry.parse_args(["--config", "ppo_arm2d", "--local-processes", "100000"])
+        assert exited.value.code == 2
 
 
 @pytest.mark.usefixtures("loaded_cpu")
