@@ -112,6 +112,9 @@ def rehearse_run(run_dir: pathlib.Path, episodes: int, seed: int, fault: Fault |
     env, params = config.make_eval_env()
     if not deployable.runs(env) or deployable.entry(env) is not panda_sort.DEPLOYABLE:
         raise ValueError(f"{run_dir}'s env is {config.env}; the rehearsal runs the sorter (panda_sort, panda_sort3)")
+    steps = int(params.max_episode_steps)
+    if fault is not None and fault.tick >= steps:  # a fault no episode reaches: reported as none before
+        raise ValueError(f"--fault-tick {fault.tick}: an episode of the run's env has ticks 0 to {steps - 1}")
     policy_path = run_dir / "export" / "policy.npz"
     if not policy_path.exists():
         raise ValueError(f"no {policy_path}: export the run first (python -m experiments.export {run_dir})")
@@ -133,7 +136,7 @@ def rehearse_run(run_dir: pathlib.Path, episodes: int, seed: int, fault: Fault |
             setup = driver_setup(env, params, sim, pathlib.Path(directory), timing)
             loop = DeploymentLoop(policy, controller, CONTROL_DT, description=env.robot)
             size = np.asarray(sim.size, np.float64)
-            rehearsal = rehearse(loop, setup, sim.shape, size, int(params.max_episode_steps), done, fault)
+            rehearsal = rehearse(loop, setup, sim.shape, size, steps, done, fault)
         rehearsals.append(rehearsal)
         placements.append(placed(controller, sim, rehearsal, bins))
     result = {"checkpoint": origin.read(policy_path.parent), "seed": seed, "fault": fault and fault.kind}

@@ -36,6 +36,9 @@ def test_the_rehearsal_cli_reports_placements_jitter_and_misses(tmp_path, capsys
     assert rehearse.main([str(tmp_path), "--episodes", "1", "--fault", "stall", "--fault-tick", "3"]) == 0
     result = json.loads((tmp_path / "rehearse-1-12345-24-20ms-stall-tick3.json").read_text())
     assert result["faults"] == ["missed"] and result["ticks"] < STEPS
+    # A tick past the episode's end: a fault never injected, reported as none before.
+    assert rehearse.main([str(tmp_path), "--episodes", "1", "--fault", "stall", "--fault-tick", str(STEPS)]) == 2
+    assert capsys.readouterr().err == f"error: --fault-tick {STEPS}: an episode of the run's env has ticks 0 to 9\n"
 
 
 @pytest.mark.parametrize(
