@@ -82,6 +82,8 @@ def parse_args(argv):
         parser.error("give --config NAME, --resume RUN_DIR or --list")
     if args.resume and args.config:
         parser.error("--resume takes the config saved in the run directory; give no --config")
+    if args.resume and args.out:  # else --out was left aside without a word
+        parser.error("--resume continues the run in its own directory; give no --out")
     distributed.check_arguments(parser, args)
     if args.distributed and args.config and not args.out and not (args.list or args.show):
         parser.error("with --distributed give --out: every process writes to one run directory")

@@ -346,8 +346,10 @@ def parse_args(argv) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if bool(args.config) == bool(args.resume):
         parser.error("give --config NAME (a new study) or --resume OUT (a stopped one)")
-    if args.resume and args.overrides:
-        parser.error("--resume takes what the study was asked from its seeds.json; give no overrides")
+    if args.resume and (args.overrides or args.out):  # else --out was left aside without a word
+        parser.error(
+            "--resume takes what the study was asked, and where, from its seeds.json; give no overrides or --out"
+        )
     return args
 
 

@@ -148,6 +148,9 @@ def test_cli_errors_are_one_line_and_name_the_closest(capsys, tmp_path):
     assert run_cli("gamma=high", "--out", str(tmp_path / "c")) == 2
     assert "bad value for gamma" in capsys.readouterr().err
     assert not (tmp_path / "a").exists()
+    with pytest.raises(SystemExit) as exited:  # --out was left aside without a word, the run in RUN resumed
+        run.main(["--resume", str(tmp_path / "run"), "--out", str(tmp_path / "elsewhere")])
+    assert exited.value.code == 2 and "give no --out" in capsys.readouterr().err
 
 
 @pytest.mark.slow

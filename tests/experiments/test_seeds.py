@@ -112,6 +112,13 @@ def test_a_study_whose_run_failed_says_so_in_one_line_and_fails(tmp_path, capsys
     assert "holds files but no run" in seeds.seed_log(out, 0).read_text()
 
 
+def test_a_resumed_study_takes_no_out_or_overrides(tmp_path, capsys):
+    for extra in (["--out", str(tmp_path / "elsewhere")], ["num_envs=8"]):  # --out was left aside without a word
+        with pytest.raises(SystemExit) as exited:
+            seeds.parse_args(["--resume", str(tmp_path), *extra])
+        assert exited.value.code == 2 and "give no overrides or --out" in capsys.readouterr().err
+
+
 def test_a_damaged_study_file_is_named_in_one_line(tmp_path):
     (tmp_path / seeds.SEEDS_FILE).write_text(json.dumps({"config": "ppo_arm2d"}))
     with pytest.raises(ValueError, match=f"{seeds.SEEDS_FILE} is damaged"):
