@@ -84,6 +84,8 @@ def parse_args(argv):
         parser.error("--resume takes the config saved in the run directory; give no --config")
     if args.resume and args.out:  # else --out was left aside without a word
         parser.error("--resume continues the run in its own directory; give no --out")
+    if (args.wandb is not None and not args.wandb.strip()) or (args.wandb_offline and args.wandb is None):
+        parser.error("--wandb takes a project's name, and --wandb-offline goes with it")  # else left aside too
     distributed.check_arguments(parser, args)
     if args.distributed and args.config and not args.out and not (args.list or args.show):
         parser.error("with --distributed give --out: every process writes to one run directory")

@@ -151,6 +151,10 @@ def test_cli_errors_are_one_line_and_name_the_closest(capsys, tmp_path):
     with pytest.raises(SystemExit) as exited:  # --out was left aside without a word, the run in RUN resumed
         run.main(["--resume", str(tmp_path / "run"), "--out", str(tmp_path / "elsewhere")])
     assert exited.value.code == 2 and "give no --out" in capsys.readouterr().err
+    for wandb in (["--wandb", ""], ["--wandb-offline"]):
+        with pytest.raises(SystemExit) as exited:
+            run.main(["--config", "ppo_arm2d", *wandb])
+        assert exited.value.code == 2 and "--wandb takes a project's name" in capsys.readouterr().err
 
 
 @pytest.mark.slow
