@@ -207,7 +207,9 @@ def main(argv=None) -> int:
         "that is not part of a run's recorded device is refused)",
     )
     parser.add_argument(
-        "--out", help="the figure (.png, .pdf or .svg; a directory gets compare.png; default: beside the runs)"
+        "--out",
+        type=paths.given,
+        help="the figure (.png, .pdf or .svg; a directory gets compare.png; default: beside the runs)",
     )
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     labels = args.labels or [None] * len(args.run_dirs)

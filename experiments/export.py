@@ -70,7 +70,7 @@ def export_run(run_dir: pathlib.Path, out_dir: pathlib.Path) -> list[pathlib.Pat
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m experiments.export", description=__doc__.splitlines()[0])
     parser.add_argument("run_dir")
-    parser.add_argument("--out", help="directory for the exported files (default RUN_DIR/export)")
+    parser.add_argument("--out", type=paths.given, help="directory for the exported files (default RUN_DIR/export)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     run_dir = pathlib.Path(args.run_dir)
     out_dir = pathlib.Path(args.out) if args.out else run_dir / "export"

@@ -58,7 +58,9 @@ def parse_args(argv):
     parser.add_argument(
         "--show", action="store_true", help="print the config's fields and its env's params (with overrides) and exit"
     )
-    parser.add_argument("--out", help="run directory (default runs/<config>-<timestamp>, made unique)")
+    parser.add_argument(
+        "--out", type=paths.given, help="run directory (default runs/<config>-<timestamp>, made unique)"
+    )
     parser.add_argument(
         "--resume",
         metavar="RUN_DIR",

@@ -337,7 +337,7 @@ def parse_args(argv) -> argparse.Namespace:
     parser.add_argument("--seeds", type=parse_seeds, default=parse_seeds("0-4"), help="e.g. 0-4 (the default)")
     parser.add_argument("--goal", type=fraction, default=0.9, help="the placed fraction each seed must reach")
     parser.add_argument("--minutes", type=minutes, help="each seed's command must end within this wall clock")
-    parser.add_argument("--out", help="study directory (default runs/seeds-<config>-<timestamp>)")
+    parser.add_argument("--out", type=paths.given, help="study directory (default runs/seeds-<config>-<timestamp>)")
     parser.add_argument("--resume", metavar="OUT", help="continue the study in OUT")
     parser.add_argument(
         "--stop-after-minutes", type=minutes, help="passed to each run: checkpoint and stop after this wall clock"

@@ -365,7 +365,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     )
     parser.add_argument("--config")
     parser.add_argument("--seeds", type=int, default=3)
-    parser.add_argument("--out", help="sweep directory (default runs/sweep-<config>-<timestamp>)")
+    parser.add_argument("--out", type=paths.given, help="sweep directory (default runs/sweep-<config>-<timestamp>)")
     parser.add_argument("--resume", metavar="SWEEP_DIR", help="continue the stopped sweep in SWEEP_DIR")
     parser.add_argument(
         "--stop-after-minutes",

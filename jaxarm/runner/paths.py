@@ -1,6 +1,7 @@
 """Paths a command is given: whether one can be (or is) an output directory, and an OS error met at a path in one
 line naming it and what to do. Nothing here writes."""
 
+import argparse
 import errno
 import os
 import pathlib
@@ -9,6 +10,14 @@ from jaxarm.runner.rundir import RunDirError
 
 FILE_SUFFIXES = (".txt", ".json", ".jsonl", ".csv", ".md", ".png", ".pdf", ".svg", ".gif", ".mp4", ".npz", ".onnx")
 """Name endings of files: a directory to be made with one of these names is more likely a mistake."""
+
+
+def given(text: str) -> str:
+    """`--out`'s argparse type: `text`, unless empty, where `--out "$DIR"` of an unset DIR was taken for no --out
+    and the files went to the default place without a word."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a path, got an empty one (leave --out out for the default)")
+    return text
 
 
 def check_output_dir(path: pathlib.Path, label: str = "directory") -> None:

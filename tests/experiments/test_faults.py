@@ -157,6 +157,9 @@ def test_bad_out_paths_are_refused_in_one_line_or_made(reference, tmp_path, caps
         (line,) = error_lines(capsys)
         assert os.fsencode(out).decode(errors="backslashreplace") in line and message in line, line
     assert a_file.read_text() == "mine" and not (tmp_path / "results.txt").exists()
+    with pytest.raises(SystemExit) as exited:  # `--out "$DIR"` of an unset DIR: the default place, without a word
+        entry("")
+    assert exited.value.code == 2 and "argument --out: expected a path, got an empty one" in capsys.readouterr().err
     if tool in ("export", "compare"):  # quick ones: missing parents are made, and the message says what was written
         assert entry(str(tmp_path / "new" / "deeper")) == 0
         written = tmp_path / "new" / ("deeper.png" if tool == "compare" else "deeper/policy.npz")
