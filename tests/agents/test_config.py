@@ -83,6 +83,8 @@ ISSUE_VALUES = [
     # Sizes that ran out of memory (or overflowed) with a traceback.
     (PPOConfig, "num_envs", 10_000_000),
     (TD3Config, "eval_episodes", 100_000_000),
+    (PPOConfig, "encoder_features", 100_000_000),
+    (TD3Config, "encoder_features", 100_000_000),
 ]
 
 
@@ -146,7 +148,7 @@ def test_integers_beyond_int32_and_wrong_types_are_refused(config_class):
     with pytest.raises(ValueError, match="normalize_observations must be true or false|target_smoothing must be"):
         config_class(**{"normalize_observations" if config_class is PPOConfig else "target_smoothing": 1})
     field = "policy_hidden_sizes" if config_class is PPOConfig else "hidden_sizes"
-    with pytest.raises(ValueError, match=rf"^{field}\[1\] must be >= 1, got 0"):
+    with pytest.raises(ValueError, match=rf"^{field}\[1\] must be in \[1, 65536\], got 0"):
         config_class(**{field: (64, 0)})
 
 
@@ -225,6 +227,19 @@ def test_a_budget_beyond_int32_env_steps_is_taken_and_one_beyond_int32_updates_i
     PPOConfig(num_envs=1024, rollout_length=16, updates_per_chunk=4096, total_env_steps=10_000_000_000).validate()
     with pytest.raises(ValueError, match="needs 2,147,483,650 updates, more than the learners' int32 update counter"):
         PPOConfig(num_envs=1, rollout_length=1, num_minibatches=1, total_env_steps=2**31).validate()
+
+
+def test_a_layer_too_wide_and_an_update_beyond_int32_env_steps_are_refused():
+    # Before: XLA's out-of-memory traceback (two layers of 1e8 units), an OverflowError (1e8 steps per env).
+    for config_class, field in [
+        (PPOConfig, "policy_hidden_sizes"),
+        (PPOConfig, "value_hidden_sizes"),
+        (TD3Config, "hidden_sizes"),
+    ]:
+        with pytest.raises(ValueError, match=rf"^{field}\[1\] must be in \[1, 65536\], got 100000000$"):
+            apply_overrides(config_class(), [f"{field}=(64,100000000)"], validate=False)
+    with pytest.raises(ValueError, match="an update collects 102,400,000,000 env steps .* int32 step counters"):
+        PPOConfig(num_envs=1024, rollout_length=100_000_000, num_minibatches=1).validate()
 
 
 def test_an_edited_config_json_is_refused_on_reading(tmp_path):

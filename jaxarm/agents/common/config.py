@@ -178,6 +178,11 @@ class RunConfig:
         here, or in a learner's config, which extends this after `super().validate()`), an unknown env or env
         kwarg, or env params out of their ranges. Each field's own range was checked when the config was built.
         """
+        if self.env_steps_per_update > ranges.INT32.max:
+            raise ValueError(
+                f"an update collects {self.env_steps_per_update:,} env steps (num_envs={self.num_envs:,} x its "
+                f"steps per env), more than the learners' int32 step counters hold ({ranges.INT32.max:,})"
+            )
         if self.num_updates > ranges.INT32.max:
             raise ValueError(
                 f"total_env_steps={self.total_env_steps:,} needs {self.num_updates:,} updates, more than the learners' "

@@ -6,7 +6,7 @@ from jaxarm.agents.common.config import RunConfig, dynamic, static
 from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
 from jaxarm.agents.common.teachers import teacher_preset_name
-from jaxarm.ranges import COUNT, DISCOUNT, LEARNING_RATE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, Range
+from jaxarm.ranges import COUNT, DISCOUNT, LAYER_WIDTH, LEARNING_RATE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, Range
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,11 +63,11 @@ class PPOConfig(RunConfig):
     num_minibatches: int = static(8, COUNT)
     num_epochs: int = static(4, COUNT)
     shuffle_groups: int = static(1, COUNT)
-    policy_hidden_sizes: tuple[int, ...] = static((64, 64), COUNT)
-    value_hidden_sizes: tuple[int, ...] = static((64, 64), COUNT)
+    policy_hidden_sizes: tuple[int, ...] = static((64, 64), LAYER_WIDTH)
+    value_hidden_sizes: tuple[int, ...] = static((64, 64), LAYER_WIDTH)
     activation: str = static("tanh", ACTIVATION)
     encoder: str = static("nature", ENCODER)
-    encoder_features: int = static(256, COUNT)
+    encoder_features: int = static(256, LAYER_WIDTH)
     shared_encoder: bool = False
     asymmetric: bool = False
     teacher: str = ""

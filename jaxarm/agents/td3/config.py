@@ -10,7 +10,7 @@ from jaxarm import ranges
 from jaxarm.agents.common.config import RunConfig, dynamic, inherit, static
 from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
-from jaxarm.ranges import COUNT, DISCOUNT, LEARNING_RATE, NON_NEGATIVE, POSITIVE, Range
+from jaxarm.ranges import COUNT, DISCOUNT, LAYER_WIDTH, LEARNING_RATE, NON_NEGATIVE, POSITIVE, Range
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,10 +78,10 @@ class TD3Config(RunConfig):
 
     anneal_learning_rate: bool = False
     normalize_observations: bool = False
-    hidden_sizes: tuple[int, ...] = static((256, 256), COUNT)
+    hidden_sizes: tuple[int, ...] = static((256, 256), LAYER_WIDTH)
     activation: str = static("relu", ACTIVATION)
     encoder: str = static("nature", ENCODER)
-    encoder_features: int = static(256, COUNT)
+    encoder_features: int = static(256, LAYER_WIDTH)
     shared_encoder: bool = False
     random_shift_pad: int = static(0, NON_NEGATIVE)
     num_critics: int = static(2, COUNT)
