@@ -28,7 +28,7 @@ from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.envs.panda.mjx_impl import warp_available
 from jaxarm.exits import STOPPED_BY_SIGNAL
-from jaxarm.runner import loop, paths, processes, resumes, rundir, show
+from jaxarm.runner import loop, paths, processes, resumes, rundir, show, signals
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.sinks import WandbOptions
 
@@ -182,7 +182,10 @@ def train_or_resume(args: argparse.Namespace, options: loop.Options) -> tuple[pa
 
 
 def main(argv=None) -> int:
-    start_up.start_up_over()  # from here Ctrl-C raises KeyboardInterrupt (caught below); the loop checkpoints on it
+    start_up.start_up_over()
+    # From here Ctrl-C (and SIGTERM) raise KeyboardInterrupt, caught below, and are remembered for the chunk loop,
+    # which checkpoints on them, in case a library swallows the KeyboardInterrupt.
+    signals.remember_interrupts()
     try:
         return _main(sys.argv[1:] if argv is None else argv)
     except KeyboardInterrupt:

@@ -10,6 +10,26 @@ from collections.abc import Iterator
 
 from jaxarm.exits import STOPPED_BY_SIGNAL
 
+_asked_before_the_loop = threading.Event()
+"""Set by `raise_and_remember`: a Ctrl-C or SIGTERM came before a chunk loop installed its `StopRequests`."""
+
+
+def raise_and_remember(signum, frame):
+    """The handler of Ctrl-C and SIGTERM from a run's start to its chunk loop: raises KeyboardInterrupt, as Python's
+    own handler does for Ctrl-C, and remembers the request. A library may swallow the KeyboardInterrupt (JAX's
+    garbage-collection callback while XLA compiled: the run trained to its end, rc 0); the next `StopRequests` then
+    starts requested, and the run stops at its first chunk end with a checkpoint."""
+    _asked_before_the_loop.set()
+    raise KeyboardInterrupt
+
+
+def remember_interrupts() -> None:
+    """Installs `raise_and_remember` for Ctrl-C, and for SIGTERM where nothing else handles it (a process of
+    several has its own handler: experiments.distributed). Main thread only."""
+    signal.signal(signal.SIGINT, raise_and_remember)
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, raise_and_remember)
+
 
 class StopRequests:
     """Ctrl-C (SIGINT) and SIGTERM, while installed, ask the loop to stop at the next chunk end; a second Ctrl-C
@@ -17,8 +37,11 @@ class StopRequests:
     thread (signals cannot be caught elsewhere). `aborted` ends the line said then (e.g. how to resume)."""
 
     def __init__(self, aborted: str = ""):
-        self.requested = False
+        self.requested = _asked_before_the_loop.is_set()
         self.aborted = aborted
+        if self.requested:  # its KeyboardInterrupt was swallowed (`raise_and_remember`)
+            _asked_before_the_loop.clear()
+            print("\nasked to stop before training began: stopping at the first chunk end", file=sys.stderr, flush=True)
 
     def _handle(self, signum, frame):
         if self.requested and signum == signal.SIGINT:

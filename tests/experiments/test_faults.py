@@ -25,7 +25,7 @@ from experiments import eval as eval_cli
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
 from jaxarm.exits import STOPPED_BY_SIGNAL
-from jaxarm.runner import loop, metrics_log, paths, plots, rundir, sinks
+from jaxarm.runner import loop, metrics_log, paths, plots, rundir, signals, sinks
 from tests.experiments.test_run import SMALL
 from tests.experiments.test_rundir import assert_same_learner, run_cli, snapshot
 
@@ -479,6 +479,18 @@ def test_a_second_ctrl_c_ends_the_process_at_once_with_130():
     )
     done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=120)
     assert done.returncode == 130 and "SIGINT again: aborted" in done.stderr
+
+
+def test_a_ctrl_c_swallowed_before_training_stops_the_run_at_its_first_chunk_end(tmp_path):
+    # A KeyboardInterrupt raised while XLA compiled was swallowed by JAX's garbage-collection callback: the run
+    # trained to its end, rc 0. What the handler remembered stops the chunk loop at its first chunk end instead.
+    with pytest.raises(KeyboardInterrupt):
+        signals.raise_and_remember(signal.SIGINT, None)  # the exception a library then swallows
+    config = apply_overrides(configs.get("ppo_arm2d_fixed"), [*SMALL, "updates_per_chunk=2"])
+    with pytest.raises(loop.TrainingInterrupted, match="checkpoint at update 2 of"):
+        loop.train(config, tmp_path / "r", preset="ppo_arm2d_fixed")
+    assert checkpoint.latest_step(tmp_path / "r" / "checkpoints") == 2
+    assert not signals.StopRequests().requested  # remembered once
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])  # SIGTERM ended it without a word (rc -15)

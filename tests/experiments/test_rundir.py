@@ -19,7 +19,7 @@ import pytest
 from experiments import configs, run
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import learners, loop, metrics_log, programs, provenance, rundir
+from jaxarm.runner import learners, loop, metrics_log, programs, provenance, rundir, signals
 from tests.experiments.test_run import SMALL  # the same compiled chunk as there
 
 
@@ -167,7 +167,7 @@ def test_ctrl_c_checkpoints_at_the_chunk_end_and_resume_is_bit_identical(referen
     assert "SIGINT: stopping at the next chunk end" in error
     assert f"continue with: python -m experiments.run --resume {run_dir}" in error
     assert checkpoint.latest_step(run_dir / "checkpoints") == 8, "checkpointed at the chunk end, off its cadence"
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler, "the handler is removed again"
+    assert signal.getsignal(signal.SIGINT) is signals.raise_and_remember, "the loop's handler is removed again"
     monkeypatch.undo()
     assert run.main(["--resume", str(run_dir)]) == 0
     assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == list(range(1, 25))
