@@ -386,6 +386,10 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 
 def main(argv=None) -> int:
+    start_up.start_up_over()
+    # From here Ctrl-C (and SIGTERM) raise KeyboardInterrupt, caught below, and are remembered for the chunk loop,
+    # in case a library swallows the KeyboardInterrupt; start-up's handler had said "nothing was written" to the end.
+    signals.remember_interrupts()
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parse_args(argv)
     if args.local_processes is not None and args.local_processes > 1:
