@@ -38,10 +38,13 @@ def check_resumable(config: RunConfig, key: str, changer: str = "a resumed run")
 
 
 def apply_resume_overrides(config: RunConfig, overrides: Sequence[str]) -> RunConfig:
-    """`config` with the `key=value` overrides a resumed run may take; RunDirError listing those for any other."""
+    """`config` with the `key=value` overrides a resumed run may take; RunDirError listing those for any other,
+    once each override is known to be one (ValueError: `=3` was refused as "cannot change ''")."""
+    updated = apply_overrides(config, overrides, validate=False)
     for item in overrides:
         check_resumable(config, item.partition("=")[0])
-    return apply_overrides(config, overrides)
+    updated.validate()
+    return updated
 
 
 def check_budget(config: RunConfig, done_updates: int) -> None:

@@ -247,6 +247,8 @@ def test_resume_refuses_overrides_that_change_the_learner_and_changes_nothing(re
     assert "cannot change 'learning_rate'" in error and "may change total_env_steps, checkpoint_every_updates" in error
     assert run.main(["--resume", str(reference), "total_env_steps=99999"]) == 2
     assert "learning-rate schedule (anneal_learning_rate=true)" in capsys.readouterr().err
+    assert run.main(["--resume", str(reference), "=3"]) == 2  # was "cannot change ''"
+    assert "error: override '=3' is not of the form key=value" in capsys.readouterr().err
     assert snapshot(reference) == before
 
 

@@ -280,7 +280,7 @@ def apply_overrides(config: AnyConfig, overrides: Iterable[str], validate: bool 
     hints = typing.get_type_hints(type(config))
     fields = {field.name for field in dataclasses.fields(config)}
     for item in overrides:
-        if "=" not in item:
+        if "=" not in item or item.startswith("="):
             raise ValueError(f"override {item!r} is not of the form key=value")
         key, text = item.split("=", 1)
         group, _, name = key.partition(".")
