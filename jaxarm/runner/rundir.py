@@ -254,7 +254,10 @@ def read_config(
     except (json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
         raise damaged(path, error) from None
     if validate:
-        config.validate()
+        try:
+            config.validate()
+        except ValueError as error:  # an edited env, or a kwarg or param the env does not know, named no file
+            raise RunDirError(f"{path}: {error}") from None
     return config, preset
 
 

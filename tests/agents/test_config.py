@@ -253,6 +253,9 @@ def test_an_edited_config_json_is_refused_on_reading(tmp_path):
     path.write_text(json.dumps({**data, "env_params": [["goal_size", -40]]}))
     with pytest.raises(ValueError, match="env_params.goal_size must be > 0"):
         rundir.read_config(tmp_path)
+    path.write_text(json.dumps({**data, "env_params": [["goal_colour", 1]]}))  # a param arm2d lacks: the file is named
+    with pytest.raises(ValueError, match=r"config\.json: unknown env_params\.goal_colour"):
+        rundir.read_config(tmp_path)
 
 
 def test_a_word_for_a_number_says_what_the_field_takes():
