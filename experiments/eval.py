@@ -141,7 +141,7 @@ def evaluate_run(run_dir: pathlib.Path, args: argparse.Namespace, began: float) 
     phases = {"imports": time.perf_counter() - began}
     try:
         ranges.check_value("--episodes", args.episodes, int, ranges.AT_ONCE)
-        ranges.check_value("--seed", args.seed, int, ranges.NON_NEGATIVE)  # as a run's seed
+        ranges.check_value("--seed", args.seed, int, ranges.SEED)
         enable_compilation_cache()
         clock = time.perf_counter()
         jax.devices()  # starts the backend: its time apart from the env's

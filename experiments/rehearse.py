@@ -157,7 +157,7 @@ def main(argv=None) -> int:
     run_dir = pathlib.Path(args.run_dir)
     try:
         ranges.check_value("--episodes", args.episodes, int, ranges.AT_ONCE)
-        ranges.check_value("--seed", args.seed, int, ranges.NON_NEGATIVE)  # as a run's seed
+        ranges.check_value("--seed", args.seed, int, ranges.SEED)
         ranges.check_value("--latency-budget", args.latency_budget, float, LATENCY_BUDGETS_MS)
         fault = Fault(args.fault, args.fault_tick) if args.fault else None
         timing = wire.Timing(control_period=CONTROL_DT, latency_budget=args.latency_budget / 1e3)

@@ -202,7 +202,7 @@ def main(argv=None) -> int:
         return 2
     try:
         ranges.check_value("--episodes", args.episodes, int, ranges.AT_ONCE)
-        ranges.check_value("--seed", args.seed, int, ranges.NON_NEGATIVE)  # as a run's seed
+        ranges.check_value("--seed", args.seed, int, ranges.SEED)
         result = transfer(run_dir, args.model, args.episodes, args.seed, not args.no_clip, args.video is not None)
         frames = result.pop("frames", [])
         stem = rundir.transfer_stem(run_dir, args.model, args.episodes, args.seed, result["checkpoint"], result["clip"])

@@ -84,6 +84,9 @@ most 128 times the largest preset's 8192 envs, checked before anything is alloca
 LAYER_WIDTH = Range(ge=1, le=1 << 16)
 """Units of one network layer, or an encoder's features: at most 65,536, 64 times the widest preset's 1,024, checked
 before a network is made (two layers of 1e8 units asked XLA for 40 PB and ended in its out-of-memory traceback)."""
+SEED = NON_NEGATIVE
+"""A PRNG seed: a run's (`RunConfig.seed`), and the `--seed` of the commands that draw episodes for one (an
+evaluation, a transfer, a rehearsal)."""
 HOST_COUNT = Range(ge=1, host_count=True)
 """A count of at least one kept on the host alone (env steps of a budget), up to int64's maximum."""
 UNIT_INTERVAL = Range(ge=0, le=1)

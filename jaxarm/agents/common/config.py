@@ -129,7 +129,7 @@ class RunConfig:
     updates_per_chunk: int = static(10, COUNT)
     checkpoint_every_updates: int = static(50, COUNT)
     eval_episodes: int = static(1000, ranges.AT_ONCE)
-    seed: int = static(0, ranges.NON_NEGATIVE)
+    seed: int = static(0, ranges.SEED)
     init_from: str = ""
     eval_every_updates: int = static(0, ranges.NON_NEGATIVE)
 
