@@ -181,11 +181,16 @@ def train_or_resume(args: argparse.Namespace, options: loop.Options) -> tuple[pa
     return run_dir, loop.train(config, run_dir, preset=preset, options=options)
 
 
-def main(argv=None) -> int:
+def take_over_interrupts() -> None:
+    """Start-up is over for a command that trains (run, sweep): from here Ctrl-C (and SIGTERM) raise
+    KeyboardInterrupt, which its `main` reports in one line, and are remembered for the chunk loop, which
+    checkpoints on them, in case a library swallows the KeyboardInterrupt (`signals.remember_interrupts`)."""
     start_up.start_up_over()
-    # From here Ctrl-C (and SIGTERM) raise KeyboardInterrupt, caught below, and are remembered for the chunk loop,
-    # which checkpoints on them, in case a library swallows the KeyboardInterrupt.
     signals.remember_interrupts()
+
+
+def main(argv=None) -> int:
+    take_over_interrupts()
     try:
         return _main(sys.argv[1:] if argv is None else argv)
     except KeyboardInterrupt:

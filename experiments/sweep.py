@@ -41,7 +41,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from experiments import configs, distributed
-from experiments.run import minutes, quiet_libraries
+from experiments.run import minutes, quiet_libraries, take_over_interrupts
 from jaxarm import ranges
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import PAIR_FIELDS, RunConfig, apply_overrides
@@ -386,10 +386,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 
 def main(argv=None) -> int:
-    start_up.start_up_over()
-    # From here Ctrl-C (and SIGTERM) raise KeyboardInterrupt, caught below, and are remembered for the chunk loop,
-    # in case a library swallows the KeyboardInterrupt; start-up's handler had said "nothing was written" to the end.
-    signals.remember_interrupts()
+    take_over_interrupts()  # start-up's handler had said "nothing was written" to the end
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parse_args(argv)
     if args.local_processes is not None and args.local_processes > 1:
