@@ -6,7 +6,8 @@ For each task and seed, in one process on one device, two learners train one aft
   on the task as `registry.load` builds it, wrapped by `wrapper.wrap_for_brax_training`: Playground's training
   entry points and settings. One change: its `num_evals` and `num_resets_per_eval` become `EVALS + 1` and
   (Playground's evaluation count × resets) / `EVALS`, so that its envs reset as often as Playground's recipe
-  resets them while the clock stops at `EVALS` evaluation points; brax's own evaluation is off.
+  resets them while the clock stops at `EVALS` evaluation points; brax's own evaluation is off. Its Warp kernels
+  print no overflow lines, as in jaxarm's adapter (`jaxarm.interop.playground.quiet_model`).
 - **jaxarm**: our PPO with the task's preset (`PRESETS`), its budget in `EVALS` equal calls of one compiled
   program.
 
@@ -134,7 +135,7 @@ def train_playground(
 
     from jaxarm.envs.panda.mjx_impl import resolve_impl
     from jaxarm.interop.brax_compat import install_device_put_replicated
-    from jaxarm.interop.playground import checked_overrides
+    from jaxarm.interop.playground import checked_overrides, quiet_model
 
     install_device_put_replicated()  # brax 0.14.2's trainers call what jax 0.10 removed
 
@@ -149,7 +150,10 @@ def train_playground(
         success, return_mean = judge(act, params)
         points.append(Point(int(step), time.perf_counter() - began - judge.spent, success, return_mean))
 
-    environment = registry.load(task, config_overrides=checked_overrides(task, resolve_impl(impl), {}))
+    engine = resolve_impl(impl)
+    environment = registry.load(task, config_overrides=checked_overrides(task, engine, {}))
+    # Its kernels' overflow lines off, as in jaxarm's adapter: a race of the same physics, printing alike.
+    environment._mjx_model = quiet_model(environment._mjx_model, engine)
     brax_ppo.train(
         environment=environment,
         wrap_env_fn=wrapper.wrap_for_brax_training,

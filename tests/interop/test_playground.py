@@ -173,6 +173,15 @@ def test_a_run_config_names_the_task_and_its_overrides():
     assert env.task == "PandaPickCube"
 
 
+def test_a_task_on_warp_prints_no_overflow_lines_and_one_on_mjx_jax_keeps_its_model():
+    from jaxarm.envs.panda.mjx_impl import Impl
+
+    jax_env = envs.make(TASK)
+    assert playground.quiet_model(jax_env._nominal_model, Impl.JAX) is jax_env._nominal_model
+    pytest.importorskip("warp", reason="warp-lang is not installed (the warp extra)")
+    assert envs.make(TASK, impl="warp")._nominal_model.opt._impl.warn_overflow == 0
+
+
 def test_warp_follows_mjx_jax_and_its_physics_params():
     # Warp shares its contact buffer over the batch: the sim keeps it out of the envs' vmap (StateLayout).
     pytest.importorskip("warp", reason="warp-lang is not installed (the warp extra)")
