@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from experiments.benchmarks.arguments import count, env_counts
 from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import time_jitted
 from jaxarm import envs
@@ -78,15 +79,15 @@ def numpy_steps_per_second(num_envs: int | None, seconds: float = 1.0) -> float:
 
 def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench arm2d", description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", default="1,1024,65536,1048576", help="comma-separated env counts")
-    parser.add_argument("--steps", type=int, default=1000, help="steps per timed scan")
+    parser.add_argument("--sizes", type=env_counts, default="1,1024,65536,1048576", help="comma-separated env counts")
+    parser.add_argument("--steps", type=count, default=1000, help="steps per timed scan")
     parser.add_argument(
         "--max-env-steps",
         type=int,
         help="env steps per timed call, at most (default: 2e7 on a CPU, 2e9 on an accelerator)",
     )
     parser.add_argument(
-        "--unroll", type=int, default=8, help="env steps per scan iteration (8 ran 1.4x faster than 1 on an H200)"
+        "--unroll", type=count, default=8, help="env steps per scan iteration (8 ran 1.4x faster than 1 on an H200)"
     )
     add_out_argument(parser)
     args = parser.parse_args(argv)
@@ -103,7 +104,7 @@ def main(argv: Sequence[str]) -> None:
     print("| envs | env steps/s (auto-reset, statistics) | vs numpy single env | without auto-reset | compile s |")
     print("|---:|---:|---:|---:|---:|")
     rows = []
-    for size in (int(text) for text in args.sizes.split(",")):
+    for size in args.sizes:
         steps = scan_length(size, args.steps, max_env_steps)
         rate, compile_seconds = jax_steps_per_second(size, steps, unroll=args.unroll)
         bare, _ = jax_steps_per_second(size, steps, auto_reset=False, unroll=args.unroll)

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import jax
 
 from experiments import configs
+from experiments.benchmarks.arguments import count, env_counts
 from experiments.benchmarks.panda_sort import env_rates
 from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import compile_updates
@@ -31,11 +32,14 @@ def main(argv: Sequence[str]) -> None:
         "--envs", default="arm2d,peg_insert", help="comma-separated registered envs with obs_mode ('': none)"
     )
     parser.add_argument(
-        "--sizes", default="1,16", help="comma-separated env counts (e.g. 1,1024,4096 on a GPU; 1-16 on a CPU)"
+        "--sizes",
+        type=env_counts,
+        default="1,16",
+        help="comma-separated env counts (e.g. 1,1024,4096 on a GPU; 1-16 on a CPU)",
     )
-    parser.add_argument("--resolution", type=int, default=64, help="side of the camera images, pixels")
-    parser.add_argument("--steps", type=int, default=20, help="env steps per timed scan")
-    parser.add_argument("--repeats", type=int, default=2, help="timed repeats; the best is reported")
+    parser.add_argument("--resolution", type=count, default=64, help="side of the camera images, pixels")
+    parser.add_argument("--steps", type=count, default=20, help="env steps per timed scan")
+    parser.add_argument("--repeats", type=count, default=2, help="timed repeats; the best is reported")
     parser.add_argument(
         "--train-configs",
         default="",
@@ -50,7 +54,6 @@ def main(argv: Sequence[str]) -> None:
         }
     except ValueError as error:
         parser.error(str(error))
-    sizes = [int(text) for text in args.sizes.split(",")]
     print(f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; {args.resolution}x{args.resolution} images")
     print("| env | envs | state env steps/s | pixel env steps/s | pixels / state | images/s | compile s (pixels) |")
     print("|---|---:|---:|---:|---:|---:|---:|")
@@ -58,7 +61,7 @@ def main(argv: Sequence[str]) -> None:
     for name in filter(None, args.envs.split(",")):
         state_env = envs.make(name)
         pixel_env = envs.make(name, obs_mode="pixels+proprio", resolution=args.resolution)
-        for size in sizes:
+        for size in args.sizes:
             state_rate, _ = env_rates(state_env, size, args.steps, args.repeats)
             pixel_rate, pixel_compile = env_rates(pixel_env, size, args.steps, args.repeats)
             images = pixel_rate * cameras_of(pixel_env)

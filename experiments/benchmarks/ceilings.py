@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from experiments import configs
+from experiments.benchmarks.arguments import count, env_counts
 from experiments.benchmarks.arm2d import (
     default_max_env_steps,
     jax_steps_per_second,
@@ -222,16 +223,16 @@ def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench ceilings", description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="ppo_arm2d", help="PPO preset whose update is counted and timed")
     parser.add_argument("--seeds", type=int, default=64, help="seeds vmapped in the measured sweep update")
-    parser.add_argument("--sizes", default="4096,65536", help="comma-separated arm2d env counts")
+    parser.add_argument("--sizes", type=env_counts, default="4096,65536", help="comma-separated arm2d env counts")
     parser.add_argument(
-        "--steps", type=int, default=1000, help="arm2d steps per timed scan (capped as in the arm2d suite)"
+        "--steps", type=count, default=1000, help="arm2d steps per timed scan (capped as in the arm2d suite)"
     )
-    parser.add_argument("--unroll", type=int, default=8, help="arm2d env steps per scan iteration")
+    parser.add_argument("--unroll", type=count, default=8, help="arm2d env steps per scan iteration")
     add_out_argument(parser)
     args = parser.parse_args(argv)
     print(f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; numpy {np.__version__}")
     arithmetic = print_arithmetic(args.config, args.seeds)
-    reference, rows = print_arm2d([int(text) for text in args.sizes.split(",")], args.steps, args.unroll)
+    reference, rows = print_arm2d(args.sizes, args.steps, args.unroll)
     write_record(
         args.out,
         "ceilings",

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 import jax
 from mujoco import mjx
 
+from experiments.benchmarks.arguments import count, env_counts
 from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import time_jitted
 from jaxarm import envs
@@ -59,15 +60,16 @@ def main(argv: Sequence[str]) -> None:
     parser.add_argument("--env", default="panda_sort", help="registered panda_sort variant")
     parser.add_argument(
         "--sizes",
+        type=env_counts,
         default="1,64",
         help="comma-separated env counts (e.g. 1,1024,4096,16384 on a GPU; at most 64 on a CPU)",
     )
     parser.add_argument("--impl", default="jax", help='comma-separated MJX implementations: "jax", "warp"')
-    parser.add_argument("--steps", type=int, default=20, help="env steps per timed scan")
-    parser.add_argument("--repeats", type=int, default=2, help="timed repeats; the best is reported")
+    parser.add_argument("--steps", type=count, default=20, help="env steps per timed scan")
+    parser.add_argument("--repeats", type=count, default=2, help="timed repeats; the best is reported")
     add_out_argument(parser)
     args = parser.parse_args(argv)
-    sizes = [int(text) for text in args.sizes.split(",")]
+    sizes = args.sizes
     # Warp's contact buffer is shared by a batch: sized for the largest.
     env_by_impl = {impl: envs.make(args.env, impl=impl, max_envs=max(sizes)) for impl in args.impl.split(",")}
     env = next(iter(env_by_impl.values()))

@@ -26,16 +26,13 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from experiments.benchmarks.arguments import env_counts
 from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import compile_updates, env_seconds, timed
 from experiments.benchmarks.training import base_ppo_config
 from jaxarm import envs
 from jaxarm.agents.common.config import RunConfig, with_pair
 from jaxarm.agents.ppo import PPOConfig, make_trainer
-
-
-def parse_sizes(text: str) -> list[int]:
-    return sorted(int(part) for part in text.split(",") if part)
 
 
 def safe_sizes(env_name: str, sizes: list[int]) -> list[int]:
@@ -164,8 +161,12 @@ def plot(curves: dict[str, list[tuple[int, float, float]]], path: pathlib.Path, 
 def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench scaling", description=__doc__.splitlines()[0])
     parser.add_argument("--envs", default="arm2d,panda_sort", help="env names; unregistered ones are skipped")
-    parser.add_argument("--env-sizes", default="1,16,256,1024,4096,16384,65536", help="env counts for env stepping")
-    parser.add_argument("--ppo-sizes", default="16,64,256,1024,4096,16384,65536", help="env counts for PPO")
+    parser.add_argument(
+        "--env-sizes", type=env_counts, default="1,16,256,1024,4096,16384,65536", help="env counts for env stepping"
+    )
+    parser.add_argument(
+        "--ppo-sizes", type=env_counts, default="16,64,256,1024,4096,16384,65536", help="env counts for PPO"
+    )
     parser.add_argument("--max-seconds", type=float, default=45.0, help="longest predicted timed call per size")
     parser.add_argument("--quick", action="store_true", help="CPU smoke run: fewer steps, calls under 5 s")
     parser.add_argument("--plot", default="benchmarks_scaling.png", help="where the PNG goes")
@@ -187,7 +188,7 @@ def main(argv: Sequence[str]) -> None:
     curves = {}
     configs: dict[str, PPOConfig] = {}
     for name in env_names:
-        env_sizes, ppo_sizes = (safe_sizes(name, parse_sizes(text)) for text in (args.env_sizes, args.ppo_sizes))
+        env_sizes, ppo_sizes = (safe_sizes(name, sorted(sizes)) for sizes in (args.env_sizes, args.ppo_sizes))
         configs[name] = scaling_config(name, args.impl, max([*env_sizes, *ppo_sizes, base_ppo_config(name).num_envs]))
         print(f"{name}: env stepping", flush=True)
         curves[f"{name}: env stepping"] = sweep(env_sizes, env_measure(configs[name]), target_steps, max_seconds)

@@ -214,3 +214,30 @@ def test_env_stepping_alone_is_timed_per_update():
     config = ppo_config("arm2d", num_envs=16, env_steps=16 * 16 * PARTS * 2)
     seconds = training.env_stepping_seconds(config)
     assert 0.0 < seconds < 1.0
+
+
+@pytest.mark.parametrize("suite", [arm2d, camera, scaling])
+@pytest.mark.parametrize(
+    ("sizes", "said"),
+    [
+        ("0", "each env count must be in [1, 1048576], got 0"),
+        ("-8", "each env count must be in [1, 1048576], got -8"),
+        ("1e11", "each env count must fit in int32 (at most 2,147,483,647 in magnitude), got 100,000,000,000"),
+        ("1,x", "expected an integer, got 'x'"),
+        (",", "expected comma-separated env counts, got ','"),
+    ],
+)
+def test_suites_refuse_env_counts_out_of_range_in_one_line_before_timing(suite, sizes, said, capsys, tmp_path):
+    flag = "--env-sizes" if suite is scaling else "--sizes"
+    with pytest.raises(SystemExit) as exited:
+        suite.main([flag, sizes, "--out", str(tmp_path)])
+    assert exited.value.code == 2
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1].endswith(f"error: argument {flag}: {said}")
+    assert "Traceback" not in err
+
+
+def test_arm2d_suite_refuses_a_scan_of_no_steps(capsys):
+    with pytest.raises(SystemExit):
+        arm2d.main(["--unroll", "0"])
+    assert capsys.readouterr().err.splitlines()[-1].endswith("argument --unroll: the count must be >= 1, got 0")
