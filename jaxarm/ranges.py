@@ -78,12 +78,24 @@ NON_NEGATIVE = Range(ge=0)
 COUNT = Range(ge=1)
 """An integer count or size of at least one."""
 AT_ONCE = Range(ge=1, le=1 << 20)
-"""A count of envs or episodes stepped at once in one program (a run's `num_envs`, an evaluation's episodes): at
-most 128 times the largest preset's 8192 envs, checked before anything is allocated (`num_envs=1e7` and
-`--episodes 1e8` ran out of memory with a traceback)."""
+"""A count of envs or episodes stepped at once in one program (a run's `num_envs`, an evaluation's episodes), or of
+samples drawn at once (a replay batch): at most 128 times the largest preset's 8192 envs, checked before anything is
+allocated (`num_envs=1e7` and `--episodes 1e8` ran out of memory with a traceback)."""
 LAYER_WIDTH = Range(ge=1, le=1 << 16)
 """Units of one network layer, or an encoder's features: at most 65,536, 64 times the widest preset's 1,024, checked
 before a network is made (two layers of 1e8 units asked XLA for 40 PB and ended in its out-of-memory traceback)."""
+UPDATES_AT_ONCE = Range(ge=1, le=1 << 20)
+"""Updates compiled into one call (a run's `updates_per_chunk`): at most 1,048,576, ~200 times the largest preset's
+5,000, checked before the chunk is compiled (a chunk keeps each update's metrics: 6e8 updates in one chunk grew past
+24 GB until the memory limit killed the run)."""
+PASSES = Range(ge=1, le=1 << 12)
+"""Passes over one update's data, or gradient steps in one update (PPO's `num_epochs`, TD3's
+`grad_steps_per_update`): at most 4,096, 512 times the presets' largest 8, checked before the update is compiled
+(an update keeps each pass's metrics: num_epochs=1e9 asked XLA for 136 GB and ended in its out-of-memory
+traceback)."""
+REPLAY_SIZE = Range(ge=1, le=1 << 26)
+"""Transitions a replay buffer holds: at most 67,108,864, 16 times the largest preset's 4e6, checked before the
+buffer is allocated at the start of training."""
 SEED = NON_NEGATIVE
 """A PRNG seed: a run's (`RunConfig.seed`), and the `--seed` of the commands that draw episodes for one (an
 evaluation, a transfer, a rehearsal)."""

@@ -85,7 +85,27 @@ ISSUE_VALUES = [
     (TD3Config, "eval_episodes", 100_000_000),
     (PPOConfig, "encoder_features", 100_000_000),
     (TD3Config, "encoder_features", 100_000_000),
+    (PPOConfig, "num_epochs", 1_000_000_000),
+    (PPOConfig, "updates_per_chunk", 1_000_000_000),
+    (TD3Config, "num_critics", 100_000_000),
+    (TD3Config, "batch_size", 1_000_000_000),
+    (TD3Config, "buffer_size", 1_000_000_000),
+    (TD3Config, "grad_steps_per_update", 1_000_000_000),
+    (TD3Config, "critic_atoms", 1_000_000_000),
+    (TD3Config, "random_shift_pad", 1_000_000_000),
 ]
+BOUNDED_BY_A_RELATION = {
+    "total_env_steps": "a host count (int64); num_updates must fit in int32",
+    "rollout_length": "env_steps_per_update must fit in int32",
+    "num_minibatches": "divides env_steps_per_update",
+    "shuffle_groups": "divides num_envs",
+    "policy_delay": "divides grad_steps_per_update",
+    "n_step": "at most rollout_length",
+    "learning_starts": "plus an update's env steps must fit in int32",
+    "seed": "a PRNG seed: any int32 allocates nothing",
+    "checkpoint_every_updates": "compared with the update count: allocates nothing",
+    "eval_every_updates": "compared with the update count: allocates nothing",
+}
 
 
 def numeric_fields(config_class) -> list[str]:
@@ -104,6 +124,29 @@ def test_every_number_size_and_choice_declares_its_range(config_class):
     for field in dataclasses.fields(config_class):
         if hints[field.name] in (int, float, tuple[int, ...]) or field.name == "activation":
             assert ranges.RANGE in field.metadata, f"{config_class.__name__}.{field.name} declares no range"
+
+
+@pytest.mark.parametrize("config_class", CONFIG_CLASSES)
+def test_every_count_has_an_upper_bound_or_a_relation_that_bounds_it(config_class):
+    # Before: num_epochs=1e9 asked XLA for 136 GB, updates_per_chunk=1e9 grew past 24 GB, num_critics=1e8 26 TB.
+    hints = typing.get_type_hints(config_class)
+    unbounded = {
+        field.name
+        for field in dataclasses.fields(config_class)
+        if hints[field.name] in (int, tuple[int, ...])
+        and (allowed := ranges.declared_range(field)) is not None
+        and allowed.le is None
+        and allowed.lt is None
+        and not allowed.choices
+    }
+    assert unbounded <= set(BOUNDED_BY_A_RELATION), unbounded - set(BOUNDED_BY_A_RELATION)
+
+
+def test_replay_draws_of_a_whole_delay_block_are_bounded():
+    with pytest.raises(
+        ValueError, match=r"^policy_delay x batch_size = 2,097,152 samples drawn at once; it must be in \[1, 1048576\]$"
+    ):
+        TD3Config(policy_delay=4, grad_steps_per_update=4, batch_size=1 << 19).validate()
 
 
 def test_a_default_declared_again_keeps_its_range():

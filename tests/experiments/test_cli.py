@@ -57,6 +57,7 @@ def test_show_lists_config_fields_and_env_params_with_defaults_and_docs(capsys):
     assert "learning_rate (float [dynamic], in (0, 1]) = 0.001  (default 0.0003)" in out
     assert "Adam step size (linearly annealed to 0 when `anneal_learning_rate`)." in out
     assert "policy_hidden_sizes (tuple[int, ...], in [1, 65536]) = (64, 64)" in out
+    assert "num_epochs (int, in [1, 4096]) = " in out and "updates_per_chunk (int, in [1, 1048576]) = " in out
     assert "eval_every_updates (int, >= 0) = 20  (default 0)" in out and 'logging "eval/..." in metrics' in out
     assert "env_params.success_bonus = 10.0  (default 0.0)" in out
     assert "env_params.goal_mode (one of 0, 1, 2) = 2  (default 0)" in out

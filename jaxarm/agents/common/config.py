@@ -126,7 +126,7 @@ class RunConfig:
     randomize_corners: float = static(0.0, ranges.UNIT_INTERVAL)
     num_envs: int = static(256, ranges.AT_ONCE)
     total_env_steps: int = static(1_000_000, ranges.HOST_COUNT)
-    updates_per_chunk: int = static(10, COUNT)
+    updates_per_chunk: int = static(10, ranges.UPDATES_AT_ONCE)
     checkpoint_every_updates: int = static(50, COUNT)
     eval_episodes: int = static(1000, ranges.AT_ONCE)
     seed: int = static(0, ranges.SEED)

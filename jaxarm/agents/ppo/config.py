@@ -6,7 +6,17 @@ from jaxarm.agents.common.config import RunConfig, dynamic, static
 from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
 from jaxarm.agents.common.teachers import teacher_preset_name
-from jaxarm.ranges import COUNT, DISCOUNT, LAYER_WIDTH, LEARNING_RATE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, Range
+from jaxarm.ranges import (
+    COUNT,
+    DISCOUNT,
+    LAYER_WIDTH,
+    LEARNING_RATE,
+    NON_NEGATIVE,
+    PASSES,
+    POSITIVE,
+    UNIT_INTERVAL,
+    Range,
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,7 +71,7 @@ class PPOConfig(RunConfig):
 
     rollout_length: int = static(16, COUNT)
     num_minibatches: int = static(8, COUNT)
-    num_epochs: int = static(4, COUNT)
+    num_epochs: int = static(4, PASSES)
     shuffle_groups: int = static(1, COUNT)
     policy_hidden_sizes: tuple[int, ...] = static((64, 64), LAYER_WIDTH)
     value_hidden_sizes: tuple[int, ...] = static((64, 64), LAYER_WIDTH)

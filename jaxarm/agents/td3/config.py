@@ -10,7 +10,18 @@ from jaxarm import ranges
 from jaxarm.agents.common.config import RunConfig, dynamic, inherit, static
 from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
-from jaxarm.ranges import COUNT, DISCOUNT, LAYER_WIDTH, LEARNING_RATE, NON_NEGATIVE, POSITIVE, Range
+from jaxarm.ranges import (
+    AT_ONCE,
+    COUNT,
+    DISCOUNT,
+    LAYER_WIDTH,
+    LEARNING_RATE,
+    NON_NEGATIVE,
+    PASSES,
+    POSITIVE,
+    REPLAY_SIZE,
+    Range,
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,17 +94,17 @@ class TD3Config(RunConfig):
     encoder: str = static("nature", ENCODER)
     encoder_features: int = static(256, LAYER_WIDTH)
     shared_encoder: bool = False
-    random_shift_pad: int = static(0, NON_NEGATIVE)
-    num_critics: int = static(2, COUNT)
+    random_shift_pad: int = static(0, Range(ge=0, le=1 << 8))  # pixels, as wide as a 256-pixel image
+    num_critics: int = static(2, Range(ge=1, le=1 << 8))  # each a network: 1e8 asked XLA for 26 TB
     policy_delay: int = static(2, COUNT)
     target_smoothing: bool = True
-    batch_size: int = static(256, COUNT)
-    buffer_size: int = static(1_000_000, COUNT)
+    batch_size: int = static(256, AT_ONCE)
+    buffer_size: int = static(1_000_000, REPLAY_SIZE)
     learning_starts: int = static(5_000, NON_NEGATIVE)
     rollout_length: int = static(1, COUNT)
-    grad_steps_per_update: int = static(4, COUNT)
+    grad_steps_per_update: int = static(4, PASSES)
     n_step: int = static(1, COUNT)
-    critic_atoms: int = static(0, NON_NEGATIVE)
+    critic_atoms: int = static(0, Range(ge=0, le=LAYER_WIDTH.le))  # an output layer's width
     value_min: float = static(-10.0)
     value_max: float = static(10.0)
     mixed_exploration_noise: bool = False
@@ -103,7 +114,8 @@ class TD3Config(RunConfig):
         return self.num_envs * self.rollout_length
 
     def validate(self) -> None:
-        """RunConfig's checks, whole policy-delay blocks, a distribution's atoms, and room for one update's steps."""
+        """RunConfig's checks, whole policy-delay blocks drawn at once, a distribution's atoms, and room for one
+        update's steps."""
         super().validate()
         if self.grad_steps_per_update % self.policy_delay:
             raise ValueError(
@@ -114,6 +126,11 @@ class TD3Config(RunConfig):
             raise ValueError(
                 f"n_step ({self.n_step}) must not exceed rollout_length ({self.rollout_length}): returns are summed "
                 "within one update's rollout"
+            )
+        drawn = self.policy_delay * self.batch_size  # one draw from the buffer feeds a whole delay block
+        if not AT_ONCE.admits(drawn):
+            raise ValueError(
+                f"policy_delay x batch_size = {drawn:,} samples drawn at once; it must be {AT_ONCE.describe()}"
             )
         if self.critic_atoms == 1:
             raise ValueError("critic_atoms must be 0 (a critic outputs Q) or at least 2 (a distribution over atoms)")
