@@ -211,6 +211,24 @@ def test_corrupt_or_mismatched_checkpoint_gives_a_clear_error(finished_run, tmp_
     assert not (corrupt / "eval.json").exists() and not list(corrupt.glob("eval-*.json"))
 
 
+def test_an_empty_checkpoint_folder_is_named_with_the_checkpoint_before_it(tmp_path, capsys):
+    # Before: orbax's "Must provide `args` of type `Composite` ..." as the reason, naming no folder.
+    run_dir = tmp_path / "stopped"
+    assert run_cli(*SMALL, "--out", str(run_dir), "--stop-after-minutes", "0") == 0
+    (run_dir / "checkpoints" / "8").mkdir()
+    rows = (run_dir / "metrics.jsonl").read_bytes()
+    capsys.readouterr()
+    assert run.main(["--resume", str(run_dir)]) == 2
+    assert eval_cli.main([str(run_dir), "--episodes", "2"]) == 2
+    said = f"error: {run_dir}/checkpoints/8 is an empty folder: not a checkpoint; move it out of {run_dir}/checkpoints"
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+    assert errors == [f"{said} to go on from checkpoint 4"] * 2
+    assert (run_dir / "metrics.jsonl").read_bytes() == rows
+    (run_dir / "checkpoints" / "8").rmdir()
+    assert run.main(["--resume", str(run_dir), "--stop-after-minutes", "0"]) == 0
+    assert checkpoint.latest_step(run_dir / "checkpoints") == 8
+
+
 def test_evaluation_reads_the_policy_alone_and_still_refuses_another_one(finished_run, tmp_path, capsys):
     """The eval CLI restores the state for acting: a config with other envs (num_envs) evaluates the same policy,
     one with other networks is refused as a resume is."""

@@ -50,6 +50,10 @@ def _manager(directory: pathlib.Path, create: bool = False) -> ocp.CheckpointMan
     return ocp.CheckpointManager(directory.absolute(), options=options)
 
 
+STATE_ITEM = "default"
+"""The folder in a checkpoint's step folder that holds the learner state (orbax's name for a manager's one item)."""
+
+
 def half_written(directory: pathlib.Path) -> list[str]:
     """Names of the unfinished checkpoints (temporary folders) in `directory`, sorted."""
     if not directory.is_dir():
@@ -130,6 +134,7 @@ def restore(
     step = latest_step(directory) if step is None else step
     if step is None:
         raise CheckpointError(f"no checkpoint found in {directory}")
+    _check_holds_a_state(directory, step)
     # Every leaf is placed as asked: left to itself, orbax places a leaf as it was saved, and refuses a checkpoint
     # written on other devices (a GPU run evaluated on a laptop, 4 processes' run resumed by 1).
     if shardings is None:
@@ -164,6 +169,23 @@ def restore(
     return restored
 
 
+def _check_holds_a_state(directory: pathlib.Path, step: int) -> None:
+    """CheckpointError naming the folder of checkpoint `step` where it holds no learner state (an empty folder, made
+    by hand or by a copy cut short), and the checkpoint before it that does: orbax lists any folder named by a
+    number as a checkpoint, and said of an empty one only "Must provide `args` of type `Composite` ..."."""
+    folder = directory / str(step)
+    if (folder / STATE_ITEM).is_dir():
+        return
+    what = "is an empty folder" if folder.is_dir() and not any(folder.iterdir()) else f"holds no {STATE_ITEM}/"
+    earlier = [
+        int(path.name)
+        for path in directory.iterdir()
+        if path.name.isdigit() and int(path.name) < step and (path / STATE_ITEM).is_dir()
+    ]
+    before = f" to go on from checkpoint {max(earlier)}" if earlier else ""
+    raise CheckpointError(f"{folder} {what}: not a checkpoint; move it out of {directory}{before}")
+
+
 def _leaf_name(path) -> str:
     """A leaf's path as orbax names it in a checkpoint (`env_state.sim.params.mass_scale`)."""
     return jax.tree_util.keystr(path, simple=True, separator=".")
@@ -177,7 +199,7 @@ def _restore_with_additions(
     from `fresh()`; None where the trees differ otherwise."""
     try:
         with _quiet_orbax():
-            saved = ocp.StandardCheckpointer().metadata(directory.absolute() / str(step) / "default").item_metadata
+            saved = ocp.StandardCheckpointer().metadata(directory.absolute() / str(step) / STATE_ITEM).item_metadata
             saved_shapes = {leaf.name: (tuple(leaf.shape), leaf.dtype) for leaf in jax.tree.leaves(saved)}
     except Exception:  # unreadable metadata: the caller's error says the checkpoint is corrupt
         return None
