@@ -23,7 +23,9 @@ if __name__ == "__main__":
     start_up.exit_on_ctrl_c(start_up.AT_ONCE)  # first: Ctrl-C ends it at once, from its first import on
 
 import argparse
+import multiprocessing
 import pathlib
+import shutil
 import tempfile
 import time
 
@@ -48,6 +50,9 @@ from jaxarm.runner import paths, rundir
 LATENCY_BUDGETS_MS = ranges.Range(gt=0, le=wire.Timing.connect_timeout * 1e3)
 """The latency budgets a rehearsal takes, ms: past the robot's wait for its first command, a stalled policy would
 keep the robot (and the rehearsal) waiting longer than a policy that never started."""
+
+ROBOT_END_SECONDS = 5.0
+"""How long a killed robot process may take to end before its directory is removed."""
 
 
 def driver_setup(env, params, sim, directory: pathlib.Path, timing: wire.Timing) -> DriverSetup:
@@ -105,6 +110,15 @@ def summary(rehearsals: list[Rehearsal], placements: list[float], timing: wire.T
     }
 
 
+def end_robot_and_remove(directory: pathlib.Path) -> None:
+    """Ends the robot process at once and removes its `directory`, for a rehearsal that Ctrl-C ends mid-episode:
+    left to itself, the robot (deaf to Ctrl-C) held, stopped and wrote its log there after its parent had gone."""
+    for child in multiprocessing.active_children():
+        child.kill()
+        child.join(ROBOT_END_SECONDS)
+    shutil.rmtree(directory, ignore_errors=True)
+
+
 def rehearse_run(run_dir: pathlib.Path, episodes: int, seed: int, fault: Fault | None, timing: wire.Timing) -> dict:
     """`episodes` rehearsed episodes of RUN's exported sorter policy; ValueError if RUN's env is not the sorter with
     state observations, or its exported policy is missing, damaged or does not fit the env."""
@@ -132,7 +146,10 @@ def rehearse_run(run_dir: pathlib.Path, episodes: int, seed: int, fault: Fault |
     rehearsals, placements = [], []
     for index in range(episodes):
         sim = transfer.one(sims, index)
-        with tempfile.TemporaryDirectory(prefix="rehearse-") as directory:
+        with (
+            tempfile.TemporaryDirectory(prefix="rehearse-") as directory,
+            start_up.CleanedOnCtrlC(lambda: end_robot_and_remove(pathlib.Path(directory))),
+        ):
             setup = driver_setup(env, params, sim, pathlib.Path(directory), timing)
             loop = DeploymentLoop(policy, controller, CONTROL_DT, description=env.robot)
             size = np.asarray(sim.size, np.float64)

@@ -20,6 +20,9 @@ def ended_by(signum: int) -> int:
 _before: dict = {}
 """The handlers `exit_on_ctrl_c` replaced, by signal, and its own ("handler"): `start_up_over` puts them back."""
 
+_cleanups: list[Callable[[], None]] = []
+"""What `exit_on_ctrl_c`'s handler does before the process ends, newest first (`CleanedOnCtrlC`)."""
+
 WHILE_STARTING = "while starting: nothing was written"
 """What Ctrl-C during the start-up of a command that trains says: its `main` takes Ctrl-C over from there."""
 AT_ONCE = "and ended at once; run the command again for its results"
@@ -36,11 +39,32 @@ def exit_on_ctrl_c(said: str = WHILE_STARTING) -> None:
     word (rc -15)."""
 
     def exit_at_once(signum, frame):
-        print(f"\ninterrupted {said}", file=sys.stderr, flush=True)
-        os._exit(ended_by(signal.SIGINT))
+        for each in (signal.SIGINT, signal.SIGTERM):  # a second one while the cleanups run would run them again
+            signal.signal(each, signal.SIG_IGN)
+        try:
+            print(f"\ninterrupted {said}", file=sys.stderr, flush=True)
+            for cleanup in reversed(_cleanups):
+                cleanup()
+        finally:  # whatever a cleanup raised: its traceback would be a second word
+            os._exit(ended_by(signal.SIGINT))
 
     _before.update({signum: signal.signal(signum, exit_at_once) for signum in (signal.SIGINT, signal.SIGTERM)})
     _before["handler"] = exit_at_once
+
+
+class CleanedOnCtrlC:
+    """While entered, Ctrl-C or SIGTERM that ends the command at once (`exit_on_ctrl_c`) calls `cleanup` first: the
+    process ends by `os._exit`, which runs no `finally` and no `with` block's exit (a rehearsal stopped mid-episode
+    left its temporary directory behind)."""
+
+    def __init__(self, cleanup: Callable[[], None]):
+        self.cleanup = cleanup
+
+    def __enter__(self) -> None:
+        _cleanups.append(self.cleanup)
+
+    def __exit__(self, *exc_info) -> None:
+        _cleanups.remove(self.cleanup)
 
 
 def start_up_over() -> None:

@@ -14,13 +14,14 @@ start (compilation included) to the first evaluation at that success rate.
 import argparse
 import dataclasses
 import pathlib
+import shutil
 import tempfile
 import time
 from collections.abc import Sequence
 
 import jax
 
-from experiments import configs
+from experiments import configs, start_up
 from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.scaling import ppo_seconds
 from jaxarm import runner
@@ -67,7 +68,7 @@ def time_to_success(
     `eval_every` updates; the first evaluation at `target` success or better: its wall seconds (from the
     training's start, compilation included) and env steps, or None for both if none got there."""
     config = dataclasses.replace(config, eval_every_updates=eval_every)
-    with tempfile.TemporaryDirectory() as name:
+    with tempfile.TemporaryDirectory() as name, start_up.CleanedOnCtrlC(lambda: shutil.rmtree(name, True)):
         folder = pathlib.Path(name)
         start = time.perf_counter()
         final = runner.train(config, folder, options=runner.Options(stop_after_s=60 * minutes, devices=devices))

@@ -20,12 +20,13 @@ import collections
 import dataclasses
 import glob
 import re
+import shutil
 import tempfile
 from collections.abc import Sequence
 
 import jax
 
-from experiments import configs
+from experiments import configs, start_up
 from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import compile_updates, timed
 from jaxarm.agents.common.config import apply_overrides
@@ -102,7 +103,7 @@ def profile_updates(config, num_updates: int, phases: tuple[str, ...]) -> tuple[
     names = op_names(compiled.as_text())
     timed(compiled, state, hparams)  # warm-up
     wall = timed(compiled, state, hparams)
-    with tempfile.TemporaryDirectory() as trace_dir:
+    with tempfile.TemporaryDirectory() as trace_dir, start_up.CleanedOnCtrlC(lambda: shutil.rmtree(trace_dir, True)):
         with jax.profiler.trace(trace_dir):
             jax.block_until_ready(compiled(state, hparams))
         (profile_path,) = glob.glob(f"{trace_dir}/**/*.xplane.pb", recursive=True)

@@ -73,10 +73,14 @@ def session_processes(session: int) -> list[int]:
 def test_ctrl_c_ends_a_rehearsal_and_its_robot_process_in_one_line(tmp_path):
     export_random_policy(tmp_path, sorter_run(tmp_path, 250), "24")  # 10 s episodes: Ctrl-C comes mid-stream
     command = [sys.executable, "-m", "experiments.rehearse", str(tmp_path), "--episodes", "1"]
-    process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    temporary = tmp_path / "tmp"  # where the episode's scene, socket and log go
+    temporary.mkdir()
+    environ = {**os.environ, "TMPDIR": str(temporary)}
+    process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True, env=environ)
     deadline = time.monotonic() + 120
     while len(session_processes(process.pid)) < 3 and time.monotonic() < deadline:  # it, its tracker, the robot
         time.sleep(0.1)
+    assert [path.name[: len("rehearse-")] for path in temporary.iterdir()] == ["rehearse-"]
     time.sleep(1.0)
     os.killpg(process.pid, signal.SIGINT)  # as a terminal's Ctrl-C reaches every process of its group
     _, err = process.communicate(timeout=60)
@@ -87,3 +91,4 @@ def test_ctrl_c_ends_a_rehearsal_and_its_robot_process_in_one_line(tmp_path):
     while session_processes(process.pid) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert session_processes(process.pid) == []
+    assert list(temporary.iterdir()) == []  # the robot wrote its log there after the rehearsal had gone
