@@ -36,20 +36,27 @@ def exit_on_ctrl_c(said: str = WHILE_STARTING) -> None:
     take both), saying "interrupted" and `said`: a KeyboardInterrupt raised inside the imports of JAX and its
     libraries can be swallowed by a library's broad `except` (a run then trained to the end in 4 of 15 Ctrl-C
     during start-up), and SIGTERM (a cluster's time limit, `timeout`) ended a command in its start-up without a
-    word (rc -15)."""
+    word (rc -15). Called again while in force (the package installs it first, `experiments/__init__.py`), it
+    changes only what is said."""
+    _said[0] = said
+    if signal.getsignal(signal.SIGINT) is not _exit_at_once:
+        _before.update({signum: signal.signal(signum, _exit_at_once) for signum in (signal.SIGINT, signal.SIGTERM)})
+        _before["handler"] = _exit_at_once
 
-    def exit_at_once(signum, frame):
-        for each in (signal.SIGINT, signal.SIGTERM):  # a second one while the cleanups run would run them again
-            signal.signal(each, signal.SIG_IGN)
-        try:
-            print(f"\ninterrupted {said}", file=sys.stderr, flush=True)
-            for cleanup in reversed(_cleanups):
-                cleanup()
-        finally:  # whatever a cleanup raised: its traceback would be a second word
-            os._exit(ended_by(signal.SIGINT))
 
-    _before.update({signum: signal.signal(signum, exit_at_once) for signum in (signal.SIGINT, signal.SIGTERM)})
-    _before["handler"] = exit_at_once
+_said = [WHILE_STARTING]
+"""What `_exit_at_once` says after "interrupted" (`exit_on_ctrl_c`)."""
+
+
+def _exit_at_once(signum, frame):
+    for each in (signal.SIGINT, signal.SIGTERM):  # a second one while the cleanups run would run them again
+        signal.signal(each, signal.SIG_IGN)
+    try:
+        print(f"\ninterrupted {_said[0]}", file=sys.stderr, flush=True)
+        for cleanup in reversed(_cleanups):
+            cleanup()
+    finally:  # whatever a cleanup raised: its traceback would be a second word
+        os._exit(ended_by(signal.SIGINT))
 
 
 class CleanedOnCtrlC:
