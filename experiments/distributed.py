@@ -13,6 +13,7 @@ import argparse
 import atexit
 import contextlib
 import ctypes
+import io
 import itertools
 import os
 import signal
@@ -412,6 +413,8 @@ def _run_forked(main: Callable[[list[str]], int], argv: list[str], gpu: str, lau
         # Its own process group: a Ctrl-C at the terminal reaches the launcher alone, which passes it on once (a
         # second SIGINT would make each process exit without its checkpoint).
         os.setpgid(0, 0)
+        for stream in (sys.stdout, sys.stderr):
+            one_write_per_line(stream)
         signal.signal(signal.SIGTERM, signal.default_int_handler)
         _die_with_parent(launcher)
         os.environ["CUDA_VISIBLE_DEVICES"] = gpu
@@ -424,6 +427,14 @@ def _run_forked(main: Callable[[list[str]], int], argv: list[str], gpu: str, lau
         traceback.print_exc()
     finally:
         _leave(code)
+
+
+def one_write_per_line(stream) -> None:
+    """Makes `stream` (a text stream over a file) write each line whole in one write, as processes sharing one
+    terminal or pipe need: where Python writes through (PYTHONUNBUFFERED=1), `print` writes a line's text and its end
+    apart, and two processes' errors came out as one line, "...split overerror: ...split over", then two ends."""
+    if isinstance(stream, io.TextIOWrapper):
+        stream.reconfigure(write_through=False, line_buffering=True)
 
 
 def exit_code(code: object) -> int:

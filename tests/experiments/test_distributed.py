@@ -4,6 +4,7 @@ one device does."""
 
 import argparse
 import csv
+import io
 import os
 import pathlib
 import signal
@@ -600,6 +601,25 @@ def test_local_processes_are_forked_only_before_jax_starts_its_backend():
     jax.devices()
     with pytest.raises(RuntimeError, match="before JAX starts its backend"):
         distributed.spawn(run.main, ["--config", "ppo_arm2d"], 2)
+
+
+def test_a_local_process_writes_each_line_whole_though_python_writes_through():
+    # PYTHONUNBUFFERED=1 (write-through): two processes' errors came out as one line on a loaded CPU, then two ends.
+    writes = []
+
+    class Recorder(io.RawIOBase):
+        def writable(self):
+            return True
+
+        def write(self, data):
+            writes.append(bytes(data))
+            return len(data)
+
+    stream = io.TextIOWrapper(Recorder(), write_through=True)  # as Python makes stderr where it writes through
+    print("error: a", file=stream)
+    distributed.one_write_per_line(stream)
+    print("error: b", file=stream)
+    assert writes == [b"error: a", b"\n", b"error: b\n"]
 
 
 @pytest.mark.parametrize(("code", "status"), [(None, 0), (0, 0), (3, 3), ("a message", 1)])
