@@ -4,6 +4,7 @@ Figures are made with matplotlib's object API and its Agg canvas, never through 
 so importing this module changes nothing for notebooks or other plotting code.
 """
 
+import functools
 import pathlib
 
 import jax
@@ -20,6 +21,21 @@ def figure(width: float, height: float, columns: int = 1, rows: int = 1):
     figure = Figure(figsize=(width, height))
     FigureCanvasAgg(figure)
     return figure, figure.subplots(rows, columns)
+
+
+def plain_text(draw):
+    """`draw`, with every text of its figure drawn as written: names, labels and titles come from the user (a run
+    directory's name, --label, --title), and matplotlib took a `$` pair in them for mathtext (`$\\frac$` ended a
+    comparison in its 50-line ParseSyntaxException traceback)."""
+
+    @functools.wraps(draw)
+    def drawn(*args, **kwargs):
+        from matplotlib import rc_context
+
+        with rc_context({"text.parse_math": False}):
+            return draw(*args, **kwargs)
+
+    return drawn
 
 
 def rolling_window(updates: int, at_least: int = 1) -> int:
@@ -59,6 +75,7 @@ def success_weights(rows: list[dict]) -> np.ndarray:
     return np.array([row.get("episodes/judged", row["episodes/episodes"]) for row in rows], float)
 
 
+@plain_text
 def learning_curve(
     rows: list[dict], path: pathlib.Path, title: str, device: str | None = None, window_at_least: int = 1
 ) -> None:
@@ -104,6 +121,7 @@ def learning_curve(
     fig.savefig(path, dpi=100)
 
 
+@plain_text
 def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
     """Mean training success (`TRAINING_SUCCESS`) and episode return over env steps, with 95% CI bands across
     seeds.
@@ -127,6 +145,7 @@ def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
     fig.savefig(path, dpi=100)
 
 
+@plain_text
 def run_comparison(curves: dict, path: pathlib.Path, title: str) -> None:
     """Success rate and training return over env steps (left) and over wall clock (right), runs overlaid. The
     success panels draw each run's evaluations during training first (solid, with dots), then its training

@@ -168,3 +168,12 @@ def test_a_named_device_never_relabels_runs_recorded_on_another(tmp_path, capsys
 def test_a_run_without_finished_episodes_is_an_error(tmp_path):
     with pytest.raises(ValueError, match="no metrics with finished episodes"):
         compare.load_run(write_run(tmp_path / "empty", 64, [(10.0, 100.0, 0, 0.0, 0.0)]))
+
+
+def test_dollars_in_names_labels_and_titles_are_drawn_as_written(tmp_path):
+    # Before: matplotlib took a `$` pair for mathtext and ended in its ParseSyntaxException traceback.
+    run = write_run(tmp_path / "run $\\foo{$", 64, [(10.0, 100.0, 2, 0.2, 1.0)])
+    out = tmp_path / "compare.png"
+    assert compare.main([str(run), "--device", "CPU", "--out", str(out), "--title", "$\\frac$"]) == 0
+    assert compare.main([str(run), "--device", "CPU", "--out", str(out), "--label", "a $\\frac{$ b"]) == 0
+    assert out.stat().st_size > 0
