@@ -14,20 +14,23 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm.export.numpy_policy import IMAGE, PROPRIO  # declared there: policies run without JAX read them
+from jaxarm.export.numpy_policy import IMAGE, PROPRIO
+from jaxarm.ranges import Range, check_value  # declared there: policies run without JAX read them
 
 OBS_MODES = ("state", "pixels", "pixels+proprio")
+RESOLUTION = Range(ge=8, le=1 << 10)
+"""A camera image's side in pixels: at most 1,024, 16 times the default 64, checked before an env is built (a side
+of 1e6 asked XLA for 256 TB at the first reset and ended in its out-of-memory traceback)."""
 PRIVILEGED = "privileged"
 """Key of the privileged part in a dict observation: the env's state observation (see the module docstring)."""
 
 
 def check_obs_mode(obs_mode: str, resolution: int, privileged: bool = False) -> None:
-    """ValueError naming the valid choices for an unknown `obs_mode`, a resolution below 8 pixels, or `privileged`
-    with obs_mode "state" (whose observation is the state observation already)."""
+    """ValueError naming the valid choices for an unknown `obs_mode`, a resolution out of `RESOLUTION`, or
+    `privileged` with obs_mode "state" (whose observation is the state observation already)."""
     if obs_mode not in OBS_MODES:
         raise ValueError(f"obs_mode must be one of {', '.join(OBS_MODES)}, got {obs_mode!r}")
-    if resolution < 8:
-        raise ValueError(f"resolution must be at least 8 pixels, got {resolution}")
+    check_value("resolution", resolution, int, RESOLUTION)
     if privileged and obs_mode == "state":
         raise ValueError('privileged=True adds the state observation to a pixel obs_mode; "state" observes it alone')
 

@@ -80,8 +80,13 @@ def test_the_image_changes_when_the_arm_moves_and_not_otherwise():
 def test_obs_mode_and_resolution_are_checked():
     with pytest.raises(ValueError, match="obs_mode must be one of state, pixels, pixels\\+proprio"):
         Arm2d(obs_mode="rgb")
-    with pytest.raises(ValueError, match="resolution must be at least 8"):
+    with pytest.raises(ValueError, match=r"^resolution must be in \[8, 1024\], got 4$"):
         Arm2d(obs_mode="pixels", resolution=4)
+    # Before: XLA's out-of-memory traceback (256 TB) at the first reset, and a float side's TypeError.
+    with pytest.raises(ValueError, match=r"^resolution must be in \[8, 1024\], got 1000000$"):
+        Arm2d(obs_mode="pixels", resolution=1_000_000)
+    with pytest.raises(ValueError, match=r"^resolution must be an integer, got 16.5$"):
+        Arm2d(obs_mode="pixels", resolution=16.5)
     spec = Arm2d(obs_mode="pixels", resolution=32).spec
     assert spec.observation["image"].shape == (32, 32, 1) and not spec.flat_observation
     with pytest.raises(ValueError, match="no single size"):
