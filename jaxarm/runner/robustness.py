@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm import envs
+from jaxarm import envs, ranges
 from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.envs.randomize import parse_ranges
 from jaxarm.runner import plots
@@ -120,6 +120,18 @@ def evaluate_perturbations(
     "nominal"; left out without `with_nominal`), then each value of each perturbed param with every other param
     nominal, then each `combined` change ("param" its `combined_label`, "value" None). `act(state, obs)` is the
     deterministic policy; every row evaluates the same `episodes` episodes (same key)."""
+    batches: list[tuple[str | None, Sequence[Mapping[str, float]]]] = [
+        (name, [{name: value} for value in values]) for name, values in perturbations.items()
+    ]
+    if combined:
+        batches.append((None, combined))
+    for name, changes in batches:  # each batch's values are evaluated at once, each on `episodes` episodes
+        if not ranges.AT_ONCE.admits(len(changes) * episodes):
+            raise PerturbationError(
+                f"{len(changes):,} {'values of ' + name if name else 'combined changes'} x {episodes:,} episodes "
+                f"step {len(changes) * episodes:,} envs at once, more than an evaluation may "
+                f"({ranges.AT_ONCE.describe()}); give fewer values or --episodes"
+            )
     check_perturbations(env_params, perturbations)
     for change in combined:
         check_perturbations(env_params, {name: [value] for name, value in change.items()})
@@ -132,11 +144,6 @@ def evaluate_perturbations(
     if with_nominal:
         nominal = jax.jit(lambda learner: at_values(learner, {}))
         rows.append({"param": "nominal", "value": None, **nominal(state).summary()})
-    batches: list[tuple[str | None, Sequence[Mapping[str, float]]]] = [
-        (name, [{name: value} for value in values]) for name, values in perturbations.items()
-    ]
-    if combined:
-        batches.append((None, combined))
     for name, changes in batches:
         results = jax.jit(jax.vmap(at_values, in_axes=(None, 0)))(state, _batched_values(env_params, changes))
         for index, change in enumerate(changes):

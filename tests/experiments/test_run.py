@@ -412,6 +412,17 @@ def test_bad_perturbations_are_refused_in_one_line(finished_run, capsys, perturb
     assert message in capsys.readouterr().err
 
 
+def test_perturbations_that_would_step_too_many_envs_at_once_are_refused(finished_run, capsys):
+    # Before: 3,000 values x 1,000 episodes stepped 3e6 envs in one program (minutes; more ran out of memory).
+    values = ",".join(f"{0.01 + index * 1e-4:.4f}" for index in range(300))
+    argv = [str(finished_run), "--episodes", "4000", "--perturb", f"action_scale={values}"]
+    assert eval_cli.main(argv) == 2
+    assert capsys.readouterr().err == (
+        "error: --perturb: 300 values of action_scale x 4,000 episodes step 1,200,000 envs at once, more than an "
+        "evaluation may (in [1, 1048576]); give fewer values or --episodes\n"
+    )
+
+
 def test_a_ten_billion_step_budget_runs_resumes_and_counts_past_int32(tmp_path):
     run_dir = tmp_path / "long"
     long_budget = ["total_env_steps=10000000000", "--out", str(run_dir), "--stop-after-minutes", "0"]
