@@ -24,6 +24,7 @@ if __name__ == "__main__":
 
 import argparse
 import multiprocessing
+import os
 import pathlib
 import shutil
 import tempfile
@@ -51,19 +52,28 @@ LATENCY_BUDGETS_MS = ranges.Range(gt=0, le=wire.Timing.connect_timeout * 1e3)
 """The latency budgets a rehearsal takes, ms: past the robot's wait for its first command, a stalled policy would
 keep the robot (and the rehearsal) waiting longer than a policy that never started."""
 
+SOCKET_PATH_MAX = 103
+"""The longest path of a Unix socket, in bytes: sockaddr_un holds 104 on macOS and 108 on Linux, a NUL included."""
 ROBOT_END_SECONDS = 5.0
 """How long a killed robot process may take to end before its directory is removed."""
 
 
 def driver_setup(env, params, sim, directory: pathlib.Path, timing: wire.Timing) -> DriverSetup:
-    """The robot process's start for the episode `sim`: its scene written to `directory`, its socket there."""
+    """The robot process's start for the episode `sim`: its scene written to `directory`, its socket there;
+    ValueError, before anything is written, where the socket's path is too long for one."""
+    socket_path = directory / "robot.ipc"
+    if len(os.fsencode(socket_path)) > SOCKET_PATH_MAX:  # zmq's "File name too long" traceback, and the robot's
+        raise ValueError(
+            f"the robot's socket {socket_path} is longer than a socket's path may be ({SOCKET_PATH_MAX} bytes): "
+            "set TMPDIR to a shorter directory"
+        )
     model = transfer.plant_model(env, params, "jaxarm")
     data = mujoco.MjData(model)
     ids = panda_sort.start_scene(model, data, env, params, sim)
     model_path = directory / "robot.mjb"
     mujoco.mj_saveModel(model, str(model_path))
     return DriverSetup(
-        address=f"ipc://{directory}/robot.ipc",
+        address=f"ipc://{socket_path}",
         model_path=str(model_path),
         qpos=data.qpos.copy(),
         ctrl=np.asarray(sim.ctrl, np.float64),

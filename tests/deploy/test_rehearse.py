@@ -92,3 +92,12 @@ def test_ctrl_c_ends_a_rehearsal_and_its_robot_process_in_one_line(tmp_path):
         time.sleep(0.1)
     assert session_processes(process.pid) == []
     assert list(temporary.iterdir()) == []  # the robot wrote its log there after the rehearsal had gone
+
+
+def test_a_temporary_directory_too_deep_for_the_robots_socket_is_one_line_before_anything_is_written(tmp_path):
+    # Before: zmq's "File name too long" traceback, then the robot's own, its scene removed under it.
+    deep = tmp_path / ("t" * 110) / "rehearse-x"
+    deep.mkdir(parents=True)
+    with pytest.raises(ValueError, match=r"^the robot's socket .*/robot.ipc is longer than a socket's path may be"):
+        rehearse.driver_setup(None, None, None, deep, None)
+    assert list(deep.iterdir()) == []
