@@ -98,6 +98,12 @@ def parse_grid(base: RunConfig, assignments: list[str]) -> Grid:
             raise ValueError(f"sweep assignment {item!r} overrides the values of {key} swept before; give them once")
         if len(options) > 1:
             swept.add(key)
+        made = len(dynamic if key in base.dynamic_fields() else static) * len(options)
+        if not ranges.AT_ONCE.admits(made):  # before the product is made: 400^3 values grew to 13 GB first
+            raise ValueError(
+                f"sweep assignment {key}= ({len(options):,} values) makes {made:,} settings, more than a sweep may "
+                f"({ranges.AT_ONCE.describe()}); sweep fewer values"
+            )
         settings = [apply_overrides(base, [f"{key}={value}"], validate=False) for value in options]
         repeated = [value for index, value in enumerate(options) if settings[index] in settings[:index]]
         if repeated:

@@ -417,6 +417,10 @@ def test_a_sweep_labels_its_settings_by_what_sets_them_apart():
     assert labels == ["learning_rate=0.0002", "learning_rate=0.0008"]
 
 
+LAMBDAS = ("learning_rate", "gamma", "gae_lambda")
+"""Dynamic fields that take values in (0, 1]."""
+
+
 @pytest.mark.parametrize(
     ("assignments", "message"),
     [
@@ -424,6 +428,11 @@ def test_a_sweep_labels_its_settings_by_what_sets_them_apart():
         (["num_envs=8,8"], "gives num_envs=8 twice"),
         (["learning_rate=1e-3,2e-3", "learning_rate=5e-4"], "overrides the values of learning_rate swept before"),
         (["num_minibatches=1,2", "num_minibatches=4"], "overrides the values of num_minibatches swept before"),
+        # Before: a 400^3 grid grew to 13 GB before it was refused.
+        (
+            [f"{key}=" + ",".join(f"{(index + 1) / 1000:g}" for index in range(128)) for key in LAMBDAS],
+            "gae_lambda= (128 values) makes 2,097,152 settings, more than a sweep may (in [1, 1048576])",
+        ),
     ],
 )
 def test_a_sweep_refuses_settings_alike_in_one_line_before_anything_is_written(assignments, message, tmp_path, capsys):
