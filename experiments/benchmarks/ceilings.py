@@ -222,7 +222,7 @@ def print_arm2d(sizes: Sequence[int], steps: int, unroll: int) -> tuple[float, l
 def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench ceilings", description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="ppo_arm2d", help="PPO preset whose update is counted and timed")
-    parser.add_argument("--seeds", type=int, default=64, help="seeds vmapped in the measured sweep update")
+    parser.add_argument("--seeds", type=count, default=64, help="seeds vmapped in the measured sweep update")
     parser.add_argument("--sizes", type=env_counts, default="4096,65536", help="comma-separated arm2d env counts")
     parser.add_argument(
         "--steps", type=count, default=1000, help="arm2d steps per timed scan (capped as in the arm2d suite)"

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from experiments import configs
+from experiments.benchmarks.arguments import count
 from experiments.benchmarks.record import add_out_argument, write_record
 from jaxarm import deployable
 from jaxarm.deploy.loop import Controller, DeploymentLoop
@@ -116,7 +117,7 @@ def tick_times(preset: str, ticks: int, warmup: int, seed: int) -> tuple[np.ndar
 def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench deploy", description=__doc__.splitlines()[0])
     parser.add_argument("--presets", default="ppo_sorter_dr,ppo_sorter3,ppo_peg", help="comma-separated presets")
-    parser.add_argument("--ticks", type=int, default=5000, help="timed ticks per preset")
+    parser.add_argument("--ticks", type=count, default=5000, help="timed ticks per preset")
     parser.add_argument("--warmup", type=int, default=200, help="untimed ticks first")
     parser.add_argument("--seed", type=int, default=0)
     add_out_argument(parser)

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 import jax
 
 from experiments import configs, start_up
+from experiments.benchmarks import arguments
 from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.scaling import ppo_seconds
 from jaxarm import runner
@@ -90,7 +91,7 @@ def main(argv: Sequence[str]) -> None:
     parser.add_argument("--impls", default="auto,jax", help="MJX implementations of MJX presets, comma-separated")
     parser.add_argument("--devices", default="1,2,4", help="device counts; those beyond the host's are skipped")
     parser.add_argument("--envs-per-device", type=int, help="envs on each device (default: the preset's num_envs)")
-    parser.add_argument("--updates", type=int, default=10, help="PPO updates per timed call")
+    parser.add_argument("--updates", type=arguments.count, default=10, help="PPO updates per timed call")
     parser.add_argument("--train-to", type=float, help="also time training to this success rate (e.g. 0.9)")
     parser.add_argument("--train-devices", default="", help="device counts to train on (default: the largest)")
     parser.add_argument("--eval-every", type=int, default=20, help="updates between evaluations while training")

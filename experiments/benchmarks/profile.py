@@ -27,6 +27,7 @@ from collections.abc import Sequence
 import jax
 
 from experiments import configs, start_up
+from experiments.benchmarks.arguments import count
 from experiments.benchmarks.record import add_out_argument, write_record
 from experiments.benchmarks.timing import compile_updates, timed
 from jaxarm.agents.common.config import apply_overrides
@@ -126,7 +127,7 @@ def format_table(wall: float, times: list[PhaseTime], num_updates: int) -> str:
 def main(argv: Sequence[str]) -> None:
     parser = argparse.ArgumentParser(prog="python -m experiments.bench profile", description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="ppo_arm2d", help="preset name")
-    parser.add_argument("--updates", type=int, default=4, help="updates in the profiled program")
+    parser.add_argument("--updates", type=count, default=4, help="updates in the profiled program")
     parser.add_argument("--phases", default="collect,advantages,sgd", help="named scopes to book time to")
     parser.add_argument("overrides", nargs="*", help="config overrides key=value")
     add_out_argument(parser)

@@ -2,6 +2,7 @@
 JSON record each suite writes beside its markdown (the runs themselves are benchmarks)."""
 
 import dataclasses
+import importlib
 import json
 import math
 
@@ -241,3 +242,15 @@ def test_arm2d_suite_refuses_a_scan_of_no_steps(capsys):
     with pytest.raises(SystemExit):
         arm2d.main(["--unroll", "0"])
     assert capsys.readouterr().err.splitlines()[-1].endswith("argument --unroll: the count must be >= 1, got 0")
+
+
+@pytest.mark.parametrize(
+    ("suite", "flag"),
+    [("deploy", "--ticks"), ("ceilings", "--seeds"), ("profile", "--updates"), ("devices", "--updates")],
+)
+def test_suites_refuse_a_count_of_zero_before_timing(suite, flag, capsys):
+    # Before: deploy --ticks 0 an IndexError, ceilings --seeds 0 numpy's "Need at least one array to stack".
+    module = importlib.import_module(f"experiments.benchmarks.{suite}")
+    with pytest.raises(SystemExit):
+        module.main([flag, "0"])
+    assert capsys.readouterr().err.splitlines()[-1].endswith(f"argument {flag}: the count must be >= 1, got 0")
