@@ -15,6 +15,7 @@ import contextlib
 import ctypes
 import io
 import itertools
+import mmap
 import os
 import signal
 import socket
@@ -50,6 +51,9 @@ end (JAX's shutdown barrier, while process 0 writes the last files): minutes on 
 of 300 s was near. Joining itself keeps JAX's 300 s: a process whose peers never start should not wait longer."""
 PEER_LOST = ("Gloo", "coordination service", "Connection reset by peer", "DEADLINE_EXCEEDED")
 """Words of JAX's errors in a process whose peers have gone (their collectives or its coordination service)."""
+_peer_failed = mmap.mmap(-1, 1)
+"""One byte this process and the processes it forks (`spawn`) share: set by the launcher before it stops the others
+where one failed (`stopped_for_a_failed_peer`)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
@@ -297,6 +301,7 @@ def spawn(main: Callable[[list[str]], int], argv: Sequence[str], count: int, res
     ]
     sys.stdout.flush()
     sys.stderr.flush()  # else each process would write again what this one had buffered
+    _peer_failed[0] = 0
     children = []
     launcher = os.getpid()
     for index, gpu in enumerate(gpus):
@@ -329,6 +334,7 @@ def _wait(children: list[int], resume: str) -> int:
         if failed_at is None and any(code != 0 for code in codes.values()):
             failed_at = time.monotonic()
             failure = _failure(children, codes, resume)
+            _peer_failed[0] = 1
             forward(signal.SIGTERM, None)
         if failed_at is not None and time.monotonic() - failed_at > STOP_GRACE_S:
             forward(signal.SIGKILL, None)
@@ -372,6 +378,12 @@ def first_line(error: BaseException) -> str:
     """The first line of `error`'s message (JAX's run to dozens), at most 200 characters; its type where empty."""
     text = str(error).strip()
     return text.splitlines()[0][:200] if text else type(error).__name__
+
+
+def stopped_for_a_failed_peer() -> bool:
+    """Whether this process's launcher (`spawn`) has told the job's processes to stop because one of them failed:
+    the launcher's own line then says which, and how to go on."""
+    return _peer_failed[0] == 1
 
 
 def peer_lost_message(error: BaseException, index: int, resume: str) -> str | None:

@@ -194,7 +194,10 @@ def main(argv=None) -> int:
     try:
         return _main(sys.argv[1:] if argv is None else argv)
     except KeyboardInterrupt:
-        print("\ninterrupted: checkpoints saved so far are kept", file=sys.stderr)
+        # A process its launcher stopped for a peer's failure says so (the launcher's line says which, and how to
+        # go on): a SIGTERM that came outside the chunk loop, as a checkpoint was written, read as a Ctrl-C.
+        why = "another process of the job has gone; " if distributed.stopped_for_a_failed_peer() else ""
+        print(f"\ninterrupted: {why}checkpoints saved so far are kept", file=sys.stderr)
         quiet_libraries()
         return STOPPED_BY_SIGNAL
 

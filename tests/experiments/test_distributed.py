@@ -432,7 +432,7 @@ DIES_OR_LOSES_ITS_LAUNCHER = textwrap.dedent("""
     def main(argv):
         marker = pathlib.Path(argv[0]) / argv[argv.index("--process-id") + 1]
         def stopped(signum, frame):
-            marker.write_text("stopped")
+            marker.write_text("stopped" + (" for a failed peer" if distributed.stopped_for_a_failed_peer() else ""))
             sys.exit(0)
         signal.signal(signal.SIGTERM, stopped)
         marker.write_text(str(os.getpid()))
@@ -456,7 +456,7 @@ def test_a_killed_local_process_is_named_in_one_line_with_the_resume_command(tmp
         f"error: process 1 (pid {(tmp_path / '1').read_text()}) was killed by SIGKILL; the others are told to stop; "
         "continue with: python -m experiments.run --resume RUN\n"
     )
-    assert (tmp_path / "0").read_text() == "stopped"
+    assert (tmp_path / "0").read_text() == "stopped for a failed peer"
 
 
 def test_local_processes_stop_when_their_launcher_is_killed(tmp_path):
@@ -468,7 +468,7 @@ def test_local_processes_stop_when_their_launcher_is_killed(tmp_path):
         time.sleep(0.1)
     launcher.kill()
     launcher.wait()
-    while not all(marker.read_text() == "stopped" for marker in markers):
+    while not all(marker.read_text() == "stopped" for marker in markers):  # no peer failed: the launcher went
         assert time.monotonic() - start < 60, "a process trains on without its launcher"
         time.sleep(0.1)
 
