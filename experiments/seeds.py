@@ -109,6 +109,15 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     return tuple(seeds)
 
 
+def time_limit(text: str) -> float:
+    """`--minutes`: the wall clock each seed's command must end within, more than 0 minutes (with 0 every seed
+    trained to its end, only for the study to call the goal not met)."""
+    value = minutes(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError("expected more than 0 minutes: no command ends within 0")
+    return value
+
+
 def fraction(text: str) -> float:
     """`--goal`: a fraction in [0, 1]."""
     try:
@@ -336,7 +345,7 @@ def parse_args(argv) -> argparse.Namespace:
     parser.add_argument("--config", help="preset name (python -m experiments.run --list)")
     parser.add_argument("--seeds", type=parse_seeds, default=parse_seeds("0-4"), help="e.g. 0-4 (the default)")
     parser.add_argument("--goal", type=fraction, default=0.9, help="the placed fraction each seed must reach")
-    parser.add_argument("--minutes", type=minutes, help="each seed's command must end within this wall clock")
+    parser.add_argument("--minutes", type=time_limit, help="each seed's command must end within this wall clock")
     parser.add_argument("--out", type=paths.given, help="study directory (default runs/seeds-<config>-<timestamp>)")
     parser.add_argument("--resume", metavar="OUT", help="continue the study in OUT")
     parser.add_argument(

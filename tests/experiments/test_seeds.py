@@ -40,6 +40,13 @@ def test_bad_seeds_are_refused_in_one_line(text, message):
         seeds.parse_seeds(text)
 
 
+@pytest.mark.parametrize("text", ["0", "-1", "nan", "inf", "soon"])
+def test_a_time_limit_no_command_can_meet_is_refused_in_one_line(text):
+    with pytest.raises(argparse.ArgumentTypeError, match="minutes"):
+        seeds.time_limit(text)
+    assert seeds.time_limit("0.5") == 0.5
+
+
 def test_the_interval_holds_the_mean_reads_the_same_twice_and_is_a_point_where_all_agree():
     values = np.array([0.659, 0.73, 1.0, 1.0, 1.0])
     low, high = stats.bootstrap_interval(values)
