@@ -481,6 +481,29 @@ def test_a_second_ctrl_c_ends_the_process_at_once_with_130():
     assert done.returncode == 130 and "SIGINT again: aborted" in done.stderr
 
 
+@pytest.mark.parametrize("nohup", [False, True])
+def test_a_hang_up_stops_training_at_the_chunk_end_unheard_unless_the_run_ignores_it(nohup):
+    # A closed terminal's SIGHUP ended a run at once (rc 129), losing the chunk in progress; under `nohup` it must
+    # still be ignored. The test's pipes stand for the terminal: nothing written after the hang-up reaches them.
+    program = (
+        "import os, signal, sys\n"
+        "from jaxarm.runner.signals import StopRequests\n"
+        f"signal.signal(signal.SIGHUP, {'signal.SIG_IGN' if nohup else 'signal.SIG_DFL'})\n"
+        "stop = StopRequests()\n"
+        "with stop.installed():\n"
+        "    print('before', flush=True)\n"
+        "    os.kill(os.getpid(), signal.SIGHUP)\n"
+        "    print('after', flush=True)\n"
+        "    print('after', file=sys.stderr, flush=True)\n"
+        "sys.exit(7 if stop.requested else 8)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=120)
+    if nohup:
+        assert (done.returncode, done.stdout, done.stderr) == (8, "before\nafter\n", "after\n")
+    else:
+        assert (done.returncode, done.stdout, done.stderr) == (7, "before\n", "")
+
+
 def test_a_ctrl_c_swallowed_before_training_stops_the_run_at_its_first_chunk_end(tmp_path):
     # A KeyboardInterrupt raised while XLA compiled was swallowed by JAX's garbage-collection callback: the run
     # trained to its end, rc 0. What the handler remembered stops the chunk loop at its first chunk end instead.
