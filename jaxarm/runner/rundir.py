@@ -139,8 +139,14 @@ def check_holds_a_run_or_nothing(run_dir: pathlib.Path) -> None:
 def any_checkpoint_files(run_dir: pathlib.Path) -> bool:
     """Whether `run_dir/checkpoints` holds a checkpoint folder (a step number), complete or damaged: a run with
     one is never started afresh, so nothing is lost. Half-written ones (orbax's temporary folders, left by a kill
-    or a full disk during the save) do not count."""
+    or a full disk during the save) do not count. RunDirError where `checkpoints` is there but no folder: a run
+    that took that for no checkpoint started afresh, deleting its metrics."""
     directory = run_dir / "checkpoints"
+    if directory.exists() and not directory.is_dir():
+        raise RunDirError(
+            f"{directory} is not a folder, so this run's checkpoints are not there: put the folder back to go on, or "
+            "start the run in a new directory"
+        )
     return directory.is_dir() and any(path.name.isdigit() for path in directory.iterdir())
 
 

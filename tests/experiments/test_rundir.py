@@ -145,6 +145,19 @@ def test_damaged_files_are_named_with_what_to_do(reference, tmp_path, capsys):
     assert error.count("\n") == 1
 
 
+def test_checkpoints_that_are_no_folder_stop_a_resume_without_deleting_anything(reference, tmp_path, capsys):
+    # Taken for "no checkpoint", it restarted the run afresh and deleted its metrics.
+    run_dir = tmp_path / "replaced"
+    shutil.copytree(reference, run_dir)
+    shutil.rmtree(run_dir / "checkpoints")
+    (run_dir / "checkpoints").write_text("")
+    rows = (run_dir / "metrics.jsonl").read_text()
+    assert run.main(["--resume", str(run_dir)]) == 2
+    error = capsys.readouterr().err
+    assert f"{run_dir / 'checkpoints'} is not a folder" in error and error.count("\n") == 1, error
+    assert (run_dir / "metrics.jsonl").read_text() == rows and (run_dir / "checkpoints").is_file()
+
+
 def test_ctrl_c_checkpoints_at_the_chunk_end_and_resume_is_bit_identical(reference, tmp_path, capsys, monkeypatch):
     run_dir = tmp_path / "interrupted"
     runner_of = programs.ChunkRunners.__call__
