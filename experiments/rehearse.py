@@ -52,8 +52,9 @@ LATENCY_BUDGETS_MS = ranges.Range(gt=0, le=wire.Timing.connect_timeout * 1e3)
 """The latency budgets a rehearsal takes, ms: past the robot's wait for its first command, a stalled policy would
 keep the robot (and the rehearsal) waiting longer than a policy that never started."""
 
-SOCKET_PATH_MAX = 103
-"""The longest path of a Unix socket, in bytes: sockaddr_un holds 104 on macOS and 108 on Linux, a NUL included."""
+SOCKET_PATH_MAX = 103 if sys.platform == "darwin" else 107
+"""The longest path of a Unix socket here, in bytes: sockaddr_un holds 104 on macOS and 108 on Linux, a NUL
+included."""
 ROBOT_END_SECONDS = 5.0
 """How long a killed robot process may take to end before its directory is removed."""
 
