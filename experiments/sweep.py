@@ -98,7 +98,8 @@ def parse_grid(base: RunConfig, assignments: list[str]) -> Grid:
             raise ValueError(f"sweep assignment {item!r} overrides the values of {key} swept before; give them once")
         if len(options) > 1:
             swept.add(key)
-        made = len(dynamic if key in base.dynamic_fields() else static) * len(options)
+        is_dynamic = key in base.dynamic_fields()
+        made = len(dynamic if is_dynamic else static) * len(options)
         if not ranges.AT_ONCE.admits(made):  # before the product is made: 400^3 values grew to 13 GB first
             raise ValueError(
                 f"sweep assignment {key}= ({len(options):,} values) makes {made:,} settings, more than a sweep may "
@@ -108,7 +109,7 @@ def parse_grid(base: RunConfig, assignments: list[str]) -> Grid:
         repeated = [value for index, value in enumerate(options) if settings[index] in settings[:index]]
         if repeated:
             raise ValueError(f"sweep assignment {item!r} gives {key}={repeated[0]} twice")
-        if key in base.dynamic_fields():
+        if is_dynamic:
             parsed = [apply_overrides(base, [f"{key}={value}"]) for value in options]
             dynamic = [{**combo, key: getattr(config, key)} for combo in dynamic for config in parsed]
         else:

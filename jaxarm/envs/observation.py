@@ -14,8 +14,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm.export.numpy_policy import IMAGE, PROPRIO
-from jaxarm.ranges import Range, check_value  # declared there: policies run without JAX read them
+from jaxarm.export.numpy_policy import IMAGE, PROPRIO  # declared there: policies run without JAX read them
+from jaxarm.ranges import Range, check_value
 
 OBS_MODES = ("state", "pixels", "pixels+proprio")
 RESOLUTION = Range(ge=8, le=1 << 10)
