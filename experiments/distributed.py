@@ -21,6 +21,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
@@ -48,7 +49,14 @@ PR_SET_PDEATHSIG = 1
 WAIT_FOR_PEERS_S = 900
 """How long a process that joined waits for the others to open the collectives (their backends starting) and at the
 end (JAX's shutdown barrier, while process 0 writes the last files): minutes on a loaded CPU, where JAX's default
-of 300 s was near. Joining itself keeps JAX's 300 s: a process whose peers never start should not wait longer."""
+of 300 s was near. Joining itself keeps JAX's 300 s by default (`--join-timeout`): a process whose peers never
+start should not wait longer."""
+JOIN_TIMEOUT_S = 300.0
+"""How long a process waits by default for every other to start and join (JAX's own default deadline)."""
+MAX_JOIN_TIMEOUT_S = 86_400.0
+JAX_DEADLINE_AFTER_S = 60
+"""How much later than `--join-timeout` JAX's own joining deadline is set: JAX aborts the process at its deadline
+(SIGABRT, with a C++ stack trace), so this module's own line (`never_joined`) must come first."""
 PEER_LOST = ("Gloo", "coordination service", "Connection reset by peer", "DEADLINE_EXCEEDED")
 """Words of JAX's errors in a process whose peers have gone (their collectives or its coordination service)."""
 _peer_failed = mmap.mmap(-1, 1)
@@ -69,6 +77,12 @@ def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
     )
     parser.add_argument("--num-processes", type=int, help="with --distributed: how many processes in all")
     parser.add_argument("--process-id", type=int, help="with --distributed: this process's index, from 0")
+    parser.add_argument(
+        "--join-timeout",
+        type=float,
+        metavar="SECONDS",
+        help=f"with --distributed: how long to wait for every process to start and join (default {JOIN_TIMEOUT_S:.0f})",
+    )
     parser.add_argument(
         LOCAL_PROCESSES,
         type=int,
@@ -107,9 +121,11 @@ def check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -
     below `--num-processes`, where this process is the coordinator (process 0) and its port is taken here (JAX
     would find out only at its deadline, or abort), or where `--local-processes` asks more processes than the host
     has cores."""
-    joining = (args.coordinator, args.num_processes, args.process_id)
+    joining = (args.coordinator, args.num_processes, args.process_id, args.join_timeout)
     if any(option is not None for option in joining) and not args.distributed:
-        parser.error("--coordinator, --num-processes and --process-id go with --distributed")
+        parser.error("--coordinator, --num-processes, --process-id and --join-timeout go with --distributed")
+    if args.join_timeout is not None and not 0 < args.join_timeout <= MAX_JOIN_TIMEOUT_S:
+        parser.error(f"--join-timeout takes seconds in (0, {MAX_JOIN_TIMEOUT_S:.0f}], got {args.join_timeout}")
     if args.num_processes is not None and args.num_processes < 1:
         parser.error(f"--num-processes takes a count of 1 or more, got {args.num_processes}")
     if args.process_id is not None and args.process_id < 0:
@@ -196,11 +212,17 @@ def join(args: argparse.Namespace) -> None:
     lived on after it, measured), and a local process whose launcher died then would train on alone. It also logs
     a warning and an error of its own as the coordination service goes."""
     jax.config.update("jax_enable_preemption_service", False)
+    timeout = JOIN_TIMEOUT_S if args.join_timeout is None else args.join_timeout
+    # JAX waits in C++, the GIL released: a timer thread can still end the process first, in one line.
+    watchdog = threading.Timer(timeout, never_joined, (args, timeout))
+    watchdog.daemon = True
+    watchdog.start()
     try:
         jax.distributed.initialize(
             coordinator_address=args.coordinator,
             num_processes=args.num_processes,
             process_id=args.process_id,
+            initialization_timeout=int(timeout) + JAX_DEADLINE_AFTER_S,
             shutdown_timeout_seconds=WAIT_FOR_PEERS_S,
         )
     except (ValueError, RuntimeError) as error:
@@ -208,8 +230,23 @@ def join(args: argparse.Namespace) -> None:
             f"--distributed could not join the other processes ({first_line(error)}); outside SLURM give --coordinator "
             "HOST:PORT, --num-processes N and --process-id I"
         ) from None
+    finally:
+        watchdog.cancel()
     atexit.register(shut_down)
     open_collectives()
+
+
+def never_joined(args: argparse.Namespace, timeout: float) -> NoReturn:
+    """Ends this process with one line (rc 2) where the others have not all joined within `timeout` seconds."""
+    who = "" if args.process_id is None else f"process {args.process_id} of {args.num_processes}, "
+    where = "" if args.coordinator is None else f"coordinator {args.coordinator}, "
+    print(
+        f"error: --distributed: not every process joined within {timeout:.0f} s ({who}{where}nothing trained); "
+        "start the same command in each process, or give --join-timeout more seconds",
+        file=sys.stderr,
+        flush=True,
+    )
+    os._exit(2)
 
 
 def open_collectives() -> None:
@@ -314,7 +351,9 @@ def spawn(main: Callable[[list[str]], int], argv: Sequence[str], count: int, res
 
 def _wait(children: list[int], resume: str) -> int:
     """Waits for the processes `children` as `spawn` says: SIGINT and SIGTERM passed on once, the others stopped
-    where one fails. Returns the exit code of the first that failed (`_failure`), else 0."""
+    where one fails. Returns the exit code of the first that failed (`_failure`), else 0; the line that names it
+    comes once every process has ended, after what they print as they go (a process that lost process 0 ends in
+    JAX's abort, a block of C++ logs)."""
     codes: dict[int, int] = {}
 
     def forward(signum, frame):
@@ -324,7 +363,7 @@ def _wait(children: list[int], resume: str) -> int:
 
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, forward)
-    failed_at, failure = None, 0
+    failed_at, failure, line = None, 0, None
     while len(codes) < len(children):
         for pid in children:
             if pid not in codes:
@@ -333,35 +372,34 @@ def _wait(children: list[int], resume: str) -> int:
                     codes[pid] = os.waitstatus_to_exitcode(status)
         if failed_at is None and any(code != 0 for code in codes.values()):
             failed_at = time.monotonic()
-            failure = _failure(children, codes, resume)
+            failure, line = _failure(children, codes, resume)
             _peer_failed[0] = 1
             forward(signal.SIGTERM, None)
         if failed_at is not None and time.monotonic() - failed_at > STOP_GRACE_S:
             forward(signal.SIGKILL, None)
         time.sleep(POLL_S)
+    if line:
+        print(line, file=sys.stderr, flush=True)
     return failure
 
 
-def _failure(children: list[int], codes: dict[int, int], resume: str) -> int:
+def _failure(children: list[int], codes: dict[int, int], resume: str) -> tuple[int, str | None]:
     """The exit code of the first of `children` to fail (`codes`: those ended so far), 128 + N for one killed by
-    signal N, which one line names, ending with `resume`."""
+    signal N, and for that one a line that names it, ending with `resume`."""
     failure = next(code for code in codes.values() if code != 0)
     killed = [(children.index(pid), pid, -code) for pid, code in codes.items() if code < 0]
     if REPORTED_ERROR in codes.values() and all(number == signal.SIGABRT for *_, number in killed):
         # JAX aborts a process whose coordination service left with the peer that hosted it: here a peer that
         # stopped on an error it reported and waited REPORT_GRACE_S for the others in vain. That error is the
         # failure (2-core CPU, before that wait: 1 of 2 CI runs reported the abort instead).
-        return REPORTED_ERROR
-    if killed:
-        index, pid, number = killed[0]
-        failure = 128 + number
-        print(
-            f"error: process {index} (pid {pid}) was killed by {signal.Signals(number).name}; the others are "
-            f"told to stop{f'; continue with: {resume}' if resume else ''}",
-            file=sys.stderr,
-            flush=True,
-        )
-    return failure
+        return REPORTED_ERROR, None
+    if not killed:
+        return failure, None
+    index, pid, number = killed[0]
+    return 128 + number, (
+        f"error: process {index} (pid {pid}) was killed by {signal.Signals(number).name}; the others are told to "
+        f"stop{f'; continue with: {resume}' if resume else ''}"
+    )
 
 
 def _die_with_parent(launcher: int) -> None:

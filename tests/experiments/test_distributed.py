@@ -136,6 +136,25 @@ def test_distributed_without_its_processes_is_one_line(tmp_path):
     assert result.stderr.strip().splitlines()[-1].startswith("error: --distributed could not join")
 
 
+@pytest.mark.parametrize("index", [0, 1])
+def test_a_process_whose_peers_never_join_ends_in_one_line_at_its_join_timeout(tmp_path, index):
+    coordinator = f"127.0.0.1:{free_port()}"
+    result = subprocess.run(
+        [sys.executable, "-m", "experiments.run", "--config", "ppo_arm2d", "--out", str(tmp_path / "run")]
+        + ["--distributed", "--coordinator", coordinator, "--num-processes", "2", "--process-id", str(index)]
+        + ["--join-timeout", "2"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        f"error: --distributed: not every process joined within 2 s (process {index} of 2, coordinator "
+        f"{coordinator}, nothing trained); start the same command in each process, or give --join-timeout more seconds"
+    ]
+    assert not (tmp_path / "run").exists()
+
+
 def test_local_processes_are_checked_and_leave_the_children_their_arguments(monkeypatch):
     assert distributed.without_local_processes(["--resume", "r", "--local-processes", "2", "x=1"]) == [
         "--resume",
@@ -176,13 +195,13 @@ def test_non_dividing_num_envs_stop_local_processes_with_one_clear_error(tmp_pat
     assert_quiet(result)
 
 
-def test_a_peer_jax_aborts_after_a_reported_error_leaves_that_error_as_the_failure(capsys):
+def test_a_peer_jax_aborts_after_a_reported_error_leaves_that_error_as_the_failure():
     # Process 0 refused the config and left first; JAX aborted process 1 (SIGABRT) as its service went with it.
-    assert distributed._failure([10, 11], {10: distributed.REPORTED_ERROR, 11: -signal.SIGABRT}, "RESUME") == 2
-    assert capsys.readouterr().err == ""
+    assert distributed._failure([10, 11], {10: distributed.REPORTED_ERROR, 11: -signal.SIGABRT}, "RESUME") == (2, None)
     # A process killed from outside is named, whatever its peers reported after.
-    assert distributed._failure([10, 11], {10: 1, 11: -signal.SIGKILL}, "RESUME") == 128 + signal.SIGKILL
-    assert "error: process 1 (pid 11) was killed by SIGKILL" in capsys.readouterr().err
+    code, line = distributed._failure([10, 11], {10: 1, 11: -signal.SIGKILL}, "RESUME")
+    assert code == 128 + signal.SIGKILL
+    assert line == "error: process 1 (pid 11) was killed by SIGKILL; the others are told to stop; continue with: RESUME"
 
 
 H100 = "GPU {index}: NVIDIA H100 80GB HBM3 (UUID: GPU-{index}b4f-0e1c)"
@@ -544,7 +563,7 @@ def test_a_failed_shutdown_of_a_finished_process_is_one_line(monkeypatch, capfd)
 
 @pytest.mark.slow
 @pytest.mark.usefixtures("loaded_cpu")
-@pytest.mark.parametrize("victim", ["process 1", "launcher"])
+@pytest.mark.parametrize("victim", ["process 0", "process 1", "launcher"])
 def test_a_run_of_two_local_processes_ends_in_one_line_when_one_or_its_launcher_is_killed(tmp_path, victim):
     run_dir = tmp_path / "run"
     launcher = subprocess.Popen(
@@ -558,16 +577,21 @@ def test_a_run_of_two_local_processes_ends_in_one_line_when_one_or_its_launcher_
     children = [
         int(pid) for pid in pathlib.Path(f"/proc/{launcher.pid}/task/{launcher.pid}/children").read_text().split()
     ]
-    os.kill(children[1] if victim == "process 1" else launcher.pid, signal.SIGKILL)
+    pid = {"process 0": children[0], "process 1": children[1], "launcher": launcher.pid}[victim]
+    os.kill(pid, signal.SIGKILL)
     _, err = launcher.communicate(timeout=120)  # the pipes close once every process has gone
+    assert not any(alive(child) for child in children), "a process of the run was left behind"
     lines = [line for line in err.splitlines() if line.startswith(("error:", "interrupted:", "Traceback"))]
     resume = f"continue with: python -m experiments.run --resume {run_dir}"
-    if victim == "process 1":
+    if victim != "launcher":
         assert launcher.returncode == 128 + signal.SIGKILL
-        killed = f"error: process 1 (pid {children[1]}) was killed by SIGKILL; the others are told to stop; {resume}"
-        assert killed in lines and "Traceback" not in err, err
+        killed = f"error: process {victim[-1]} (pid {pid}) was killed by SIGKILL; the others are told to stop; {resume}"
+        # The launcher's line ends the output: the survivor that lost process 0, and with it JAX's coordination
+        # service, may end in JAX's abort first, a block of C++ logs (its hook for that is unusable from Python).
+        assert err.strip().splitlines()[-1] == killed and "Traceback" not in err, err
         # The survivor's own line, where its collective failed before the launcher's SIGTERM ended it (the two race).
-        assert all(line.startswith("error: ") and "Gloo" in line for line in lines if line != killed), err
+        gone = ("Gloo", "another process of the job has gone")
+        assert all(any(word in line for word in gone) for line in lines if line != killed), err
         assert len(lines) <= 2, err
     else:  # each process checkpoints and says so
         assert len(lines) == 2 and all(line.startswith("interrupted: checkpoint at update ") for line in lines), err
@@ -642,6 +666,8 @@ def test_the_joining_options_are_checked_before_jax_reads_them(capsys):
             (["--num-processes", "0"], "--num-processes takes a count of 1 or more, got 0"),
             (["--num-processes", "2", "--process-id", "2"], "--process-id 2 is not below --num-processes 2"),
             (["--process-id", "-1"], "--process-id takes 0 or more, got -1"),
+            (["--join-timeout", "0"], "--join-timeout takes seconds in (0, 86400], got 0.0"),
+            (["--join-timeout", "nan"], "--join-timeout takes seconds in (0, 86400], got nan"),
             (["--coordinator", f"localhost:{taken}", "--process-id", "0"], f"port {taken} is in use on this host"),
         ]:
             with pytest.raises(SystemExit) as exited:
@@ -740,7 +766,7 @@ def test_a_kill_while_two_processes_write_a_checkpoint_is_one_line_and_resumes_b
         assert launcher.returncode == 128 + signal.SIGKILL
         index = victim.split()[1]
         killed = f"error: process {index} (pid {pid}) was killed by SIGKILL; the others are told to stop; {resume}"
-        assert killed in lines and len(lines) <= 2, err
+        assert err.strip().splitlines()[-1] == killed and len(lines) <= 2, err
         # The survivor's own line, where its checkpoint met the loss before the launcher's SIGTERM ended it.
         assert all("another process of the job has gone" in line for line in lines if line != killed), err
     assert_codes(run_processes(1, ["--resume", str(run_dir), "--local-processes", "2"]), 0)
