@@ -22,7 +22,7 @@ from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over
 from jaxarm.agents.common.teachers import learner_as_teacher
 from jaxarm.runner.rundir import read_config
-from jaxarm.runner.teacher import teacher_run
+from jaxarm.runner.teacher import check_teacher_fits, teacher_run
 
 
 def make_trainer(config: RunConfig, run_dir: pathlib.Path | None = None):
@@ -32,13 +32,16 @@ def make_trainer(config: RunConfig, run_dir: pathlib.Path | None = None):
     teacher = teacher_run(config, run_dir)
     if teacher is None:
         return registry.make_trainer(config)
-    return registry.make_trainer(config, teacher=load_teacher(teacher))
+    return registry.make_trainer(config, teacher=load_teacher(teacher, config))
 
 
-def load_teacher(run_dir: pathlib.Path):
+def load_teacher(run_dir: pathlib.Path, student: RunConfig | None = None):
     """The policy of the run in `run_dir` (its latest checkpoint) as a teacher (`learner_as_teacher`); RunDirError
-    or CheckpointError for a run that cannot be read."""
+    or CheckpointError for a run that cannot be read, and with `student` (the config of the run it teaches)
+    ValueError where the two envs do not fit (`check_teacher_fits`)."""
     config, _ = read_config(run_dir)
+    if student is not None:
+        check_teacher_fits(student, config, registry.teacher_of(student))
     trainer = make_trainer(config, run_dir)
     state = restore_state(run_dir, trainer, config, acting=True)
     return learner_as_teacher(trainer, state)

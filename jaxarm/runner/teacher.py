@@ -9,7 +9,7 @@ import dataclasses
 import functools
 import pathlib
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import jax
 
@@ -171,12 +171,27 @@ def teacher_config(config: RunConfig, presets: Callable[[str], RunConfig] | None
         raise ValueError(
             f"teacher=preset:{name} has a teacher preset of its own; train that run first and give teacher=RUN_DIR"
         )
-    given = teacher_input(config.make_env(randomized=False)[0].spec.observation)
-    observed = teacher.make_env(randomized=False)[0].spec.observation
+    check_teacher_fits(config, teacher, f"preset:{name}")
+    return teacher
+
+
+def check_teacher_fits(config: RunConfig, teacher: RunConfig, named: str) -> None:
+    """ValueError in one line naming both envs where `teacher` (the config of the teacher `config` names as
+    `teacher=<named>`) does not observe what this run's env gives a teacher (`teachers.teacher_input`), or acts
+    with actions of another shape."""
+    student_spec = config.make_env(randomized=False)[0].spec
+    teacher_spec = teacher.make_env(randomized=False)[0].spec
+    given, observed = teacher_input(student_spec.observation), teacher_spec.observation
     if given != observed:
         shapes = jax.tree.map(lambda part: part.shape, (given, observed))
+        # A camera student's env gives its teacher the image unless it observes the state too.
+        hint = " (a camera student's env needs env_kwargs.privileged=true)" if isinstance(given, Mapping) else ""
         raise ValueError(
-            f"teacher=preset:{name} observes {shapes[1]} but this run's env gives a teacher {shapes[0]} (a camera "
-            "student's env needs env_kwargs.privileged=true)"
+            f"teacher={named} observes {shapes[1]} of {teacher.env} but this run's env, {config.env}, gives a teacher "
+            f"{shapes[0]}{hint}"
         )
-    return teacher
+    if student_spec.action_shape != teacher_spec.action_shape:
+        raise ValueError(
+            f"teacher={named} acts {teacher_spec.action_shape} in {teacher.env} but this run's env, {config.env}, "
+            f"acts {student_spec.action_shape}"
+        )

@@ -450,3 +450,10 @@ def test_a_teacher_loads_from_a_finished_run_and_labels_a_students_rollouts(fini
     state = jax.jit(trainer.init)(jax.random.PRNGKey(0), student.hparams())
     _, metrics = jax.jit(trainer.update)(state, student.hparams())
     assert float(metrics.loss.imitation) > 0 and np.isfinite(float(metrics.loss.imitation))
+    # A teacher of another env is refused in one line that names both sides.
+    three_links = dataclasses.replace(student, env_kwargs=(("num_links", 3),))
+    with pytest.raises(ValueError) as refused:
+        learners.make_trainer(three_links)
+    assert str(refused.value) == (
+        f"teacher={finished_run} observes (9,) of arm2d but this run's env, arm2d, gives a teacher (13,)"
+    )
