@@ -90,3 +90,24 @@ def test_a_partial_restore_reads_only_the_parts_it_is_given(tmp_path):
     reshaped = {"params": jnp.zeros(2), "env": None}
     with pytest.raises(checkpoint.CheckpointError, match="cannot be restored"):
         checkpoint.restore(tmp_path, jax.eval_shape(lambda: reshaped), fresh=lambda: reshaped, partial=True)
+
+
+def test_a_checkpoint_of_another_config_names_its_differing_leaves_in_one_line(tmp_path, capfd):
+    saved = {"params": {"w": jnp.ones((9, 64)), "b": jnp.zeros(64)}, "key": jax.random.split(jax.random.key(0), 3)}
+    checkpoint.save(tmp_path, 5, saved)
+    # A typed PRNG key is saved as its data (uint32 [3, 2]) and fits the key it came from.
+    restored = checkpoint.restore(tmp_path, jax.eval_shape(lambda: saved))
+    np.testing.assert_array_equal(jax.random.key_data(restored["key"]), jax.random.key_data(saved["key"]))
+    params = saved["params"]
+    for message, like in {
+        "params.w is (9, 64) float32 there, (12, 64) float32 here": {**params, "w": jnp.ones((12, 64))},
+        "it holds params.b, which this learner lacks": {"w": params["w"]},
+        "it lacks params.c": {**params, "c": jnp.zeros(2)},
+    }.items():
+        with pytest.raises(checkpoint.CheckpointError) as refused:
+            checkpoint.restore(tmp_path, jax.eval_shape(lambda like=like: {**saved, "params": like}))
+        assert str(refused.value) == (
+            f"checkpoint 5 in {tmp_path} cannot be restored into this learner (saved by a different config): {message}"
+        )
+    # Orbax's own message and its abandoned reads' tensorstore specs once reached the user.
+    assert "TensorStore" not in capfd.readouterr().err

@@ -143,30 +143,73 @@ def restore(
     abstract = jax.tree.map(
         lambda leaf, sharding: jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=sharding), like, shardings
     )
+    wanted = {_leaf_name(path): leaf for path, leaf in jax.tree_util.tree_flatten_with_path(abstract)[0]}
+    saved = _saved_metadata(directory, step)
+    added: list[str] = []
+    if saved is not None:  # else orbax's reading fails below, and says why
+        saved_shapes = {leaf.name: (tuple(leaf.shape), leaf.dtype) for leaf in jax.tree.leaves(saved)}
+        added = sorted(set(wanted) - set(saved_shapes)) if fresh is not None else []
+        left_out = tuple(_left_out(abstract)) if partial else ()
+        mismatch = _mismatch(saved_shapes, wanted, left_out, added)
+        if mismatch:
+            raise CheckpointError(
+                f"checkpoint {step} in {directory} cannot be restored into this learner (saved by a different "
+                f"config): {mismatch}"
+            )
     args = (
         ocp.args.PyTreeRestore(abstract, ocp.checkpoint_utils.construct_restore_args(abstract), partial_restore=True)
         if partial
         else ocp.args.StandardRestore(abstract)
     )
     try:
-        with _quiet_orbax(), _manager(directory) as manager:
-            restored = manager.restore(step, args=args)
-        unread = [
-            _leaf_name(path)
-            for path, leaf in jax.tree_util.tree_flatten_with_path(restored)[0]
-            if isinstance(leaf, jax.ShapeDtypeStruct)
-        ]
-        if unread:  # orbax's partial restore hands back, as it was given, a leaf the checkpoint lacks
-            raise KeyError(f"the checkpoint lacks {', '.join(unread[:4])}{', ...' if len(unread) > 4 else ''}")
-    except Exception as error:  # orbax raises many types for corrupt and mismatched trees
-        restored = None if fresh is None else _restore_with_additions(directory, step, abstract, fresh, partial)
-        if restored is None:
-            raise CheckpointError(
-                f"checkpoint {step} in {directory} cannot be restored into this learner "
-                f"(corrupt, or saved by a different config): {type(error).__name__}: {str(error)[:300]}"
-            ) from error
+        if added and fresh is not None:
+            restored = _restore_with_additions(directory, step, saved, wanted, added, fresh)
+        else:
+            with _quiet_orbax(), _manager(directory) as manager:
+                restored = manager.restore(step, args=args)
+    except Exception as error:  # orbax raises many types for corrupt trees
+        raise CheckpointError(
+            f"checkpoint {step} in {directory} cannot be restored into this learner (corrupt): {_cause(error)}"
+        ) from None
     _check_matches(restored, like, directory, step)
     return restored
+
+
+def _saved_metadata(directory: pathlib.Path, step: int):
+    """The tree of checkpoint `step`'s leaves as saved (orbax's metadata: each leaf's name, shape and dtype); None
+    where it cannot be read (a corrupt checkpoint)."""
+    try:
+        with _quiet_orbax():
+            return ocp.StandardCheckpointer().metadata(directory.absolute() / str(step) / STATE_ITEM).item_metadata
+    except Exception:  # orbax and tensorstore raise many types
+        return None
+
+
+def _mismatch(saved: dict[str, tuple], wanted: dict[str, Any], left_out: tuple[str, ...], added: list[str]) -> str:
+    """How a checkpoint's leaves (`saved`: name -> shape and dtype) differ from those a learner restores (`wanted`:
+    name -> ShapeDtypeStruct), up to three differences in words; "" where they fit. Leaves under `left_out` are not
+    read, and those in `added` (new since the checkpoint) come from a fresh state."""
+    read = {name: shape for name, shape in saved.items() if not name.startswith(left_out)}
+    differences = [
+        f"{name} is {_shape(*read[name])} there, {_shape(wanted[name].shape, wanted[name].dtype)} here"
+        for name in sorted(read.keys() & wanted.keys())
+        if read[name] != _as_saved(wanted[name])
+    ]
+    differences += [f"it lacks {name}" for name in sorted(wanted.keys() - saved.keys() - set(added))]
+    differences += [f"it holds {name}, which this learner lacks" for name in sorted(read.keys() - wanted.keys())]
+    return "; ".join(differences[:3]) + ("; ..." if len(differences) > 3 else "")
+
+
+def _as_saved(leaf: jax.ShapeDtypeStruct) -> tuple:
+    """`leaf`'s shape and dtype as a checkpoint holds it: a typed PRNG key (`key<fry>` [N]) as its key data
+    (uint32 [N, 2])."""
+    if jax.dtypes.issubdtype(leaf.dtype, jax.dtypes.prng_key):
+        leaf = jax.eval_shape(jax.random.key_data, leaf)
+    return tuple(leaf.shape), leaf.dtype
+
+
+def _shape(shape: tuple, dtype) -> str:
+    return f"{tuple(shape)} {dtype}"
 
 
 def _check_holds_a_state(directory: pathlib.Path, step: int) -> None:
@@ -192,37 +235,18 @@ def _leaf_name(path) -> str:
 
 
 def _restore_with_additions(
-    directory: pathlib.Path, step: int, abstract, fresh: Callable[[], Any], partial: bool = False
+    directory: pathlib.Path, step: int, saved, wanted: dict[str, Any], added: list[str], fresh: Callable[[], Any]
 ):
-    """`abstract`'s tree from checkpoint `step`, where the checkpoint lacks some of its leaves and has no other
-    (with `partial`: none other outside the parts `abstract` leaves None): the saved leaves restored, the others
-    from `fresh()`; None where the trees differ otherwise."""
-    try:
-        with _quiet_orbax():
-            saved = ocp.StandardCheckpointer().metadata(directory.absolute() / str(step) / STATE_ITEM).item_metadata
-            saved_shapes = {leaf.name: (tuple(leaf.shape), leaf.dtype) for leaf in jax.tree.leaves(saved)}
-    except Exception:  # unreadable metadata: the caller's error says the checkpoint is corrupt
-        return None
-    wanted = {_leaf_name(path): leaf for path, leaf in jax.tree_util.tree_flatten_with_path(abstract)[0]}
-    left_out = _left_out(abstract) if partial else []
-    added = sorted(set(wanted) - set(saved_shapes))
-    kept_as_saved = all(
-        name in wanted and (wanted[name].shape, wanted[name].dtype) == shape
-        for name, shape in saved_shapes.items()
-        if not any(name.startswith(prefix) for prefix in left_out)
-    )
-    if not saved_shapes or not added or not kept_as_saved:
-        return None
-    # The left-out part is read too (as saved, onto the first device): a fallback for old checkpoints only.
+    """The tree of a learner state from checkpoint `step` (its leaves as `saved`, orbax's metadata), where the
+    learner has gained the leaves `added` since (`wanted`: name -> ShapeDtypeStruct of the learner's leaves): the
+    saved leaves restored, the others from `fresh()`, with a warning naming them."""
+    # Any part a partial restore leaves out is read too (as saved, onto the first device): old checkpoints only.
     here = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
     target = jax.tree.map(
         lambda leaf: wanted.get(leaf.name, jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=here)), saved
     )
-    try:
-        with _quiet_orbax(), _manager(directory) as manager:
-            restored = manager.restore(step, args=ocp.args.StandardRestore(target))
-    except Exception:  # as in `restore`: the caller's error says what is wrong
-        return None
+    with _quiet_orbax(), _manager(directory) as manager:
+        restored = manager.restore(step, args=ocp.args.StandardRestore(target))
     by_name = {_leaf_name(path): leaf for path, leaf in jax.tree_util.tree_flatten_with_path(restored)[0]}
     warnings.warn(
         f"checkpoint {step} in {directory} predates {len(added)} leaves of this learner ({', '.join(added[:4])}"
