@@ -118,7 +118,18 @@ def learning_curve(
     return_ax.set_xlabel("env steps")
     return_ax.set_ylabel("episode return")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    write_figure(fig, path)
+
+
+def write_figure(fig, path: pathlib.Path) -> None:
+    """Writes `fig` to `path` as a PNG; an OSError names `path` (the image writer's own, on its open file, names
+    none: a full disk said only "File too large" or "No space left on device")."""
+    try:
+        fig.savefig(path, dpi=100)
+    except OSError as error:
+        if error.filename is not None:
+            raise
+        raise OSError(error.errno, error.strerror, str(path)) from error
 
 
 @plain_text
@@ -142,7 +153,7 @@ def sweep_curves(curves: dict, path: pathlib.Path, title: str) -> None:
     success_ax.legend(fontsize=7)
     fig.suptitle(f"{title} ({jax.devices()[0].device_kind}); bands: 95% CI over seeds")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    write_figure(fig, path)
 
 
 @plain_text
@@ -171,4 +182,4 @@ def run_comparison(curves: dict, path: pathlib.Path, title: str) -> None:
     axes[1][0].legend(fontsize=8)
     fig.suptitle(f"{title}\ntraining success: {TRAINING_SUCCESS.removeprefix('training success ')}", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    write_figure(fig, path)
