@@ -22,11 +22,22 @@ def env_counts(text: str) -> tuple[int, ...]:
     return sizes
 
 
+def env_count(text: str) -> int:
+    """One count of envs or episodes stepped at once in one program (`ranges.AT_ONCE`, as `num_envs` and
+    `eval_episodes`): `bench playground`'s --num-envs and --eval-episodes (0 divided by zero; 1e9 episodes ran out of
+    memory, after a training)."""
+    return _count_in(text, ranges.AT_ONCE)
+
+
 def count(text: str) -> int:
     """A count of at least one that fits in int32 (`ranges.COUNT`): steps per timed scan, repeats, unroll."""
+    return _count_in(text, ranges.COUNT)
+
+
+def _count_in(text: str, allowed: ranges.Range) -> int:
     try:
         value = parse_value(text, int)
-        ranges.check_value("the count", value, int, ranges.COUNT)
+        ranges.check_value("the count", value, int, allowed)
     except ValueError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
     return value

@@ -29,6 +29,7 @@ import jax
 import numpy as np
 
 from experiments import configs
+from experiments.benchmarks.arguments import count, env_count
 from experiments.benchmarks.record import add_out_argument, write_record
 from jaxarm.agents.common.config import apply_overrides, with_pair
 from jaxarm.agents.common.evaluate import evaluate
@@ -38,6 +39,8 @@ from jaxarm.agents.ppo import PPOConfig, make_trainer
 PRESETS = {"PandaPickCube": "ppo_playground_pick", "PandaPickCubeOrientation": "ppo_playground_pick_orientation"}
 """Each task this suite knows -> jaxarm's preset for it."""
 LEARNERS = ("playground", "jaxarm")
+MAX_EVALS = 1000
+"""The most evaluation points a run may have: each is an evaluation of --eval-episodes fresh episodes."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,7 +112,10 @@ def playground_kwargs(task: str, impl: str, evals: int, num_envs: int | None, en
     recipe = manipulation_params.brax_ppo_config(task, impl).to_dict()
     resets = (recipe.pop("num_evals") - 1) * recipe.pop("num_resets_per_eval", 1)
     if resets % evals:
-        raise ValueError(f"{task}: Playground's recipe resets its envs {resets} times; --evals must divide it")
+        divisors = ", ".join(str(count) for count in range(1, resets + 1) if resets % count == 0)
+        raise ValueError(
+            f"--evals {evals} must divide the {resets} resets of Playground's recipe for {task} (one of {divisors})"
+        )
     network = recipe.pop("network_factory")
     if num_envs is not None:
         recipe["batch_size"] = max(1, recipe["batch_size"] * num_envs // recipe["num_envs"])
@@ -261,11 +267,11 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seeds", default="0,1,2", help="comma-separated seeds, each a run of each learner")
     parser.add_argument("--learners", default=",".join(LEARNERS), help=f"comma-separated, of {', '.join(LEARNERS)}")
     parser.add_argument("--goal", type=float, default=0.9, help="the success rate a learner's time is measured to")
-    parser.add_argument("--evals", type=int, default=10, help="evaluation points over each run's budget")
-    parser.add_argument("--eval-episodes", type=int, default=1000, help="fresh episodes per evaluation point")
+    parser.add_argument("--evals", type=count, default=10, help=f"evaluation points over each run (up to {MAX_EVALS})")
+    parser.add_argument("--eval-episodes", type=env_count, default=1000, help="fresh episodes per evaluation point")
     parser.add_argument("--impl", default="auto", help='"jax", "warp" or "auto" (Warp on an NVIDIA GPU)')
-    parser.add_argument("--num-envs", type=int, help="both learners' envs (default: each recipe's): smoke runs")
-    parser.add_argument("--env-steps", type=int, help="both learners' budget (default: each recipe's): smoke runs")
+    parser.add_argument("--num-envs", type=env_count, help="both learners' envs (default: each recipe's): smoke runs")
+    parser.add_argument("--env-steps", type=count, help="both learners' budget (default: each recipe's): smoke runs")
     parser.add_argument("overrides", nargs="*", help="overrides key=value of jaxarm's presets")
     add_out_argument(parser)
     return parser
@@ -282,13 +288,26 @@ def main(argv: Sequence[str]) -> None:
         seeds = [int(seed) for seed in args.seeds.split(",")]
     except ValueError:
         parser.error(f"--seeds takes comma-separated whole numbers, got {args.seeds!r}")
-    if args.evals < 1 or args.eval_episodes < 1 or not 0 < args.goal <= 1:
-        parser.error("--evals and --eval-episodes must be 1 or more, --goal in (0, 1]")
+    if args.evals > MAX_EVALS or not 0 < args.goal <= 1:
+        parser.error(f"--evals must be at most {MAX_EVALS}, --goal in (0, 1]")
+    try:  # every setting checked before anything trains
+        configs_by_run = {
+            (task, seed): jaxarm_config(
+                task, seed, args.impl, args.evals, args.overrides, args.num_envs, args.env_steps
+            )
+            for task in tasks
+            for seed in seeds
+        }
+        if "playground" in learners:
+            for task in tasks:
+                playground_kwargs(task, args.impl, args.evals, args.num_envs, args.env_steps)
+    except ValueError as error:
+        parser.error(str(error))
     print(f"device: {jax.devices()[0].device_kind}; jax {jax.__version__}; impl {args.impl}", flush=True)
     runs = []
     for task in tasks:
         for seed in seeds:
-            config = jaxarm_config(task, seed, args.impl, args.evals, args.overrides, args.num_envs, args.env_steps)
+            config = configs_by_run[task, seed]
             for learner in learners:
                 judge = Judge(config, args.eval_episodes, seed)
                 if learner == "playground":
