@@ -67,6 +67,16 @@ def test_every_sorter_preset_trains_with_curricula_and_evaluates_the_plain_task(
             assert float(getattr(evaluation, start)) == 0.0, (name, start)
 
 
+def test_the_tosser_warm_starts_from_a_sorter_that_observes_and_acts_as_it_does():
+    # ppo_sorter_toss trains its stage first and starts from it: each of the tosser's inputs has its source there.
+    toss = configs.get("ppo_sorter_toss")
+    stage = configs.get(teacher.warm_start_preset(toss))
+    tosser, sorter = toss.make_env()[0], stage.make_env()[0]
+    assert tosser.spec.action_shape == sorter.spec.action_shape
+    index = tosser.observation_source_index(sorter)
+    assert index.tolist() == list(range(tosser.spec.observation_size))
+
+
 CONFIG_CLASSES = [PPOConfig, TD3Config]
 ISSUE_VALUES = [
     # The values a new user tried, which trained (or crashed late) before they were refused.
