@@ -115,6 +115,7 @@ BOUNDED_BY_A_RELATION = {
     "seed": "a PRNG seed: any int32 allocates nothing",
     "checkpoint_every_updates": "compared with the update count: allocates nothing",
     "eval_every_updates": "compared with the update count: allocates nothing",
+    "critic_warm_up_updates": "below num_updates, which fits in int32",
 }
 
 
@@ -280,6 +281,15 @@ def test_a_budget_beyond_int32_env_steps_is_taken_and_one_beyond_int32_updates_i
     PPOConfig(num_envs=1024, rollout_length=16, updates_per_chunk=4096, total_env_steps=10_000_000_000).validate()
     with pytest.raises(ValueError, match="needs 2,147,483,650 updates, more than the learners' int32 update counter"):
         PPOConfig(num_envs=1, rollout_length=1, num_minibatches=1, total_env_steps=2**31).validate()
+
+
+def test_a_critic_warm_up_as_long_as_the_run_is_refused():
+    config = PPOConfig(num_envs=8, rollout_length=4, num_minibatches=2, total_env_steps=320, updates_per_chunk=5)
+    dataclasses.replace(config, critic_warm_up_updates=9).validate()
+    with pytest.raises(
+        ValueError, match="^critic_warm_up_updates=10 leaves the policy untrained: the run has 10 updates$"
+    ):
+        dataclasses.replace(config, critic_warm_up_updates=10).validate()
 
 
 def test_a_layer_too_wide_and_an_update_beyond_int32_env_steps_are_refused():

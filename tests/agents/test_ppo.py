@@ -6,6 +6,7 @@ import functools
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optax
 import pytest
 
 from jaxarm.agents.common.evaluate import evaluate
@@ -39,6 +40,26 @@ def test_whole_run_equals_the_chunked_run():
     assert int(whole_state.updates) == trainer.num_updates == 4
     for whole, chunked in zip(jax.tree.leaves(whole_state.params), jax.tree.leaves(state.params), strict=True):
         np.testing.assert_allclose(whole, chunked, rtol=1e-5, atol=1e-6)
+
+
+def test_a_critic_warm_up_trains_the_value_alone_then_starts_the_policy_as_a_new_run_would():
+    config = dataclasses.replace(TINY, critic_warm_up_updates=2)
+    trainer, hparams = make_trainer(config), config.hparams()
+    one_update = make_chunk_runner(trainer, 1)  # donates the state it is given: compare copies
+    start = jax.device_get(jax.jit(trainer.init)(jax.random.PRNGKey(0), hparams))
+    warmed = jax.device_get(one_update(one_update(start, hparams)[0], hparams)[0])
+    assert tree_equal(warmed.params.policy, start.params.policy)
+    assert not tree_equal(warmed.params.value, start.params.value)
+    # The first policy step is a new run's: Adam starts afresh, its step count that of a run's first update.
+    after, _ = one_update(warmed, hparams)
+    assert not tree_equal(after.params.policy, warmed.params.policy)
+    plain = make_trainer(TINY)
+    new_run, _ = make_chunk_runner(plain, 1)(jax.jit(plain.init)(jax.random.PRNGKey(0), hparams), hparams)
+    assert optax.tree_utils.tree_get(after.opt_state, "count") == optax.tree_utils.tree_get(new_run.opt_state, "count")
+
+
+def tree_equal(a, b) -> bool:
+    return all(np.array_equal(x, y) for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True))
 
 
 def test_a_rollout_checks_the_envs_host_faults_once_per_update_and_raises_on_one():

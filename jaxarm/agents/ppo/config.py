@@ -54,6 +54,10 @@ class PPOConfig(RunConfig):
         (obs["privileged"] of an env built with `env_kwargs.privileged=true`, with its own running normaliser),
         while the policy reads only the rest (images and proprio), all a robot has; off, both read the policy's
         input. Only the critic, used in training alone, sees the privileged part: `act` and exports never do.
+      critic_warm_up_updates: updates at the run's start that train the value function alone (the policy's loss
+        and entropy bonus weighted 0; with `shared_encoder` the encoder learns from the value loss): after a warm
+        start from another task (`init_from`), the critic learns this task's values before its advantages move the
+        policy. 0 for none.
       normalize_observations: keep running mean/std of observations in the learner state (of a camera
         observation, its proprio part only).
       normalize_advantages: standardise advantages per minibatch.
@@ -83,6 +87,7 @@ class PPOConfig(RunConfig):
     teacher: str = ""
     teacher_overrides: tuple[str, ...] = ()
     imitation_only: bool = True
+    critic_warm_up_updates: int = static(0, NON_NEGATIVE)
     normalize_observations: bool = True
     normalize_advantages: bool = True
     anneal_learning_rate: bool = True
@@ -111,8 +116,8 @@ class PPOConfig(RunConfig):
 
     def validate(self) -> None:
         """RunConfig's checks, that each rollout splits into whole minibatches and shuffle groups, that an
-        asymmetric critic has no encoder to share, and that a teacher named by preset names one (which one exists,
-        the runner checks: presets are not the library's)."""
+        asymmetric critic has no encoder to share, that the critic's warm-up ends before the run, and that a teacher
+        named by preset names one (which one exists, the runner checks: presets are not the library's)."""
         super().validate()
         preset = teacher_preset_name(self.teacher)
         if preset == "":
@@ -130,4 +135,9 @@ class PPOConfig(RunConfig):
             raise ValueError(
                 f"num_envs={self.num_envs} and the minibatch size {self.minibatch_size} must divide by "
                 f"shuffle_groups={self.shuffle_groups}"
+            )
+        if self.critic_warm_up_updates and self.critic_warm_up_updates >= self.num_updates:
+            raise ValueError(
+                f"critic_warm_up_updates={self.critic_warm_up_updates} leaves the policy untrained: the run has "
+                f"{self.num_updates:,} updates"
             )

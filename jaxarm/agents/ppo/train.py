@@ -124,6 +124,7 @@ class SGDInputs:
       critic_normalizer: the asymmetric critic's (`PPOState.critic_normalizer`), updated likewise; None otherwise.
       hparams: the run's dynamic hyper-parameters.
       learning_rate: [] the update's step size (`learning_rate_at`).
+      policy_weight: [] 1, or 0 while the critic warms up (`PPOConfig.critic_warm_up_updates`).
     """
 
     samples: Samples
@@ -131,6 +132,7 @@ class SGDInputs:
     critic_normalizer: observation_normalizer.Normalizer | None
     hparams: HParams
     learning_rate: jax.Array
+    policy_weight: jax.Array
 
 
 @struct.dataclass
@@ -155,8 +157,8 @@ def minibatch_loss(
     setup: PPOSetup, params: NetworkParams, inputs: SGDInputs, batch: Samples, key: jax.Array
 ) -> tuple[jax.Array, losses.LossTerms]:
     """PPO's loss on one minibatch `batch` ([N, ...] per field) of `inputs.samples` (clipped surrogate, value
-    error, entropy bonus) and its terms. With teacher actions in `batch`, the distillation loss is added, to the
-    value loss alone where `config.imitation_only`."""
+    error, entropy bonus; the first and last weighted by `inputs.policy_weight`) and its terms. With teacher actions
+    in `batch`, the distillation loss is added, to the value loss alone where `config.imitation_only`."""
     config, networks, hparams = setup.config, setup.networks, inputs.hparams
     action_dist = networks.action_dist
     dist_params = networks.policy_params(params, inputs.normalizer, batch.obs)
@@ -170,7 +172,9 @@ def minibatch_loss(
     values = networks.value(params, inputs.normalizer, batch.obs, inputs.critic_normalizer)
     value_loss = losses.value_loss(values, batch.target)
     entropy = jnp.mean(action_dist.entropy(dist_params, key))
-    total = policy_loss + hparams.value_coef * value_loss - hparams.entropy_coef * entropy
+    # A weight of exactly 1 leaves every product as it was: runs without a warm-up are unchanged, bit for bit.
+    weight = inputs.policy_weight
+    total = weight * policy_loss + hparams.value_coef * value_loss - weight * hparams.entropy_coef * entropy
     imitation = jnp.zeros(())
     if batch.teacher_action is not None:
         imitation = losses.imitation_loss(action_dist.mode(dist_params), batch.teacher_action)
@@ -316,6 +320,17 @@ def learning_rate_at(config: PPOConfig, hparams: HParams, updates: jax.Array) ->
     )
 
 
+def optimizer_state_after_warm_up(config: PPOConfig, state: PPOState, hparams: HParams) -> optax.OptState:
+    """`state.opt_state`, or a fresh one at the update that ends the critic's warm-up (`critic_warm_up_updates`):
+    Adam's step count runs on through the warm-up while the policy's moments stay zero, and its bias correction
+    would then make the policy's first steps 2-3x the learning rate, not a new run's."""
+    if not config.critic_warm_up_updates:
+        return state.opt_state
+    fresh = make_optimizer(hparams, hparams.learning_rate).init(state.params)
+    restart = state.updates == config.critic_warm_up_updates
+    return jax.tree.map(lambda new, old: jnp.where(restart, new, old), fresh, state.opt_state)
+
+
 def update(setup: PPOSetup, state: PPOState, hparams: HParams) -> tuple[PPOState, PPOMetrics]:
     """One update (the module docstring): collect, advantages, then the SGD epochs, each under its named scope."""
     collect_key, shuffle_key, next_key = jax.random.split(state.key, 3)
@@ -324,9 +339,11 @@ def update(setup: PPOSetup, state: PPOState, hparams: HParams) -> tuple[PPOState
     with jax.named_scope("advantages"):
         normalizer, critic_normalizer, samples = advantage_samples(setup, state, rollout, hparams)
     learning_rate = learning_rate_at(setup.config, hparams, state.updates)
-    inputs = SGDInputs(samples, normalizer, critic_normalizer, hparams, learning_rate)
+    policy_weight = (state.updates >= setup.config.critic_warm_up_updates).astype(jnp.float32)
+    inputs = SGDInputs(samples, normalizer, critic_normalizer, hparams, learning_rate, policy_weight)
     with jax.named_scope("sgd"):
-        (params, opt_state), (terms, grad_norms) = sgd_epochs(setup, state.params, state.opt_state, inputs, shuffle_key)
+        opt_state = optimizer_state_after_warm_up(setup.config, state, hparams)
+        (params, opt_state), (terms, grad_norms) = sgd_epochs(setup, state.params, opt_state, inputs, shuffle_key)
     new_state = PPOState(
         params=params,
         opt_state=opt_state,
