@@ -19,6 +19,8 @@ import argparse
 import logging
 import math
 import pathlib
+import re
+import traceback
 
 import jax
 
@@ -99,6 +101,27 @@ def quiet_libraries() -> None:
     print "Event loop is closed" tracebacks by the hundred)."""
     for name in ("asyncio", "absl", "orbax", "jax"):
         logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
+def program_error_cause(error: BaseException) -> str:
+    """What raised inside a compiled program, from JAX's runtime error: its last line (an env's host check, MJX
+    Warp's kernel launch) without XLA's status and the program's name."""
+    lines = str(error).strip().splitlines() or [type(error).__name__]
+    cause = re.sub(r"\s*\[executable_name='[^']*'\]$", "", lines[-1])
+    return re.sub(r"^[A-Z_]+: (FFI callback error: )?", "", cause)
+
+
+def said_once(error: BaseException) -> None:
+    """Keeps `error`, reported, from being printed again at exit: JAX's exit handlers wait on the failed program's
+    effects and raise it again, with a traceback each (twice, Warp on an H200)."""
+    report = sys.unraisablehook
+
+    def unless_said(unraisable) -> None:
+        again = unraisable.exc_value
+        if not (type(again) is type(error) and program_error_cause(again) == program_error_cause(error)):
+            report(unraisable)
+
+    sys.unraisablehook = unless_said
 
 
 def resume_command(run_dir) -> str:
@@ -237,9 +260,20 @@ def _main(argv) -> int:
         print(cli_message(error), file=sys.stderr)
         quiet_libraries()
         return STOPPED_BY_SIGNAL
-    except jax.errors.JaxRuntimeError as error:  # a collective's, where a peer has gone
+    except jax.errors.JaxRuntimeError as error:  # a collective's, where a peer has gone; else the program's
         distributed.leave_if_peers_lost(error, resume_command(args.resume or args.out))
-        raise
+        resume_dir = getattr(error, "resume_dir", None)
+        if resume_dir is None:
+            raise
+        traceback.print_exc()  # whole, for a report: a host check's own traceback is in it
+        print(
+            f"error: training failed on the device: {program_error_cause(error)}; checkpoints saved so far are kept; "
+            f"continue with: {resume_command(resume_dir)}",
+            file=sys.stderr,
+        )
+        said_once(error)
+        quiet_libraries()
+        return 1
     if not processes.is_primary():
         return 0
     print(

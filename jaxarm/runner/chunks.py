@@ -70,8 +70,12 @@ def train_chunks(
             count = min(config.updates_per_chunk, trainer.num_updates - done_updates)
             runner = runners(count)
             chunk_start = time.perf_counter()
-            state, metrics = runner(state, hparams)
-            flat = metrics_log.flatten_metrics(jax.device_get(metrics))
+            try:
+                state, metrics = runner(state, hparams)
+                flat = metrics_log.flatten_metrics(jax.device_get(metrics))
+            except jax.errors.JaxRuntimeError as error:  # raised in the program: an env's host check, Warp's launch
+                rundir.resumable(error, run_dir)
+                raise
             chunk_time = time.perf_counter() - chunk_start
             check_finite(flat, state, done_updates, count, checkpoints)
             rows = list(

@@ -15,10 +15,14 @@ import subprocess
 import sys
 import textwrap
 import time
+import types
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import orbax.checkpoint as ocp
 import pytest
+from jax.experimental import io_callback
 from tensorboardX.proto import event_pb2
 
 from experiments import compare, configs, export, run, start_up, sweep
@@ -94,6 +98,58 @@ def test_a_full_disk_at_a_later_checkpoint_is_one_line_and_the_run_resumes(refer
     assert checkpoint.half_written(run_dir / "checkpoints") == []
     assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == list(range(1, 25))
     assert_same_learner(run_dir, reference)
+
+
+def failed_program() -> jax.errors.JaxRuntimeError:
+    """The error JAX raises for a compiled program whose host callback raised, as an env's host check does."""
+
+    def check(_) -> None:
+        raise RuntimeError("probe fault in 8 envs")
+
+    try:
+        jax.block_until_ready(jax.jit(lambda x: io_callback(check, None, x, ordered=True))(jnp.ones(())))
+    except jax.errors.JaxRuntimeError as error:
+        return error
+    raise AssertionError("the program ran")
+
+
+def test_a_program_that_fails_on_the_device_ends_in_a_line_that_says_what_is_kept(
+    reference, tmp_path, capsys, monkeypatch
+):
+    # A Warp launch failed so in the fifth chunk of a sorter run (H200, 2026-11-29): ~100 lines of tracebacks,
+    # nothing to say that the run resumes. The traceback stays, for a report; the last line says what to do.
+    run_dir, flatten, chunks_done = tmp_path / "failed", metrics_log.flatten_metrics, []
+
+    def fail_in_the_second_chunk(metrics, *prefix):  # called again for the metrics' parts, with a prefix
+        chunks_done.extend([] if prefix else [1])
+        if len(chunks_done) == 2:
+            raise failed_program()
+        return flatten(metrics, *prefix)
+
+    monkeypatch.setattr(metrics_log, "flatten_metrics", fail_in_the_second_chunk)
+    monkeypatch.setattr(sys, "unraisablehook", sys.unraisablehook)  # put back after the test
+    assert run_cli("eval_every_updates=8", "--out", str(run_dir)) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" in err
+    assert err.strip().splitlines()[-1] == (
+        "error: training failed on the device: RuntimeError: probe fault in 8 envs; checkpoints saved so far are "
+        f"kept; continue with: python -m experiments.run --resume {run_dir}"
+    )
+    assert checkpoint.latest_step(run_dir / "checkpoints") == 4
+    monkeypatch.setattr(metrics_log, "flatten_metrics", flatten)
+    assert run.main(["--resume", str(run_dir)]) == 0
+    assert_same_learner(run_dir, reference)
+
+
+def test_a_device_error_said_is_not_printed_again_at_exit(monkeypatch):
+    # JAX's exit handlers wait on the failed program's effects and raise its error again (Warp, H200).
+    heard = []
+    monkeypatch.setattr(sys, "unraisablehook", heard.append)
+    said = failed_program()
+    run.said_once(said)
+    for error in (failed_program(), RuntimeError("another")):
+        sys.unraisablehook(types.SimpleNamespace(exc_value=error))
+    assert [str(each.exc_value) for each in heard] == ["another"]
 
 
 FILES_LIMITED = textwrap.dedent("""
