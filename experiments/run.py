@@ -33,6 +33,7 @@ from jaxarm.exits import STOPPED_BY_SIGNAL
 from jaxarm.runner import loop, paths, processes, resumes, rundir, show, signals
 from jaxarm.runner.cache import enable_compilation_cache
 from jaxarm.runner.sinks import WandbOptions
+from jaxarm.unraisable import drop_unraisable
 
 
 def minutes(text: str) -> float:
@@ -114,14 +115,8 @@ def program_error_cause(error: BaseException) -> str:
 def said_once(error: BaseException) -> None:
     """Keeps `error`, reported, from being printed again at exit: JAX's exit handlers wait on the failed program's
     effects and raise it again, with a traceback each (twice, Warp on an H200)."""
-    report = sys.unraisablehook
-
-    def unless_said(unraisable) -> None:
-        again = unraisable.exc_value
-        if not (type(again) is type(error) and program_error_cause(again) == program_error_cause(error)):
-            report(unraisable)
-
-    sys.unraisablehook = unless_said
+    cause = program_error_cause(error)
+    drop_unraisable(lambda again: type(again) is type(error) and program_error_cause(again) == cause)
 
 
 def resume_command(run_dir) -> str:

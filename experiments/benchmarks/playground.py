@@ -112,7 +112,7 @@ def playground_kwargs(task: str, impl: str, evals: int, num_envs: int | None, en
     recipe = manipulation_params.brax_ppo_config(task, impl).to_dict()
     resets = (recipe.pop("num_evals") - 1) * recipe.pop("num_resets_per_eval", 1)
     if resets % evals:
-        divisors = ", ".join(str(count) for count in range(1, resets + 1) if resets % count == 0)
+        divisors = ", ".join(str(divisor) for divisor in range(1, resets + 1) if resets % divisor == 0)
         raise ValueError(
             f"--evals {evals} must divide the {resets} resets of Playground's recipe for {task} (one of {divisors})"
         )

@@ -11,13 +11,14 @@ import errno
 import logging
 import os
 import pathlib
-import sys
 import warnings
 from collections.abc import Callable
 from typing import Any
 
 import jax
 import orbax.checkpoint as ocp
+
+from jaxarm.unraisable import drop_unraisable
 
 
 class CheckpointError(RuntimeError):
@@ -84,20 +85,13 @@ def _abandoned_writes_quiet():
     traceback each: up to 190 on a full disk, in 7 of 12 tries on a 300 KB tmpfs), then a warning of a coroutine
     never awaited. Where the save fails this stays so for the rest of the process (the writes end after it); the
     CheckpointError raised says what failed."""
-    report = sys.unraisablehook
-
-    def unless_abandoned(unraisable) -> None:
-        value = unraisable.exc_value
-        if not (isinstance(value, RuntimeError) and str(value) == "Event loop is closed"):
-            report(unraisable)
-
-    sys.unraisablehook = unless_abandoned
+    put_back = drop_unraisable(lambda error: isinstance(error, RuntimeError) and str(error) == "Event loop is closed")
     try:
         yield
     except BaseException:
         warnings.filterwarnings("ignore", message="coroutine .* was never awaited", category=RuntimeWarning)
         raise
-    sys.unraisablehook = report
+    put_back()
 
 
 def _cause(error: BaseException) -> str:
