@@ -442,6 +442,9 @@ def leave_if_peers_lost(error: BaseException, resume: str) -> None:
     shutdown barrier. Returns where `error` says something else, or this process joined no job."""
     message = peer_lost_message(error, jax.process_index(), resume) if joined() else None
     if message is not None:
+        # Deaf before the line, not after: the launcher's SIGTERM, sent as this peer's death was seen, arrived
+        # between the two and was reported as a second, "interrupted:" line (2-core CI, 1 run).
+        ignore_stop_signals()
         print(message, file=sys.stderr)
         _leave(1)
 
@@ -512,15 +515,27 @@ def _leave(code: int) -> NoReturn:
     the barrier would wait for them. A stopped one waits too: process 0, gone first, took JAX's coordination
     service with it, and JAX aborted process 1 with a block of C++ logs (launcher killed, 1 of 2 loaded runs). One
     that reported an error waits for the others to report theirs (`others_reported`) for the same reason."""
-    # Said and done: a Ctrl-C or SIGTERM now (the launcher stopping the others as one fails) would raise in the
-    # barrier's wait and out of `_run_forked`, into the launcher's code this process was forked from.
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, signal.SIG_IGN)
+    ignore_stop_signals()
     sys.stdout.flush()
     sys.stderr.flush()
     if code in ENDED_TOGETHER or (code == REPORTED_ERROR and others_reported(REPORT_GRACE_S)):
         shut_down()
     os._exit(code)
+
+
+def said_and_done(args: argparse.Namespace) -> None:
+    """Makes a process of a job (`--distributed`) deaf to Ctrl-C and SIGTERM before it says why it ends: its
+    launcher sends every process SIGTERM as one fails, and taken as a Ctrl-C it became a second line,
+    "interrupted: ...", or another exit status. A process alone stays stoppable by hand through its exit."""
+    if args.distributed:
+        ignore_stop_signals()
+
+
+def ignore_stop_signals() -> None:
+    """Said and done: a Ctrl-C or SIGTERM from here (the launcher stopping the others as one fails) would raise
+    in the barrier's wait and out of `_run_forked`, into the launcher's code this process was forked from."""
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_IGN)
 
 
 def others_reported(timeout_s: float) -> bool:

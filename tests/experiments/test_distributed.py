@@ -535,6 +535,16 @@ def test_a_jax_error_of_a_lost_peer_is_one_line():
     assert distributed.peer_lost_message(RuntimeError("out of memory"), 0, "") is None
 
 
+@pytest.fixture
+def stop_signals_restored():
+    """SIGINT's and SIGTERM's handlers, put back after a test that leaves a process (which ignores both)."""
+    handlers = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    for signum, handler in handlers.items():
+        signal.signal(signum, handler)
+
+
+@pytest.mark.usefixtures("stop_signals_restored")
 def test_a_process_whose_peers_are_gone_leaves_at_once_in_one_line(monkeypatch, capsys):
     lost = RuntimeError("UNKNOWN: Gloo AllGather failed: Connection reset by peer\nmore")
     distributed.leave_if_peers_lost(lost, "RESUME")  # one process alone: its caller says the error
@@ -546,6 +556,26 @@ def test_a_process_whose_peers_are_gone_leaves_at_once_in_one_line(monkeypatch, 
     distributed.leave_if_peers_lost(lost, "RESUME")
     assert left == [1]  # at once: JAX's exit hook would wait for the gone peers at its shutdown barrier
     assert capsys.readouterr().err == f"{distributed.peer_lost_message(lost, 0, 'RESUME')}\n"
+
+
+@pytest.mark.usefixtures("stop_signals_restored")
+def test_the_launchers_sigterm_as_a_lost_peer_is_reported_adds_no_second_line(monkeypatch):
+    class SignalledAsWritten(io.StringIO):
+        def write(self, text: str) -> int:
+            os.kill(os.getpid(), signal.SIGTERM)  # the launcher, as it sees the peer's death
+            return super().write(text)
+
+    stderr = SignalledAsWritten()
+    monkeypatch.setattr(sys, "stderr", stderr)
+    monkeypatch.setattr(distributed, "joined", lambda: True)
+    monkeypatch.setattr(distributed, "_leave", lambda code: None)
+    signal.signal(signal.SIGTERM, signal.default_int_handler)  # as in a forked process (`_run_forked`)
+    lost = RuntimeError("UNKNOWN: Gloo AllGather failed: Connection reset by peer")
+    try:
+        distributed.leave_if_peers_lost(lost, "RESUME")
+    except KeyboardInterrupt:  # `run.main` reported it in a second line, "interrupted: ..." (2-core CI, 1 run)
+        pytest.fail("the SIGTERM came through after the line was said")
+    assert stderr.getvalue() == f"{distributed.peer_lost_message(lost, 0, 'RESUME')}\n"
 
 
 def test_a_failed_shutdown_of_a_finished_process_is_one_line(monkeypatch, capfd):
