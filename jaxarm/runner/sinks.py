@@ -13,6 +13,7 @@ import importlib.abc
 import pathlib
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from typing import Any, Protocol
 
@@ -68,7 +69,13 @@ class TensorBoardSink:
     events of earlier writers at that env step and beyond (those a killed run logged past its last checkpoint)."""
 
     def __init__(self, directory: pathlib.Path, purge_step: int | None = None):
-        self.writer = summary_writer_class()(str(directory), purge_step=purge_step)
+        # tensorboardX names its file by the second and the host alone and opens it with "wb": a resume in the
+        # same second as the writer before it (one process, a kill and a resume) wrote over that one's events
+        # (2-core CI, 1 run). The nanosecond suffix keeps both and sorts the later after, the order in which
+        # TensorBoard reads them, so that its purge hides the earlier events past `purge_step`.
+        self.writer = summary_writer_class()(
+            str(directory), purge_step=purge_step, filename_suffix=f".{time.time_ns()}"
+        )
 
     def write(self, row: dict[str, float]) -> None:
         for name, value in row.items():

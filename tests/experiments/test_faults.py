@@ -557,6 +557,20 @@ def test_tensorboard_shows_each_step_once_after_a_kill_and_resume(tmp_path):
     assert steps == [row["env_steps"] for row in metrics_log.read_metrics(run_dir)] and len(steps) == 24
 
 
+def test_a_resume_in_the_same_second_keeps_the_events_of_the_writer_before_it(tmp_path, monkeypatch):
+    from tensorboardX import event_file_writer
+
+    # tensorboardX names its files by the second: one second for both writers, as a kill and a quick resume get.
+    monkeypatch.setattr(event_file_writer, "time", types.SimpleNamespace(time=lambda: 1764412345.5))
+    directory = tmp_path / "tensorboard"
+    for first, last, purge_step in [(1, 12, None), (9, 24, 9)]:
+        sink = sinks.TensorBoardSink(directory, purge_step=purge_step)
+        for step in range(first, last + 1):
+            sink.write({"env_steps": float(step), "episodes/return_mean": 0.0})
+        sink.close()
+    assert tensorboard_steps(directory, "episodes/return_mean") == list(range(1, 25))
+
+
 def test_a_second_ctrl_c_ends_the_process_at_once_with_130():
     program = (
         "import os, signal, time\n"
