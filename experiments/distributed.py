@@ -523,7 +523,7 @@ def _leave(code: int) -> NoReturn:
     os._exit(code)
 
 
-def said_and_done(args: argparse.Namespace) -> None:
+def ignore_stop_signals_in_a_job(args: argparse.Namespace) -> None:
     """Makes a process of a job (`--distributed`) deaf to Ctrl-C and SIGTERM before it says why it ends: its
     launcher sends every process SIGTERM as one fails, and taken as a Ctrl-C it became a second line,
     "interrupted: ...", or another exit status. A process alone stays stoppable by hand through its exit."""

@@ -243,23 +243,23 @@ def _main(argv) -> int:
         enable_compilation_cache()
         run_dir, result = train_or_resume(args, options)
     except (ValueError, checkpoint.CheckpointError, loop.TrainingDiverged) as error:
-        distributed.said_and_done(args)
+        distributed.ignore_stop_signals_in_a_job(args)
         distributed.leave_if_peers_lost(error, resume_command(args.resume or args.out))  # a checkpoint's, say
         print(f"error: {cli_message(error)}", file=sys.stderr)
         quiet_libraries()
         return 2
     except OSError as error:
-        distributed.said_and_done(args)
+        distributed.ignore_stop_signals_in_a_job(args)
         print(f"error: {paths.os_error_message(error, args.resume or args.out)}", file=sys.stderr)
         quiet_libraries()
         return 2
     except loop.TrainingInterrupted as error:
-        distributed.said_and_done(args)
+        distributed.ignore_stop_signals_in_a_job(args)
         print(cli_message(error), file=sys.stderr)
         quiet_libraries()
         return STOPPED_BY_SIGNAL
     except jax.errors.JaxRuntimeError as error:  # a collective's, where a peer has gone; else the program's
-        distributed.said_and_done(args)
+        distributed.ignore_stop_signals_in_a_job(args)
         distributed.leave_if_peers_lost(error, resume_command(args.resume or args.out))
         resume_dir = getattr(error, "resume_dir", None)
         if resume_dir is None:

@@ -427,21 +427,21 @@ def main(argv=None) -> int:
         quiet_libraries()
         return STOPPED_BY_SIGNAL
     except checkpoint.CheckpointError as error:  # a group's checkpoint could not be written (a full disk)
-        distributed.said_and_done(args)
+        distributed.ignore_stop_signals_in_a_job(args)
         distributed.leave_if_peers_lost(error, resume_command(out))  # or a peer gone while it was written
         print(f"error: {error}{resumable(out)}", file=sys.stderr)
         quiet_libraries()
         return 2
     except ValueError as error:
-        distributed.said_and_done(args)
+        distributed.ignore_stop_signals_in_a_job(args)
         print(f"error: {error}", file=sys.stderr)
         return 2
     except jax.errors.JaxRuntimeError as error:  # a collective's, where a peer has gone
-        distributed.said_and_done(args)
+        distributed.ignore_stop_signals_in_a_job(args)
         distributed.leave_if_peers_lost(error, resume_command(out))
         raise
     except OSError as error:
-        distributed.said_and_done(args)
+        distributed.ignore_stop_signals_in_a_job(args)
         print(f"error: {paths.os_error_message(error, out)}{resumable(out)}", file=sys.stderr)
         quiet_libraries()
         return 2
