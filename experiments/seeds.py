@@ -79,13 +79,15 @@ class Protocol:
 @dataclasses.dataclass(frozen=True)
 class SeedResult:
     """One seed's outcome: placed: its final evaluation's success; wall_s: its commands' wall clocks summed;
-    finished: whether it trained its whole budget; device: what it ran on."""
+    finished: whether it trained its whole budget; device: what it ran on; tries: the tries its run took (a preset
+    with a gate, `RunConfig.retry_below`, starts a try again that fails it)."""
 
     seed: int
     placed: float | None
     wall_s: float
     finished: bool
     device: str | None
+    tries: int = 1
 
 
 def parse_seeds(text: str) -> tuple[int, ...]:
@@ -160,13 +162,14 @@ def markdown(summary: dict) -> str:
     lines = [
         f"`{summary['command']}`",
         "",
-        "| seed | placed | command wall | device |",
-        "|---:|---:|---:|---|",
+        "| seed | placed | command wall | tries | device |",
+        "|---:|---:|---:|---:|---|",
     ]
     for seed in summary["seeds"]:
         mark = "" if seed["finished"] else " (not finished)"
         lines.append(
-            f"| {seed['seed']} | {percent(seed['placed'])}{mark} | {seed['wall_s']:.0f} s | {seed['device']} |"
+            f"| {seed['seed']} | {percent(seed['placed'])}{mark} | {seed['wall_s']:.0f} s | {seed['tries']} | "
+            f"{seed['device']} |"
         )
     if summary["finished"]:
         low, high = summary["interval"]
@@ -197,6 +200,7 @@ def seed_result(out: pathlib.Path, seed: int, walls: Sequence[float]) -> SeedRes
         wall_s=float(sum(walls)),
         finished=bool(evaluation.get("finished")),
         device=evaluation.get("device"),
+        tries=tries if isinstance(tries := evaluation.get("tries"), int) else 1,  # runs before gates wrote none
     )
 
 

@@ -130,6 +130,18 @@ def check_envs_at_once(grid: Grid, seeds: int) -> None:
             )
 
 
+def check_no_gate(grid: Grid) -> None:
+    """ValueError where a group has a gate (`retry_below`), before anything is written: a try is started again
+    alone, and a sweep's runs train together in one program."""
+    for config in grid.groups:
+        if config.retry_below:
+            raise ValueError(
+                f"retry_below={config.retry_below:g} starts a run again when it fails its gate, and a sweep's runs "
+                "train together in one program: give retry_below=0, or train each run with experiments.run "
+                "(experiments.seeds does so for seeds)"
+            )
+
+
 def init_members(trainer: Trainer, keys: jax.Array, hparams, mesh: Mesh | None = None):
     """Learner states of a sweep's members, stacked: keys [M, 2] and hparams with leaves [M] -> states [M, ...],
     each device of `mesh` making its share (sharding.over_members).
@@ -412,6 +424,7 @@ def main(argv=None) -> int:
         base = configs.get(config_name)
         grid = parse_grid(base, assignments)
         check_envs_at_once(grid, seeds)
+        check_no_gate(grid)
         if args.out:
             paths.check_output_dir(pathlib.Path(args.out), "--out")
         enable_compilation_cache()

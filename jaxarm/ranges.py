@@ -96,6 +96,9 @@ traceback)."""
 REPLAY_SIZE = Range(ge=1, le=1 << 26)
 """Transitions a replay buffer holds: at most 67,108,864, 16 times the largest preset's 4e6, checked before the
 buffer is allocated at the start of training."""
+TRIES = Range(ge=1, le=16)
+"""Tries of a run that starts again when it fails its gate (`RunConfig.tries`): each is a whole training, so a
+handful; 16 bounds what a typo could cost."""
 SEED = NON_NEGATIVE
 """A PRNG seed: a run's (`RunConfig.seed`), and the `--seed` of the commands that draw episodes for one (an
 evaluation, a transfer, a rehearsal)."""

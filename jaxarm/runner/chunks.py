@@ -21,6 +21,7 @@ from jaxarm.runner.options import Options
 from jaxarm.runner.programs import ChunkRunners, Evaluators, eval_key
 from jaxarm.runner.runlog import RunLog, metric_rows
 from jaxarm.runner.signals import StopRequests
+from jaxarm.runner.tries import TryFailed, failed_gate
 
 
 class TrainingDiverged(RuntimeError):
@@ -34,12 +35,14 @@ class TrainingInterrupted(RuntimeError):
 @dataclasses.dataclass
 class Start:
     """Where a run starts: its learner state (placed on the devices), updates done, wall seconds already spent,
-    and the best evaluation so far."""
+    the best evaluation so far, and whether its try must pass the config's gate (`RunConfig.retry_below`; the last
+    try need not)."""
 
     state: Any
     done_updates: int
     wall_offset: float
     best: dict | None
+    gated: bool = False
 
 
 def train_chunks(
@@ -87,11 +90,20 @@ def train_chunks(
                     count * steps_per_update / chunk_time,
                 )
             )
+            failed = False
             if crossed(config.eval_every_updates, done_updates, done_updates + count):
                 best = evaluate(evaluators, state, key, rows[-1], best, done_updates + count, run_dir)
+                failed = start.gated and failed_gate(config, best, (done_updates + count) * steps_per_update)
             done_updates += count
             if log:
                 log.write(rows, done_updates * steps_per_update, flat)
+            # Agreed by every process, as the stops below are; a run without a gate asks nobody.
+            if start.gated and processes.any_process(failed):
+                raise TryFailed(
+                    best["success_rate"] if best else 0.0,
+                    done_updates * steps_per_update,
+                    start.wall_offset + time.perf_counter() - clock,
+                )
             out_of_time = options.stop_after_s is not None and time.perf_counter() - clock > options.stop_after_s
             # Agreed by every process: one that stopped alone would leave the others waiting in a collective.
             out_of_time, stopping = processes.any_process(out_of_time), processes.any_process(stop.requested)

@@ -14,7 +14,8 @@ and with several processes (`jax.distributed`) process 0 alone writes the run di
 This module holds a run's course: its directory and lock, where it starts (fresh or from a checkpoint) and its
 final evaluation. The rest is one concern a module: the chunk loop (chunks.py), the compiled programs
 (programs.py), what is written between chunks (runlog.py), stop requests (signals.py), how a run is driven
-(options.py) and the teacher stage (teacher.py), which only a run with a preset teacher enters.
+(options.py), the teacher stage (teacher.py), which only a run with a preset teacher enters, and the gate that
+starts a try again (tries.py).
 """
 
 import contextlib
@@ -32,7 +33,7 @@ from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.agents.common.sharding import data_mesh, envs_split_over
 from jaxarm.agents.common.trainer import Trainer
-from jaxarm.runner import learners, metrics_log, plots, processes, progress, provenance, resumes, rundir, teacher
+from jaxarm.runner import learners, metrics_log, plots, processes, progress, provenance, resumes, rundir, teacher, tries
 from jaxarm.runner.chunks import Start, TrainingDiverged, TrainingInterrupted, read_best, train_chunks
 from jaxarm.runner.options import Options
 from jaxarm.runner.programs import ChunkRunners, Evaluators, eval_key, state_like
@@ -110,9 +111,7 @@ def _train_locked(
         )
         if stopped is not None:
             return stopped
-        if options.stop_after_s is not None:
-            spent = time.perf_counter() - clock
-            options = dataclasses.replace(options, stop_after_s=max(0.0, options.stop_after_s - spent))
+        options = _less_time(options, time.perf_counter() - clock)
     return _train_learner(config, preset, run_dir, resuming, options, overrides)
 
 
@@ -147,8 +146,42 @@ def _train_learner(
         # Behind the first chunk's program on the pool: compiled while the first chunk runs, ready at its end.
         evaluators.compile_ahead(compiling, like, eval_key(config))
         start = _start(trainer, config, preset, run_dir, resume, overrides, like)
-        state, done_updates, train_time = train_chunks(trainer, config, run_dir, options, start, runners, evaluators)
+        clock = time.perf_counter()
+        while True:
+            try:
+                state, done_updates, train_time = train_chunks(
+                    trainer, config, run_dir, options, start, runners, evaluators
+                )
+                break
+            except tries.TryFailed as failed:
+                _set_aside(config, run_dir, failed)
+                options = _less_time(options, time.perf_counter() - clock)
+                clock = time.perf_counter()
+                # The failed tries' time counts: a retried run's train wall time is all it took.
+                start = dataclasses.replace(
+                    _start(trainer, config, preset, run_dir, False, (), like), wall_offset=failed.wall_time
+                )
         return _final_evaluation(trainer, config, preset, run_dir, state, done_updates, train_time, evaluators)
+
+
+def _set_aside(config: RunConfig, run_dir: pathlib.Path, failed: tries.TryFailed) -> None:
+    """Sets the failed try's files aside (the primary process, the others waiting for it) and says so."""
+    if processes.is_primary():
+        done = tries.tries_set_aside(run_dir) + 1
+        folder = tries.set_aside_try(run_dir)
+        print(
+            f"try {done} of {config.tries} failed its gate ({failed}; it asks {config.retry_below:.0%} by "
+            f"{config.retry_at_env_steps:,}): set aside in {folder}; starting try {done + 1}",
+            file=sys.stderr,
+        )
+    processes.wait_for_all("try set aside")
+
+
+def _less_time(options: Options, spent: float) -> Options:
+    """`options` with `spent` seconds taken from its time limit, if it has one."""
+    if options.stop_after_s is None:
+        return options
+    return dataclasses.replace(options, stop_after_s=max(0.0, options.stop_after_s - spent))
 
 
 def _resumes(run_dir: pathlib.Path, resume: bool) -> bool:
@@ -190,9 +223,12 @@ def _start(
     like,
 ) -> Start:
     """The run's starting point: a fresh (or warm-started) learner state like `like`, written as a new run, or
-    the latest checkpoint's (`resume`, as `_resumes` decided)."""
+    the latest checkpoint's (`resume`, as `_resumes` decided), in the try the run directory holds (`tries_set_aside`):
+    each try draws its own randomness, the first the seed's own."""
     primary = processes.is_primary()
     shardings = jax.tree.map(lambda leaf: leaf.sharding, like)
+    index = tries.tries_set_aside(run_dir)
+    gated = bool(config.retry_below) and index < config.tries - 1
     if resume:
         state = learners.restore_state(run_dir, trainer, config, shardings=shardings)
         done_updates = int(state.updates)
@@ -208,16 +244,18 @@ def _start(
             if gap:
                 print(f"warning: {gap}", file=sys.stderr)
         wall_offset = max([row["wall_time"] for row in metrics_log.read_metrics(run_dir)], default=0.0)
-        return Start(state, done_updates, wall_offset, best)
-    state = jax.jit(trainer.init, out_shardings=shardings)(jax.random.PRNGKey(config.seed), config.hparams())
+        return Start(state, done_updates, wall_offset, best, gated)
+    key = jax.random.PRNGKey(config.seed)
+    key = jax.random.fold_in(key, index) if index else key
+    state = jax.jit(trainer.init, out_shardings=shardings)(key, config.hparams())
     if config.init_from:
         source = teacher.warm_start_run(config, run_dir)
         state = jax.device_put(learners.warm_starter(config, source)(state), shardings)
     if primary:
         # Written once the start state exists: a warm start that fails leaves no half-made run directory.
         rundir.write_config(run_dir, config, preset)
-        provenance.append_provenance(run_dir, "start")
-    return Start(state, 0, 0.0, None)
+        provenance.append_provenance(run_dir, f"try {index + 1}" if index else "start")
+    return Start(state, 0, 0.0, None, gated)
 
 
 def _final_evaluation(
@@ -240,6 +278,7 @@ def _final_evaluation(
     result["train_wall_time"] = train_time
     result["env_steps"] = done_updates * trainer.env_steps_per_update
     result["finished"] = done_updates == trainer.num_updates
+    result["tries"] = tries.tries_set_aside(run_dir) + 1
     if processes.is_primary():
         rundir.write_json(run_dir / "eval.json", result)
         rows = metrics_log.read_metrics(run_dir)

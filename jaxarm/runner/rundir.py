@@ -25,6 +25,8 @@ Layout of `runs/<config>-<timestamp>/`:
                    student starts afresh
   warm_start/      the run it warm-starts from, named by preset (`init_from=preset:NAME`), trained first; kept
                    likewise
+  tries/K/         the metrics, TensorBoard events, checkpoints and best state of try K, set aside when it failed
+                   the config's gate (`retry_below`); the run trains its next try in the directory itself
   .lock            held (flock) by the one process writing to the directory
 
 A directory becomes a run when its config.json is written (before its stages, where it has them); until its first
@@ -48,6 +50,7 @@ from jaxarm.agents import registry
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.common.config import RunConfig
 from jaxarm.runner import filelock
+from jaxarm.runner.tries import TRIES_DIR
 
 PROVENANCE_FILE = "provenance.json"
 RUN_FILES = (
@@ -65,7 +68,17 @@ TEACHER_DIR = "teacher"
 """Where a run whose teacher is named by preset (`teacher=preset:NAME`) trains that teacher before itself."""
 WARM_START_DIR = "warm_start"
 """Where a run that warm-starts from a preset (`init_from=preset:NAME`) trains that run before itself."""
-OUTPUT_FILES = ("curve.png", "eval.json", "video.gif", "video.mp4", "export", ".lock", TEACHER_DIR, WARM_START_DIR)
+OUTPUT_FILES = (
+    "curve.png",
+    "eval.json",
+    "video.gif",
+    "video.mp4",
+    "export",
+    ".lock",
+    TEACHER_DIR,
+    WARM_START_DIR,
+    TRIES_DIR,
+)
 OUTPUT_PATTERNS = (
     "eval-*.json",
     "robustness-*.json",

@@ -116,6 +116,7 @@ BOUNDED_BY_A_RELATION = {
     "checkpoint_every_updates": "compared with the update count: allocates nothing",
     "eval_every_updates": "compared with the update count: allocates nothing",
     "critic_warm_up_updates": "below num_updates, which fits in int32",
+    "retry_at_env_steps": "inside the run's env steps: allocates nothing",
 }
 
 
@@ -290,6 +291,27 @@ def test_a_critic_warm_up_as_long_as_the_run_is_refused():
         ValueError, match="^critic_warm_up_updates=10 leaves the policy untrained: the run has 10 updates$"
     ):
         dataclasses.replace(config, critic_warm_up_updates=10).validate()
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"retry_below": 0.5, "retry_at_env_steps": 32}, r"^retry_below=0.5 needs tries=N of at least 2 \(the first"),
+        (
+            {"retry_below": 0.5, "retry_at_env_steps": 32, "tries": 2, "eval_every_updates": 0},
+            "needs eval_every_updates=N: the evaluations it reads$",
+        ),
+        ({"retry_below": 0.5, "tries": 2}, "^retry_at_env_steps=0 must lie inside the run's 320 env steps, after its"),
+        ({"retry_below": 0.5, "retry_at_env_steps": 320, "tries": 2}, "^retry_at_env_steps=320 must lie inside"),
+    ],
+)
+def test_a_gate_without_tries_evaluations_or_a_point_inside_the_run_is_refused(changes, message):
+    config = PPOConfig(
+        num_envs=8, rollout_length=4, num_minibatches=2, total_env_steps=320, updates_per_chunk=5, eval_every_updates=2
+    )
+    dataclasses.replace(config, retry_below=0.5, retry_at_env_steps=319, tries=2).validate()
+    with pytest.raises(ValueError, match=message):
+        dataclasses.replace(config, **changes).validate()
 
 
 def test_a_layer_too_wide_and_an_update_beyond_int32_env_steps_are_refused():

@@ -443,6 +443,15 @@ def test_a_sweep_refuses_settings_alike_in_one_line_before_anything_is_written(a
     assert not out.exists()
 
 
+def test_a_sweep_of_a_config_with_a_gate_is_refused_in_one_line_before_anything_is_written(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    gate = ["eval_every_updates=4", "retry_below=0.5", "retry_at_env_steps=4096", "tries=2"]
+    assert sweep.main(["--config", "ppo_arm2d", "--seeds", "1", "--out", str(out), *SMALL, *gate]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: retry_below=0.5 starts a run again when it fails its gate") and err.count("\n") == 1
+    assert not out.exists()
+
+
 def test_a_plain_override_then_the_values_swept_of_one_key_sweep_those_values():
     base = configs.get("ppo_arm2d")
     grid = sweep.parse_grid(

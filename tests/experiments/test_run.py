@@ -22,7 +22,7 @@ from experiments import run
 from jaxarm import envs
 from jaxarm.agents.common import checkpoint
 from jaxarm.agents.ppo.warm_start import warm_start
-from jaxarm.runner import learners, loop, metrics_log, robustness, rundir, runlog
+from jaxarm.runner import learners, loop, metrics_log, robustness, rundir, runlog, tries
 
 SMALL = [
     "num_envs=64",
@@ -174,6 +174,52 @@ def test_resume_after_sigkill_matches_an_uninterrupted_run(finished_run, tmp_pat
     assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == list(range(1, 25))
     for resumed, uninterrupted in zip(
         jax.tree.leaves(final_params(run_dir)), jax.tree.leaves(final_params(finished_run)), strict=True
+    ):
+        np.testing.assert_array_equal(resumed, uninterrupted)
+
+
+GATED = ["eval_every_updates=4", "retry_below=1.0", "retry_at_env_steps=8192", "tries=2"]
+"""A gate SMALL's runs fail at update 8 (their evaluations are below 100% there), with one try after it."""
+
+
+@pytest.fixture(scope="module")
+def retried_run(tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp("runs") / "retried"
+    assert run_cli(*SMALL, *GATED, "--out", str(run_dir)) == 0
+    return run_dir
+
+
+def test_a_try_below_its_gate_is_set_aside_and_the_run_starts_again_with_fresh_randomness(retried_run, capsys):
+    set_aside = retried_run / tries.TRIES_DIR / "0"
+    failed = metrics_log.read_metrics(set_aside)
+    assert [row["updates"] for row in failed] == list(range(1, 9))
+    assert max(row["eval/success_rate"] for row in failed if "eval/success_rate" in row) < 1.0
+    assert checkpoint.latest_step(set_aside / "checkpoints") == 4 and (set_aside / "best.json").exists()
+    rows = metrics_log.read_metrics(retried_run)
+    # The last try trains to its end whatever it scores.
+    assert [row["updates"] for row in rows] == list(range(1, 25))
+    assert rows[0]["loss/policy_loss"] != failed[0]["loss/policy_loss"]
+    assert rows[0]["wall_time"] > failed[-1]["wall_time"], "the failed try's time was not counted"
+    result = json.loads((retried_run / "eval.json").read_text())
+    assert result["tries"] == 2 and result["finished"]
+    assert [entry["event"] for entry in json.loads((retried_run / rundir.PROVENANCE_FILE).read_text())["records"]] == [
+        "start",
+        "try 2",
+    ]
+
+
+def test_a_run_stopped_in_its_second_try_resumes_in_it_bit_identically(retried_run, tmp_path, capsys):
+    run_dir = tmp_path / "stopped"
+    # Each command stops after its first chunk: try 1's updates 1-4, then 5-8 and its gate, then try 2's first.
+    assert run_cli(*SMALL, *GATED, "--out", str(run_dir), "--stop-after-minutes", "0") == 0
+    assert run.main(["--resume", str(run_dir), "--stop-after-minutes", "0"]) == 0
+    assert "try 1 of 2 failed its gate (best evaluation" in capsys.readouterr().err
+    assert checkpoint.latest_step(run_dir / "checkpoints") == 4 and tries.tries_set_aside(run_dir) == 1
+    assert run.main(["--resume", str(run_dir)]) == 0
+    assert tries.tries_set_aside(run_dir) == 1
+    assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == list(range(1, 25))
+    for resumed, uninterrupted in zip(
+        jax.tree.leaves(final_params(run_dir)), jax.tree.leaves(final_params(retried_run)), strict=True
     ):
         np.testing.assert_array_equal(resumed, uninterrupted)
 

@@ -71,6 +71,18 @@ def test_a_study_is_met_only_when_its_worst_seed_meets_the_goal_in_time():
     assert "**met**" in seeds.markdown(met) and "(not finished)" in seeds.markdown(stopped)
 
 
+def test_a_seed_reports_the_tries_its_run_took(tmp_path):
+    seeds.seed_dir(tmp_path, 3).mkdir()
+    evaluation = {"success_rate": 0.9, "finished": True, "device": "cpu"}
+    (seeds.seed_dir(tmp_path, 3) / "eval.json").write_text(json.dumps(evaluation))
+    assert seeds.seed_result(tmp_path, 3, [5.0]).tries == 1  # a run without a gate wrote none
+    (seeds.seed_dir(tmp_path, 3) / "eval.json").write_text(json.dumps({**evaluation, "tries": 3}))
+    assert seeds.seed_result(tmp_path, 3, [5.0]) == seeds.SeedResult(3, 0.9, 5.0, True, "cpu", tries=3)
+    protocol = seeds.Protocol("ppo_arm2d", (3,), goal=0.8, minutes=None, overrides=())
+    table = seeds.markdown(seeds.summarise(protocol, [seeds.seed_result(tmp_path, 3, [5.0])]))
+    assert "| seed | placed | command wall | tries | device |" in table and "| 3 | 90.0% | 5 s | 3 | cpu |" in table
+
+
 def test_studies_side_by_side_take_each_gpu_for_one_run_at_a_time(tmp_path):
     first, second = seeds.GpuPool(["0", "1"], tmp_path), seeds.GpuPool(["0", "1"], tmp_path)
     assert first.take() == (True, "0")

@@ -116,6 +116,13 @@ class RunConfig:
         that have one, see `jaxarm.agents.registry`; the env maps the old observation onto its own:
         `Env.observation_source_index`); `preset:NAME` to train that preset (with this run's seed) into the run's
         warm_start/ first, in the same command; "" for none.
+      retry_below: success rate the in-training evaluations (`eval_every_updates`) must have reached by
+        `retry_at_env_steps`; a try whose best evaluation is below it at the first evaluation from there on is set
+        aside (its files under `tries/K/` of the run directory) and the run starts again from its beginning (its warm
+        start, where it has one) with fresh randomness, up to `tries` tries in all, the last trained to the end
+        whatever it scores: for recipes that fail on some draws and show it early. 0 for never.
+      retry_at_env_steps: the env steps by which a try must reach `retry_below`.
+      tries: the most tries a run makes under `retry_below`, the first included (without a gate, one).
     """
 
     env: str = "arm2d"
@@ -132,6 +139,9 @@ class RunConfig:
     seed: int = static(0, ranges.SEED)
     init_from: str = ""
     eval_every_updates: int = static(0, ranges.NON_NEGATIVE)
+    retry_below: float = static(0.0, ranges.UNIT_INTERVAL)
+    retry_at_env_steps: int = static(0, ranges.NON_NEGATIVE)
+    tries: int = static(1, ranges.TRIES)
 
     @property
     def budget_shapes_updates(self) -> str:
@@ -188,12 +198,28 @@ class RunConfig:
                 f"total_env_steps={self.total_env_steps:,} needs {self.num_updates:,} updates, more than the learners' "
                 f"int32 update counter holds ({ranges.INT32.max:,}): collect more env steps per update"
             )
+        self._validate_retries()
         if self.randomize_corners > 0 and not self.randomize:
             raise ValueError(f"randomize_corners={self.randomize_corners:g} needs randomize.NAME=LOW..HIGH ranges")
         try:
             self.make_eval_env(randomized=True)
         except (KeyError, ValueError, TypeError) as error:
             raise ValueError(error.args[0] if error.args else str(error)) from None
+
+    def _validate_retries(self) -> None:
+        """ValueError where `retry_below`, `retry_at_env_steps` and `tries` do not make a gate a run can apply."""
+        if not self.retry_below:
+            return
+        if self.tries < 2:
+            raise ValueError(f"retry_below={self.retry_below:g} needs tries=N of at least 2 (the first included)")
+        if not self.eval_every_updates:
+            raise ValueError(f"retry_below={self.retry_below:g} needs eval_every_updates=N: the evaluations it reads")
+        if not 0 < self.retry_at_env_steps < self.num_updates * self.env_steps_per_update:
+            raise ValueError(
+                f"retry_at_env_steps={self.retry_at_env_steps:,} must lie inside the run's "
+                f"{self.num_updates * self.env_steps_per_update:,} env steps, after its start (retry_below=0 "
+                "switches the gate off)"
+            )
 
     def make_env(self, randomized: bool = True):
         """Returns (env, env_params) described by this config: what training runs on, with the `randomize` params
