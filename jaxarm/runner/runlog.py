@@ -10,8 +10,8 @@ from collections.abc import Iterator, Sequence
 import numpy as np
 
 from jaxarm.agents.common.trainer import Trainer
-from jaxarm.runner import progress, provenance
-from jaxarm.runner.sinks import Sink, TensorBoardSink, WandbOptions, WandbSink, wandb_run_id
+from jaxarm.runner import progress, provenance, tries
+from jaxarm.runner.sinks import Sink, TensorBoardSink, WandbOptions, WandbSink, try_suffix, wandb_run_id
 
 
 def metric_rows(
@@ -50,8 +50,9 @@ class RunLog:
         self.sinks: list[Sink] = [TensorBoardSink(run_dir / "tensorboard", purge_step=purge_step)]
         if wandb:
             config = json.loads((run_dir / "config.json").read_text())
-            run_id = wandb_run_id(run_dir.name, provenance.first_provenance(run_dir))
-            self.sinks.append(WandbSink(wandb, run_dir, config, run_id))
+            suffix = try_suffix(tries.tries_set_aside(run_dir))
+            run_id = wandb_run_id(run_dir.name, provenance.first_provenance(run_dir)) + suffix
+            self.sinks.append(WandbSink(wandb, run_dir, config, run_id, run_dir.name + suffix))
         stack.enter_context(closing(self.sinks))
         self.bar = stack.enter_context(progress.Progress(trainer.num_updates * trainer.env_steps_per_update))
         self.file = stack.enter_context((run_dir / "metrics.jsonl").open("a"))

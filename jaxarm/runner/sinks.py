@@ -107,23 +107,29 @@ def wandb_run_id(name: str, first_start: dict[str, Any]) -> str:
     """The wandb run id of the run directory `name` whose training first started as `first_start` records (its
     provenance record): the name and 8 hex digits of that start's host, time and command. wandb merges the runs of
     one id in a project, so the name alone made two runs called `mine` one; a resumed run keeps its first start,
-    and so its id."""
+    and so its id. (Each try of a gated run after the first adds `try_suffix` to its name and id.)"""
     started = f"{first_start['hostname']} {first_start['time']} {first_start['command']}"
     return f"{name}-{hashlib.sha256(started.encode()).hexdigest()[:8]}"
 
 
-class WandbSink:
-    """One wandb run per run directory (named as it, with the id `wandb_run_id`: resumed runs continue it), each
-    metric against env steps."""
+def try_suffix(try_index: int) -> str:
+    """What the wandb name and id of a gated run's try add (`RunConfig.retry_below`): nothing for the first, `-tryK`
+    for the K-th after it. A try starts again from env step 0, which wandb drops within one run."""
+    return f"-try{try_index + 1}" if try_index else ""
 
-    def __init__(self, options: WandbOptions, run_dir: pathlib.Path, config: dict[str, Any], run_id: str):
+
+class WandbSink:
+    """One wandb run per run directory, or per try of a gated run (named as it, with the id `wandb_run_id`: resumed
+    runs continue it), each metric against env steps."""
+
+    def __init__(self, options: WandbOptions, run_dir: pathlib.Path, config: dict[str, Any], run_id: str, name: str):
         try:
             wandb = importlib.import_module("wandb")
         except ImportError:
             raise ValueError("logging to wandb needs the wandb package: pip install 'jaxarm[wandb]'") from None
         self.run = wandb.init(
             project=options.project,
-            name=run_dir.name,
+            name=name,
             id=run_id,
             resume="allow",
             dir=str(run_dir),

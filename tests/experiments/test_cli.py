@@ -177,10 +177,11 @@ def test_torch_is_hidden_from_the_importing_thread_alone(tmp_path, monkeypatch):
 @pytest.fixture
 def fake_wandb(monkeypatch):
     """A stand-in `wandb` module recording what the runner asks of it."""
-    record: dict = {"logged": [], "finished": 0}
+    record: dict = {"logged": [], "finished": 0, "inits": []}
 
     def init(**kwargs):
         record["init"] = kwargs
+        record["inits"].append(kwargs)
         return types.SimpleNamespace(
             log=lambda row, step: record["logged"].append((row, step)),
             finish=lambda: record.__setitem__("finished", record["finished"] + 1),
@@ -204,6 +205,19 @@ def test_wandb_is_imported_only_when_asked_and_honours_offline(fake_wandb, tmp_p
     rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
     assert [step for _, step in fake_wandb["logged"]] == [row["env_steps"] for row in rows]
     assert fake_wandb["finished"] == 1
+
+
+def test_each_try_of_a_gated_run_is_a_wandb_run_of_its_own(fake_wandb, tmp_path, capsys):
+    out = tmp_path / "gated"
+    # Below 100% at update 4 (4 episodes of a barely trained policy): the first try fails its gate.
+    gate = ["total_env_steps=16384", "eval_every_updates=4", "retry_below=1.0", "retry_at_env_steps=4096", "tries=2"]
+    assert run.main(["--config", "ppo_arm2d_fixed", *SMALL, *gate, "--out", str(out), "--wandb", "arms"]) == 0
+    first = sinks.wandb_run_id("gated", provenance.first_provenance(out))
+    assert [(init["name"], init["id"]) for init in fake_wandb["inits"]] == [
+        ("gated", first),
+        ("gated-try2", f"{first}-try2"),
+    ]
+    assert fake_wandb["finished"] == 2
 
 
 def test_runs_of_one_name_get_their_own_wandb_id_and_a_resumed_run_keeps_it(tmp_path):
