@@ -240,10 +240,10 @@ def ppo_sorter_toss() -> PPOConfig:
     # env steps), into the run's warm_start/, then this. From that warm start, tuning seeds 100-102 and 102 again
     # (H200, 2026-11-29) placed 96.2%, 97.4%, 0.0% and 89.5% (the last at 26M env steps): a try either throws from
     # rest by 46-52M env steps (85-97% there) or not for 120M (0.0%). Neither a critic trained alone first
-    # (critic_warm_up_updates=20: 0.0%, 57%, 60%, 60% at 65M on seeds 104, 102 twice, 103) nor fewer held starts
-    # (0.1% at 26M) took that away. So a try that has not placed 80% by 52M env steps starts again from the warm
-    # start with fresh randomness (at most 4 tries, ~2 minutes each on an H200), and the run ends at 150M: the good
-    # tries held 95-97% from ~50M to 120M.
+    # (critic_warm_up_updates=20: 0.0% on seed 104, 57-60% at 65M on seeds 102 and 103) nor fewer held starts (0.1%
+    # at 26M) took that away. So a try that has not placed 80% by 52M env steps starts again from the warm start
+    # with fresh randomness (at most 4 tries; a failed one costs ~2 minutes of an H200), and a try ends at 150M: the
+    # good ones held 95-97% from ~50M to 120M.
     return dataclasses.replace(
         SORTER_PPO,
         env="panda_sort_tosser",
@@ -306,7 +306,7 @@ def ppo_sorter_dr_corners() -> PPOConfig:
 def ppo_sorter_toss_dr() -> PPOConfig:
     # ppo_sorter_toss drawing SORTER_RANDOMIZE as ppo_sorter_dr does: a throw lands only where the release is timed
     # right, and damping, servo gains, latency and the control period all move the release. Twice the tosser's
-    # budget, as ppo_sorter_dr takes over ppo_sorter. Untrained: without the tosser's gate, tuned for its budget.
+    # budget, as ppo_sorter_dr takes over ppo_sorter. Never trained; no gate (the tosser's was set for its budget).
     return dataclasses.replace(
         ppo_sorter_toss(), randomize=SORTER_RANDOMIZE, total_env_steps=400_000_000, retry_below=0.0, tries=1
     )

@@ -207,7 +207,7 @@ def test_wandb_is_imported_only_when_asked_and_honours_offline(fake_wandb, tmp_p
     assert fake_wandb["finished"] == 1
 
 
-def test_each_try_of_a_gated_run_is_a_wandb_run_of_its_own(fake_wandb, tmp_path, capsys):
+def test_each_try_of_a_gated_run_is_a_wandb_run_of_its_own(fake_wandb, tmp_path):
     out = tmp_path / "gated"
     # Below 100% at update 4 (4 episodes of a barely trained policy): the first try fails its gate.
     gate = ["total_env_steps=16384", "eval_every_updates=4", "retry_below=1.0", "retry_at_env_steps=4096", "tries=2"]

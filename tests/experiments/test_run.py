@@ -189,7 +189,7 @@ def retried_run(tmp_path_factory):
     return run_dir
 
 
-def test_a_try_below_its_gate_is_set_aside_and_the_run_starts_again_with_fresh_randomness(retried_run, capsys):
+def test_a_try_below_its_gate_is_set_aside_and_the_run_starts_again_with_fresh_randomness(retried_run):
     set_aside = retried_run / tries.TRIES_DIR / "0"
     failed = metrics_log.read_metrics(set_aside)
     assert [row["updates"] for row in failed] == list(range(1, 9))
