@@ -21,7 +21,7 @@ from jaxarm.runner.options import Options
 from jaxarm.runner.programs import ChunkRunners, Evaluators, eval_key
 from jaxarm.runner.runlog import RunLog, metric_rows
 from jaxarm.runner.signals import StopRequests
-from jaxarm.runner.tries import TryFailed, failed_gate
+from jaxarm.runner.tries import TryFailed, failed_gate, gated
 
 
 class TrainingDiverged(RuntimeError):
@@ -35,14 +35,14 @@ class TrainingInterrupted(RuntimeError):
 @dataclasses.dataclass
 class Start:
     """Where a run starts: its learner state (placed on the devices), updates done, wall seconds already spent,
-    the best evaluation so far, and whether its try must pass the config's gate (`RunConfig.retry_below`; the last
-    try need not)."""
+    the best evaluation so far, and the index of its try (`RunConfig.retry_below`; 0 for the first, and for every
+    run without a gate)."""
 
     state: Any
     done_updates: int
     wall_offset: float
     best: dict | None
-    gated: bool = False
+    try_index: int = 0
 
 
 def train_chunks(
@@ -66,9 +66,10 @@ def train_chunks(
     clock = time.perf_counter()
     stop = StopRequests()
     steps_per_update = trainer.env_steps_per_update
+    gate = gated(config, start.try_index)
     with contextlib.ExitStack() as stack:
         stack.enter_context(stop.installed())
-        log = RunLog(stack, run_dir, trainer, options.wandb, done_updates) if primary else None
+        log = RunLog(stack, run_dir, trainer, options.wandb, done_updates, start.try_index) if primary else None
         while done_updates < trainer.num_updates:
             count = min(config.updates_per_chunk, trainer.num_updates - done_updates)
             runner = runners(count)
@@ -93,12 +94,12 @@ def train_chunks(
             failed = False
             if crossed(config.eval_every_updates, done_updates, done_updates + count):
                 best = evaluate(evaluators, state, key, rows[-1], best, done_updates + count, run_dir)
-                failed = start.gated and failed_gate(config, best, (done_updates + count) * steps_per_update)
+                failed = gate and failed_gate(config, best, (done_updates + count) * steps_per_update)
             done_updates += count
             if log:
                 log.write(rows, done_updates * steps_per_update, flat)
             # Agreed by every process, as the stops below are; a run without a gate asks nobody.
-            if start.gated and processes.any_process(failed):
+            if gate and processes.any_process(failed):
                 raise TryFailed(
                     best["success_rate"] if best else 0.0,
                     done_updates * steps_per_update,

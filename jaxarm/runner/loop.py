@@ -161,7 +161,9 @@ def _train_learner(
                 start = dataclasses.replace(
                     _start(trainer, config, preset, run_dir, False, (), like), wall_offset=failed.wall_time
                 )
-        return _final_evaluation(trainer, config, preset, run_dir, state, done_updates, train_time, evaluators)
+        return _final_evaluation(
+            trainer, config, preset, run_dir, state, done_updates, train_time, start.try_index + 1, evaluators
+        )
 
 
 def _set_aside(config: RunConfig, run_dir: pathlib.Path, failed: tries.TryFailed) -> None:
@@ -228,7 +230,6 @@ def _start(
     primary = processes.is_primary()
     shardings = jax.tree.map(lambda leaf: leaf.sharding, like)
     index = tries.tries_set_aside(run_dir)
-    gated = bool(config.retry_below) and index < config.tries - 1
     if resume:
         state = learners.restore_state(run_dir, trainer, config, shardings=shardings)
         done_updates = int(state.updates)
@@ -244,7 +245,7 @@ def _start(
             if gap:
                 print(f"warning: {gap}", file=sys.stderr)
         wall_offset = max([row["wall_time"] for row in metrics_log.read_metrics(run_dir)], default=0.0)
-        return Start(state, done_updates, wall_offset, best, gated)
+        return Start(state, done_updates, wall_offset, best, index)
     key = jax.random.PRNGKey(config.seed)
     key = jax.random.fold_in(key, index) if index else key
     state = jax.jit(trainer.init, out_shardings=shardings)(key, config.hparams())
@@ -255,7 +256,7 @@ def _start(
         # Written once the start state exists: a warm start that fails leaves no half-made run directory.
         rundir.write_config(run_dir, config, preset)
         provenance.append_provenance(run_dir, f"try {index + 1}" if index else "start")
-    return Start(state, 0, 0.0, None, gated)
+    return Start(state, 0, 0.0, None, index)
 
 
 def _final_evaluation(
@@ -266,10 +267,11 @@ def _final_evaluation(
     state,
     done_updates: int,
     train_time: float,
+    tries_taken: int,
     evaluators: Evaluators,
 ) -> dict:
-    """Evaluates the final state (also under the randomised params, if any), writes eval.json and curve.png (the
-    primary process) and returns the results."""
+    """Evaluates the final state (also under the randomised params, if any), writes eval.json (with the `tries_taken`
+    of a gated run) and curve.png (the primary process) and returns the results."""
     key = eval_key(config)
     result = evaluators.nominal(state, key)
     if evaluators.randomized is not None:
@@ -278,7 +280,7 @@ def _final_evaluation(
     result["train_wall_time"] = train_time
     result["env_steps"] = done_updates * trainer.env_steps_per_update
     result["finished"] = done_updates == trainer.num_updates
-    result["tries"] = tries.tries_set_aside(run_dir) + 1
+    result["tries"] = tries_taken
     if processes.is_primary():
         rundir.write_json(run_dir / "eval.json", result)
         rows = metrics_log.read_metrics(run_dir)

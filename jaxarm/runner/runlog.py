@@ -10,7 +10,7 @@ from collections.abc import Iterator, Sequence
 import numpy as np
 
 from jaxarm.agents.common.trainer import Trainer
-from jaxarm.runner import progress, provenance, tries
+from jaxarm.runner import progress, provenance
 from jaxarm.runner.sinks import Sink, TensorBoardSink, WandbOptions, WandbSink, try_suffix, wandb_run_id
 
 
@@ -33,8 +33,9 @@ def metric_rows(
 
 
 class RunLog:
-    """The primary process's outputs between chunks: metrics.jsonl, the sinks (TensorBoard, wandb) and the
-    progress bar (at `done_updates` to begin with), each closed with `stack`."""
+    """The primary process's outputs between chunks: metrics.jsonl, the sinks (TensorBoard, wandb: a run of its own
+    for each try after the first, `try_index`) and the progress bar (at `done_updates` to begin with), each closed
+    with `stack`."""
 
     def __init__(
         self,
@@ -43,6 +44,7 @@ class RunLog:
         trainer: Trainer,
         wandb: WandbOptions | None,
         done_updates: int,
+        try_index: int,
     ):
         # TensorBoard hides the events a killed run logged past the checkpoint this one resumes from.
         resumed_at = done_updates * trainer.env_steps_per_update
@@ -50,7 +52,7 @@ class RunLog:
         self.sinks: list[Sink] = [TensorBoardSink(run_dir / "tensorboard", purge_step=purge_step)]
         if wandb:
             config = json.loads((run_dir / "config.json").read_text())
-            suffix = try_suffix(tries.tries_set_aside(run_dir))
+            suffix = try_suffix(try_index)
             run_id = wandb_run_id(run_dir.name, provenance.first_provenance(run_dir)) + suffix
             self.sinks.append(WandbSink(wandb, run_dir, config, run_id, run_dir.name + suffix))
         stack.enter_context(closing(self.sinks))

@@ -28,6 +28,11 @@ def failed_gate(config: RunConfig, best: dict | None, env_steps: int) -> bool:
     return env_steps >= config.retry_at_env_steps and (best is None or best["success_rate"] < config.retry_below)
 
 
+def gated(config: RunConfig, try_index: int) -> bool:
+    """Whether try `try_index` (from 0) must pass the config's gate: every try but the last, where it has one."""
+    return bool(config.retry_below) and try_index < config.tries - 1
+
+
 def tries_set_aside(run_dir: pathlib.Path) -> int:
     """How many tries of the run in `run_dir` failed its gate and were set aside: the index of the try it is in."""
     directory = run_dir / TRIES_DIR
