@@ -1,6 +1,7 @@
 """Checkpoints read back on another machine's devices, and by a learner that has gained leaves since."""
 
 import json
+import logging
 import pathlib
 
 import jax
@@ -111,3 +112,20 @@ def test_a_checkpoint_of_another_config_names_its_differing_leaves_in_one_line(t
         )
     # Orbax's own message and its abandoned reads' tensorstore specs once reached the user.
     assert "TensorStore" not in capfd.readouterr().err
+
+
+def test_after_a_failed_save_orbax_s_late_thread_errors_stay_quiet_and_others_do_not(tmp_path, monkeypatch):
+    # A write that failed only after the save had raised logged its 38-line absl traceback from orbax's thread (2 of
+    # 40 sweeps on a file-size limit).
+    absl = logging.getLogger("absl")
+    monkeypatch.setattr(absl, "filters", [])
+    (tmp_path / "checkpoints").write_text("a file where the folder goes")
+    with pytest.raises(checkpoint.CheckpointError):
+        checkpoint.save(tmp_path / "checkpoints", 1, {"w": jnp.ones(3)})
+
+    def logged(pathname: str) -> bool:
+        record = logging.makeLogRecord({"name": "absl", "levelno": logging.ERROR, "pathname": pathname, "msg": "x"})
+        return absl.filter(record)
+
+    assert not logged("/site-packages/orbax/checkpoint/_src/futures/future.py")
+    assert logged("/site-packages/jax/_src/dispatch.py")
