@@ -4,8 +4,10 @@ Trains one preset on several seeds, each as a user runs it: `python -m experimen
 process of its own, into OUT/seed-S. On a host of several GPUs the runs share them out, one run per GPU at a time
 (CUDA_VISIBLE_DEVICES); elsewhere they run one after another. Studies started side by side on one host share its
 GPUs the same way, a GPU taken by one run of any of them at a time (`GpuPool`), so that several presets' studies
-keep every GPU busy without splitting CUDA_VISIBLE_DEVICES by hand. Never vmapped together: float-level differences
-between two programs decide fragile recipes, and a user runs one seed in one program.
+keep every GPU busy without splitting CUDA_VISIBLE_DEVICES by hand. `--runs-per-gpu N` puts up to N runs on each GPU
+at once (N at once on a CPU), for runs too small to fill one: the table then says its wall clocks are shared. Never
+vmapped together: float-level differences between two programs decide fragile recipes, and a user runs one seed in
+one program.
 
 Writes OUT/summary.json and OUT/seeds.md: each seed's placed fraction (its eval.json's success on fresh episodes),
 its command's wall clock (from the command's start to its end, summed over the commands of a resumed seed), the
@@ -49,6 +51,8 @@ MAX_SEEDS = 1000
 """More separate runs than a study of seeds needs; a bound checked before anything is written."""
 POLL_S = 0.5
 """How often a study looks for an ended run or a GPU another study freed, seconds."""
+MAX_RUNS_PER_GPU = 16
+"""More runs than share one GPU usefully: each holds its own compiled programs and buffers."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,12 +64,14 @@ class Protocol:
     goal: float
     minutes: float | None
     overrides: tuple[str, ...]
+    runs_per_gpu: int = 1
 
     @property
     def command(self) -> str:
         """The study's own command line, as a table cites it."""
         minutes = [] if self.minutes is None else ["--minutes", f"{self.minutes:g}"]
-        seeds = ["--seeds", ",".join(map(str, self.seeds)), "--goal", f"{self.goal:g}", *minutes]
+        shared = [] if self.runs_per_gpu == 1 else ["--runs-per-gpu", str(self.runs_per_gpu)]
+        seeds = ["--seeds", ",".join(map(str, self.seeds)), "--goal", f"{self.goal:g}", *minutes, *shared]
         return " ".join(["python -m experiments.seeds --config", self.config, *seeds, *self.overrides])
 
     def run_command(self, seed: int, out: pathlib.Path) -> list[str]:
@@ -120,6 +126,17 @@ def time_limit(text: str) -> float:
     return value
 
 
+def runs_per_gpu(text: str) -> int:
+    """`--runs-per-gpu`: an integer from 1 to MAX_RUNS_PER_GPU."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= MAX_RUNS_PER_GPU:
+        raise argparse.ArgumentTypeError(f"expected an integer from 1 to {MAX_RUNS_PER_GPU}, got {text!r}")
+    return value
+
+
 def fraction(text: str) -> float:
     """`--goal`: a fraction in [0, 1]."""
     try:
@@ -150,6 +167,7 @@ def summarise(protocol: Protocol, results: Sequence[SeedResult]) -> dict:
         "devices": sorted({result.device for result in results if result.device}),
         "met": bool(done and in_time and np.min(placed) >= protocol.goal),
         "finished": done,
+        "runs_per_gpu": protocol.runs_per_gpu,
     }
 
 
@@ -171,6 +189,8 @@ def markdown(summary: dict) -> str:
             f"| {seed['seed']} | {percent(seed['placed'])}{mark} | {seed['wall_s']:.0f} s | {seed['tries']} | "
             f"{seed['device']} |"
         )
+    if summary["runs_per_gpu"] > 1:
+        lines += ["", f"{summary['runs_per_gpu']} runs shared each GPU at a time: a wall clock is not one GPU's."]
     if summary["finished"]:
         low, high = summary["interval"]
         goal = f"≥ {percent(summary['goal'])}" + (f" within {summary['minutes']:g} min" if summary["minutes"] else "")
@@ -220,10 +240,26 @@ def next_command(protocol: Protocol, out: pathlib.Path, seed: int, stop_after: f
     return command
 
 
-def gpu_slots() -> list[str | None]:
-    """Where runs go at once: one per visible GPU (its CUDA_VISIBLE_DEVICES value), else one with no GPU named."""
+@dataclasses.dataclass(frozen=True)
+class Slot:
+    """A place a run goes: a GPU (its CUDA_VISIBLE_DEVICES value), or None on a host without one, and which of the
+    runs sharing it (`--runs-per-gpu`) goes there, from 0."""
+
+    gpu: str | None
+    share: int = 0
+
+    @property
+    def lock_name(self) -> str:
+        """The file a study locks to hold this slot (a GPU's first share keeps the name it had before shares)."""
+        return f"gpu-{self.gpu}.lock" if self.share == 0 else f"gpu-{self.gpu}-{self.share}.lock"
+
+
+def gpu_slots(runs_per_gpu: int) -> list[Slot]:
+    """Where runs go at once: `runs_per_gpu` per visible GPU, else as many with no GPU named; each GPU's first
+    share before any GPU's second, so that runs spread over the GPUs before they share one."""
     count = distributed.gpus_here()
-    return list(distributed.local_gpus(count)) if count else [None]
+    gpus: list[str | None] = list(distributed.local_gpus(count)) if count else [None]
+    return [Slot(gpu, share) for share in range(runs_per_gpu) for gpu in gpus]
 
 
 def gpu_lock_dir() -> pathlib.Path:
@@ -232,34 +268,35 @@ def gpu_lock_dir() -> pathlib.Path:
 
 
 class GpuPool:
-    """The slots a study starts runs in (`gpu_slots`), shared with every other study on this host: a GPU is taken
-    by holding an exclusive lock on its file in `lock_dir` while a run uses it, so two studies never put runs on
-    one GPU at once; the OS drops the lock of a study that dies. The slot with no GPU (a host without one) is this
-    study's alone: runs on the CPU share it by taking turns within a study, as before."""
+    """The slots a study starts runs in (`gpu_slots`), shared with every other study on this host: a slot of a GPU
+    is taken by holding an exclusive lock on its file in `lock_dir` while a run uses it, so two studies never put
+    runs in one slot at once, and a GPU holds at most as many runs as the largest `--runs-per-gpu` of the studies
+    on it; the OS drops the lock of a study that dies. Slots with no GPU (a host without one) are this study's
+    alone: runs on the CPU take turns in them within a study."""
 
-    def __init__(self, slots: list[str | None], lock_dir: pathlib.Path):
+    def __init__(self, slots: list[Slot], lock_dir: pathlib.Path):
         self.slots = slots
         self.lock_dir = lock_dir
-        self.held: dict[str | None, IO | None] = {}
+        self.held: dict[Slot, IO | None] = {}
 
-    def take(self) -> tuple[bool, str | None]:
-        """(True, a slot) for a slot neither this study nor another holds, now taken; (False, None) if none."""
+    def take(self) -> Slot | None:
+        """A slot neither this study nor another holds, now taken; None if none."""
         for slot in self.slots:
             if slot in self.held:
                 continue
-            if slot is None:
+            if slot.gpu is None:
                 self.held[slot] = None
-                return True, slot
+                return slot
             self.lock_dir.mkdir(parents=True, exist_ok=True)
-            handle = (self.lock_dir / f"gpu-{slot}.lock").open("w")
+            handle = (self.lock_dir / slot.lock_name).open("w")
             if not filelock.try_lock(handle):
                 handle.close()
                 continue
             self.held[slot] = handle
-            return True, slot
-        return False, None
+            return slot
+        return None
 
-    def give_back(self, slot: str | None) -> None:
+    def give_back(self, slot: Slot) -> None:
         """Frees `slot` (taken by `take`) for this study and the others."""
         handle = self.held.pop(slot)
         if handle is not None:
@@ -274,17 +311,17 @@ def train_seeds(
     an interrupted one too: on Ctrl-C or SIGTERM the runs are told to stop (they checkpoint) and waited for, so
     that none is left running. Returns the seeds whose command failed (a status but 0)."""
     queue = [(seed, command) for seed in protocol.seeds if (command := next_command(protocol, out, seed, stop_after))]
-    pool = GpuPool(gpu_slots(), gpu_lock_dir())
-    running: dict[subprocess.Popen, tuple[int, str | None, float]] = {}
+    pool = GpuPool(gpu_slots(protocol.runs_per_gpu), gpu_lock_dir())
+    running: dict[subprocess.Popen, tuple[int, Slot, float]] = {}
     failed: list[int] = []
 
     def finish(process: subprocess.Popen) -> None:
-        seed, gpu, started = running.pop(process)
+        seed, slot, started = running.pop(process)
         if process.returncode != 0:
             failed.append(seed)
         walls.setdefault(seed, []).append(time.perf_counter() - started)
         record()
-        pool.give_back(gpu)
+        pool.give_back(slot)
         result = seed_result(out, seed, walls[seed])
         state = f"placed {result.placed:.3f}" if result.finished and result.placed is not None else "not finished"
         print(f"seed {seed}: rc {process.returncode}, {state} after {result.wall_s:.0f} s", flush=True)
@@ -292,11 +329,11 @@ def train_seeds(
     try:
         while queue or running:
             while queue:
-                taken, gpu = pool.take()
-                if not taken:
+                if (slot := pool.take()) is None:
                     break
                 seed, command = queue.pop(0)
-                running[start_run(out, seed, command, gpu)] = (seed, gpu, time.perf_counter())
+                process = start_run(out, seed, command, slot.gpu, shared=protocol.runs_per_gpu > 1)
+                running[process] = (seed, slot, time.perf_counter())
             if ended := first_ended(list(running)):
                 finish(ended)
             else:  # a run of this study may end, or another study may free a GPU
@@ -321,10 +358,13 @@ def signal_all(running: dict[subprocess.Popen, tuple], signum: int) -> None:
             process.send_signal(signum)
 
 
-def start_run(out: pathlib.Path, seed: int, command: list[str], gpu: str | None) -> subprocess.Popen:
+def start_run(out: pathlib.Path, seed: int, command: list[str], gpu: str | None, shared: bool) -> subprocess.Popen:
     """Starts `command` (`python -m experiments.run ...`) with this interpreter, on `gpu` alone where one is
-    named, its output appended to OUT/seed-S.log."""
+    named, its output appended to OUT/seed-S.log. A run that `shared` its GPU allocates its memory as it goes
+    (unless the environment says otherwise): JAX takes 75% of a GPU at its start, leaving too little for a second."""
     env = dict(os.environ) if gpu is None else {**os.environ, "CUDA_VISIBLE_DEVICES": gpu}
+    if shared:
+        env.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
     print(f"seed {seed}{'' if gpu is None else f' on GPU {gpu}'}: {' '.join(command)} (log {seed_log(out, seed)})")
     with seed_log(out, seed).open("a") as log:
         return subprocess.Popen([sys.executable, *command[1:]], env=env, stdout=log, stderr=log, start_new_session=True)
@@ -355,13 +395,17 @@ def parse_args(argv) -> argparse.Namespace:
     parser.add_argument(
         "--stop-after-minutes", type=minutes, help="passed to each run: checkpoint and stop after this wall clock"
     )
+    parser.add_argument(
+        "--runs-per-gpu", type=runs_per_gpu, help="runs sharing each GPU at once (default 1; on a CPU, runs at once)"
+    )
     parser.add_argument("overrides", nargs="*", help="config overrides key=value, the same for every seed")
     args = parser.parse_args(argv)
     if bool(args.config) == bool(args.resume):
         parser.error("give --config NAME (a new study) or --resume OUT (a stopped one)")
-    if args.resume and (args.overrides or args.out):  # else --out was left aside without a word
+    if args.resume and (args.overrides or args.out or args.runs_per_gpu):  # else left aside without a word
         parser.error(
-            "--resume takes what the study was asked, and where, from its seeds.json; give no overrides or --out"
+            "--resume takes what the study was asked, and where, from its seeds.json; give no overrides, --out or "
+            "--runs-per-gpu"
         )
     return args
 
@@ -377,6 +421,7 @@ def read_study(out: pathlib.Path) -> tuple[Protocol, dict[int, list[float]]]:
             goal=float(saved["goal"]),
             minutes=None if saved["minutes"] is None else float(saved["minutes"]),
             overrides=tuple(str(item) for item in saved["overrides"]),
+            runs_per_gpu=int(saved.get("runs_per_gpu", 1)),  # studies before the option ran one run per GPU
         )
         walls = {int(seed): [float(wall) for wall in values] for seed, values in saved["walls"].items()}
     except FileNotFoundError:
@@ -424,7 +469,8 @@ def open_study(args: argparse.Namespace) -> tuple[Protocol, pathlib.Path, dict[i
     if (out / SEEDS_FILE).exists():
         raise ValueError(f"{out} holds a study already; continue it with --resume {out}, or give another --out")
     out.mkdir(parents=True, exist_ok=True)
-    return Protocol(args.config, args.seeds, args.goal, args.minutes, tuple(args.overrides)), out, {}
+    protocol = Protocol(args.config, args.seeds, args.goal, args.minutes, tuple(args.overrides), args.runs_per_gpu or 1)
+    return protocol, out, {}
 
 
 def study(args: argparse.Namespace) -> int:

@@ -84,21 +84,38 @@ def test_a_seed_reports_the_tries_its_run_took(tmp_path):
 
 
 def test_studies_side_by_side_take_each_gpu_for_one_run_at_a_time(tmp_path):
-    first, second = seeds.GpuPool(["0", "1"], tmp_path), seeds.GpuPool(["0", "1"], tmp_path)
-    assert first.take() == (True, "0")
-    assert second.take() == (True, "1")  # "0" is the first study's
-    assert first.take() == second.take() == (False, None)
-    first.give_back("0")
-    assert second.take() == (True, "0")
-    assert first.take() == (False, None)
+    gpu0, gpu1 = seeds.Slot("0"), seeds.Slot("1")
+    first, second = seeds.GpuPool([gpu0, gpu1], tmp_path), seeds.GpuPool([gpu0, gpu1], tmp_path)
+    assert first.take() == gpu0
+    assert second.take() == gpu1  # GPU 0 is the first study's
+    assert first.take() is second.take() is None
+    first.give_back(gpu0)
+    assert second.take() == gpu0
+    assert first.take() is None
 
 
-def test_a_host_without_gpus_runs_one_run_at_a_time_per_study_and_locks_nothing(tmp_path):
-    first, second = seeds.GpuPool([None], tmp_path / "locks"), seeds.GpuPool([None], tmp_path / "locks")
-    assert first.take() == second.take() == (True, None)
-    assert first.take() == (False, None)
-    first.give_back(None)
-    assert first.take() == (True, None)
+def test_runs_per_gpu_spread_over_the_gpus_first_and_share_each_up_to_the_largest_study_s_count(tmp_path, monkeypatch):
+    monkeypatch.setattr(seeds.distributed, "gpus_here", lambda: 2)
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "3,5")
+    slots = seeds.gpu_slots(2)
+    assert [(slot.gpu, slot.share) for slot in slots] == [("3", 0), ("5", 0), ("3", 1), ("5", 1)]
+    sharing, alone = seeds.GpuPool(slots, tmp_path), seeds.GpuPool(seeds.gpu_slots(1), tmp_path)
+    assert sharing.take() == slots[0]
+    assert alone.take() == slots[1]  # GPU 5's first share
+    # GPU 5's second share: it holds two runs, the largest count of the two studies, and no more.
+    assert [sharing.take(), sharing.take()] == slots[2:]
+    assert sharing.take() is None and alone.take() is None
+
+
+def test_a_host_without_gpus_runs_one_run_at_a_time_per_study_and_locks_nothing(tmp_path, monkeypatch):
+    monkeypatch.setattr(seeds.distributed, "gpus_here", lambda: 0)
+    cpu = seeds.gpu_slots(1)
+    assert cpu == [seeds.Slot(None)] and seeds.gpu_slots(3) == [seeds.Slot(None, share) for share in range(3)]
+    first, second = seeds.GpuPool(cpu, tmp_path / "locks"), seeds.GpuPool(cpu, tmp_path / "locks")
+    assert first.take() == second.take() == cpu[0]
+    assert first.take() is None
+    first.give_back(cpu[0])
+    assert first.take() == cpu[0]
     assert not (tmp_path / "locks").exists()
 
 
@@ -131,11 +148,20 @@ def test_a_study_whose_run_failed_says_so_in_one_line_and_fails(tmp_path, capsys
     assert "holds files but no run" in seeds.seed_log(out, 0).read_text()
 
 
-def test_a_resumed_study_takes_no_out_or_overrides(tmp_path, capsys):
-    for extra in (["--out", str(tmp_path / "elsewhere")], ["num_envs=8"]):  # --out was left aside without a word
+def test_a_resumed_study_takes_no_out_overrides_or_runs_per_gpu(tmp_path, capsys):
+    # Each was left aside without a word: the study keeps what its seeds.json says.
+    for extra in (["--out", str(tmp_path / "elsewhere")], ["num_envs=8"], ["--runs-per-gpu", "2"]):
         with pytest.raises(SystemExit) as exited:
             seeds.parse_args(["--resume", str(tmp_path), *extra])
-        assert exited.value.code == 2 and "give no overrides or --out" in capsys.readouterr().err
+        assert exited.value.code == 2 and "give no overrides, --out or --runs-per-gpu" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text", ["0", "17", "two"])
+def test_runs_per_gpu_out_of_range_is_refused_in_one_line(text, capsys):
+    with pytest.raises(SystemExit) as exited:
+        seeds.parse_args(["--config", "ppo_arm2d", "--runs-per-gpu", text])
+    assert exited.value.code == 2
+    assert f"expected an integer from 1 to 16, got '{text}'" in capsys.readouterr().err
 
 
 def test_a_damaged_study_file_is_named_in_one_line(tmp_path):
@@ -173,17 +199,21 @@ def computed(run_dir: pathlib.Path) -> tuple[list[dict], dict]:
 
 @pytest.mark.slow
 def test_each_seed_is_a_separate_run_a_stopped_one_resumes_and_reproduces_an_unstopped_one(tmp_path, capsys):
-    """Seed 0 runs to its end; the study's seeds 0 and 1 stop after their first chunk and resume. Seed 0's two runs,
-    separate processes of the same command and seed, write the same metrics row for row and the same evaluation:
-    a result is reproducible where XLA computes it alike (the CPU)."""
+    """Seed 0 runs to its end; the study's seeds 0 and 1, run two at a time, stop after their first chunk and
+    resume. Seed 0's two runs, separate processes of the same command and seed, write the same metrics row for row
+    and the same evaluation: a result is reproducible where XLA computes it alike (the CPU), alone or beside
+    another run."""
     args = ["--config", "ppo_arm2d_fixed", "--goal", "0.0", *SMALL]
     assert seeds.main([*args, "--seeds", "0", "--out", str(tmp_path / "whole")]) == 0
     stopped = tmp_path / "stopped"
-    assert seeds.main([*args, "--seeds", "0-1", "--out", str(stopped), "--stop-after-minutes", "0"]) == 0
+    two = ["--runs-per-gpu", "2", "--stop-after-minutes", "0"]
+    assert seeds.main([*args, "--seeds", "0-1", "--out", str(stopped), *two]) == 0
     assert "continue them with: python -m experiments.seeds --resume" in capsys.readouterr().out
     assert seeds.main(["--resume", str(stopped)]) == 0
     summary = json.loads((stopped / "summary.json").read_text())
     assert summary["met"] and summary["finished"] and [seed["seed"] for seed in summary["seeds"]] == [0, 1]
+    assert summary["runs_per_gpu"] == 2 and "--runs-per-gpu 2" in summary["command"]  # kept by --resume
+    assert "2 runs shared each GPU at a time" in (stopped / "seeds.md").read_text()
     walls = json.loads((stopped / seeds.SEEDS_FILE).read_text())["walls"]
     assert [len(walls[seed]) for seed in ("0", "1")] == [2, 2]
     assert seeds.main(["--resume", str(stopped)]) == 0  # nothing left to run
