@@ -4,6 +4,7 @@ import dataclasses
 import json
 
 import jax
+import jax.extend
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -428,6 +429,31 @@ def test_the_shared_encoder_learns_from_the_critics_alone():
 
     assert encoder_gradient(lambda params: networks.action(actor_params, networks.encode(params, obs)).sum()) == 0
     assert encoder_gradient(lambda params: networks.q(params, networks.encode(params, obs), jnp.ones((2, 1))).sum()) > 0
+
+
+def qr_operand_shapes(jaxpr: jax.extend.core.Jaxpr) -> list[tuple[int, ...]]:
+    """The operand shape of every QR factorisation in `jaxpr` and the jaxprs inside it (scans, loops, pjit)."""
+    shapes = []
+    for equation in jaxpr.eqns:
+        if equation.primitive.name == "qr":
+            shapes.append(equation.invars[0].aval.shape)
+        for param in equation.params.values():
+            inner = getattr(param, "jaxpr", param)
+            if isinstance(inner, jax.extend.core.Jaxpr):
+                shapes += qr_operand_shapes(inner)
+    return shapes
+
+
+@pytest.mark.parametrize("shared_encoder", [False, True, None])
+def test_the_critics_orthogonal_initialisations_are_never_batched(shared_encoder):
+    # Batched, two QR factorisations deadlocked jaxlib 0.10.2's CPU runtime in its thread pool: td3_peg_pixels'
+    # init hung within 300 repeats on the 2-core CPU with its shared encoder's heads vmapped (2026-11-29).
+    config = image_probe_config(bool(shared_encoder)) if shared_encoder is not None else TD3Config(**SMALL)
+    env = ImageTargetEnv() if shared_encoder is not None else TargetActionEnv()
+    networks = make_networks(config, 1, camera=shared_encoder is not None)
+    init = jax.make_jaxpr(lambda key: networks.init(key, key, 2, env.spec.zero_observation(), jnp.zeros(1)))
+    shapes = qr_operand_shapes(init(jax.random.PRNGKey(0)).jaxpr)
+    assert shapes and all(len(shape) == 2 for shape in shapes), shapes
 
 
 def test_random_shift_moves_each_image_by_at_most_the_pad():

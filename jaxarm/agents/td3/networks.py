@@ -57,14 +57,14 @@ class Critic(nn.Module):
 def init_critics(critic: Critic, key: jax.Array, num_critics: int, obs: Observation, action: jax.Array):
     """Independent params of `num_critics` critics, every leaf stacked on a leading [num_critics] axis.
 
-    Critics with an encoder are initialised one after another: their orthogonal initialisations, vmapped, become
-    batched QR factorisations, and two of those deadlocked jaxlib 0.10.2's CPU runtime in its thread pool
-    (td3_peg_pixels, 2026-11-24), as MJX's batched Cholesky factorisations do (README).
+    The critics are initialised one after another: their orthogonal initialisations, vmapped, become batched QR
+    factorisations, and two of those deadlock jaxlib 0.10.2's CPU runtime in its thread pool, as MJX's batched
+    Cholesky factorisations do (README): td3_peg_pixels' critics with their own encoders (2026-11-24), then its
+    shared encoder's heads, whose init hung within 300 repeats on the 2-core CPU (2026-11-29). One after another,
+    flat critics' params are the vmapped ones bit for bit (CPU).
     """
     keys = jax.random.split(key, num_critics)
-    if critic.encoder is not None:
-        return jax.lax.map(lambda critic_key: critic.init(critic_key, obs, action), keys)
-    return jax.vmap(critic.init, in_axes=(0, None, None))(keys, obs, action)
+    return jax.lax.map(lambda critic_key: critic.init(critic_key, obs, action), keys)
 
 
 def apply_critics(critic: Critic, params, obs: Observation, action: jax.Array) -> jax.Array:
