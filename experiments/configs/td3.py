@@ -2,7 +2,14 @@
 
 import dataclasses
 
-from experiments.configs.ppo import IDENTIFIED_ARM, ROBOT_RANDOMIZE, SORTER_ENV_PARAMS, SORTER_EVAL_ENV_PARAMS, UR5E
+from experiments.configs.ppo import (
+    CAMERA_RANDOMIZE,
+    IDENTIFIED_ARM,
+    ROBOT_RANDOMIZE,
+    SORTER_ENV_PARAMS,
+    SORTER_EVAL_ENV_PARAMS,
+    UR5E,
+)
 from experiments.configs.registry import preset
 from jaxarm.agents.td3 import TD3Config
 from jaxarm.envs.arm2d import GOAL_UNIFORM_REACHABLE
@@ -114,16 +121,16 @@ def td3_peg_running() -> TD3Config:
     )
 
 
-PEG_RANDOMIZE = (
+PEG_ARM_RANDOMIZE = (
     # The robot's ranges of the randomised sorter, and the peg's own sensing and contact: home-posture noise up to the
-    # held-out check's 0.2 rad, 5 mm of observation noise, 1 mm of hole-pose noise and bias, peg-block friction.
+    # held-out check's 0.2 rad, 5 mm of observation noise, peg-block friction.
     ("home_noise", "0.0..0.2"),
     ("friction", "0.3..1.0"),
     ("obs_noise", "0.0..0.005"),
     *ROBOT_RANDOMIZE,
-    ("hole_pose_noise", "0.0..0.001"),
-    ("hole_pose_bias", "0.0..0.001"),
 )
+PEG_RANDOMIZE = (*PEG_ARM_RANDOMIZE, ("hole_pose_noise", "0.0..0.001"), ("hole_pose_bias", "0.0..0.001"))
+"""PEG_ARM_RANDOMIZE and 1 mm of noise and bias on the hole's observed pose, for the policies that observe it."""
 
 
 @preset("TD3 inserting the peg under randomised robot and sensing, with the running target (CPU or one GPU)")
@@ -155,6 +162,22 @@ def td3_peg_pixels() -> TD3Config:
         total_env_steps=1_000_000,
         updates_per_chunk=1_000,
         checkpoint_every_updates=5_000,
+    )
+
+
+@preset("TD3 inserting the peg from cameras under randomised robot, sensing and cameras, running target (one GPU)")
+def td3_peg_pixels_dr() -> TD3Config:
+    # td3_peg_pixels with td3_peg_dr's control and ranges and the cameras' own (the hole is in the images alone, so
+    # no hole-pose ranges): trained at nominal physics, td3_peg_pixels' seed 6 inserted 62.5% in stock MuJoCo with
+    # menagerie's Panda (64.5% with the loop's limits off) where the randomised state policies held 96.5-100%
+    # (BENCHMARKS.md#transfer). Twice td3_peg_pixels' budget, as td3_peg_dr takes over td3_peg_running.
+    pixels, randomised = td3_peg_pixels(), td3_peg_dr()
+    return dataclasses.replace(
+        pixels,
+        env_kwargs=randomised.env_kwargs,
+        env_params=randomised.env_params,
+        randomize=(*PEG_ARM_RANDOMIZE, *CAMERA_RANDOMIZE),
+        total_env_steps=2_000_000,
     )
 
 
