@@ -250,7 +250,8 @@ class Slot:
 
     @property
     def lock_name(self) -> str:
-        """The file a study locks to hold this slot (a GPU's first share keeps the name it had before shares)."""
+        """The file a study locks to hold this slot; a GPU's first share is the one a study of one run per GPU
+        takes."""
         return f"gpu-{self.gpu}.lock" if self.share == 0 else f"gpu-{self.gpu}-{self.share}.lock"
 
 
@@ -360,8 +361,8 @@ def signal_all(running: dict[subprocess.Popen, tuple], signum: int) -> None:
 
 def start_run(out: pathlib.Path, seed: int, command: list[str], gpu: str | None, shared: bool) -> subprocess.Popen:
     """Starts `command` (`python -m experiments.run ...`) with this interpreter, on `gpu` alone where one is
-    named, its output appended to OUT/seed-S.log. A run that `shared` its GPU allocates its memory as it goes
-    (unless the environment says otherwise): JAX takes 75% of a GPU at its start, leaving too little for a second."""
+    named, its output appended to OUT/seed-S.log. A run on a `shared` GPU allocates its memory as it goes (unless
+    the environment says otherwise): JAX takes 75% of a GPU at its start, leaving too little for a second run."""
     env = dict(os.environ) if gpu is None else {**os.environ, "CUDA_VISIBLE_DEVICES": gpu}
     if shared:
         env.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")

@@ -168,8 +168,8 @@ def td3_peg_pixels() -> TD3Config:
 @preset("TD3 inserting the peg from cameras under randomised robot, sensing and cameras, running target (one GPU)")
 def td3_peg_pixels_dr() -> TD3Config:
     # td3_peg_pixels with td3_peg_dr's control and ranges and the cameras' own (the hole is in the images alone, so
-    # no hole-pose ranges): trained at nominal physics, td3_peg_pixels' seed 6 inserted 62.5% in stock MuJoCo with
-    # menagerie's Panda (64.5% with the loop's limits off) where the randomised state policies held 96.5-100%
+    # no hole-pose ranges). td3_peg_pixels trains at nominal physics: its seed 6 inserted 62.5% in stock MuJoCo with
+    # menagerie's Panda (64.5% with the loop's limits off), where the randomised state policies held 96.5-100%
     # (BENCHMARKS.md#transfer). Twice td3_peg_pixels' budget, as td3_peg_dr takes over td3_peg_running.
     pixels, randomised = td3_peg_pixels(), td3_peg_dr()
     return dataclasses.replace(
