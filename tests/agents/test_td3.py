@@ -432,15 +432,10 @@ def test_the_shared_encoder_learns_from_the_critics_alone():
 
 
 def qr_operand_shapes(jaxpr: jax.extend.core.Jaxpr) -> list[tuple[int, ...]]:
-    """The operand shape of every QR factorisation in `jaxpr` and the jaxprs inside it (scans, loops, pjit)."""
-    shapes = []
-    for equation in jaxpr.eqns:
-        if equation.primitive.name == "qr":
-            shapes.append(equation.invars[0].aval.shape)
-        for param in equation.params.values():
-            inner = getattr(param, "jaxpr", param)
-            if isinstance(inner, jax.extend.core.Jaxpr):
-                shapes += qr_operand_shapes(inner)
+    """The operand shape of every QR factorisation in `jaxpr` and the jaxprs inside it (scans, loops, conds, pjit)."""
+    shapes = [equation.invars[0].aval.shape for equation in jaxpr.eqns if equation.primitive.name == "qr"]
+    for inner in jax.extend.core.subjaxprs(jaxpr):
+        shapes += qr_operand_shapes(inner)
     return shapes
 
 
