@@ -66,6 +66,11 @@ class Protocol:
     overrides: tuple[str, ...]
     runs_per_gpu: int = 1
 
+    def __post_init__(self):
+        # A study with no slot would wait for one forever (a seeds.json edited by hand).
+        if not 1 <= self.runs_per_gpu <= MAX_RUNS_PER_GPU:
+            raise ValueError(f"runs_per_gpu must be from 1 to {MAX_RUNS_PER_GPU}, got {self.runs_per_gpu}")
+
     @property
     def command(self) -> str:
         """The study's own command line, as a table cites it."""

@@ -170,6 +170,12 @@ def test_a_damaged_study_file_is_named_in_one_line(tmp_path):
         seeds.read_study(tmp_path)
     with pytest.raises(ValueError, match="holds no"):
         seeds.read_study(tmp_path / "nothing")
+    study = {"config": "ppo_arm2d", "seeds": [0], "goal": 0.9, "minutes": None, "overrides": [], "walls": {}}
+    (tmp_path / seeds.SEEDS_FILE).write_text(json.dumps({**study, "runs_per_gpu": 0}))  # no slot: it waited forever
+    with pytest.raises(ValueError, match=f"{seeds.SEEDS_FILE} is damaged .*runs_per_gpu must be from 1 to 16, got 0"):
+        seeds.read_study(tmp_path)
+    (tmp_path / seeds.SEEDS_FILE).write_text(json.dumps(study))  # a study from before the option: one run per GPU
+    assert seeds.read_study(tmp_path)[0].runs_per_gpu == 1
 
 
 @pytest.mark.parametrize("stage", ["", rundir.TEACHER_DIR, rundir.WARM_START_DIR])
