@@ -129,3 +129,21 @@ def test_after_a_failed_save_orbax_s_late_thread_errors_stay_quiet_and_others_do
 
     assert not logged("/site-packages/orbax/checkpoint/_src/futures/future.py")
     assert logged("/site-packages/jax/_src/dispatch.py")
+
+
+@pytest.mark.parametrize("error", [FileNotFoundError, NotADirectoryError])
+def test_a_step_folder_that_vanishes_while_listed_is_listed_again(error, tmp_path, monkeypatch):
+    # A live run prunes a step while another process lists the folder: orbax stats the gone folder, or sees it
+    # there and then not a folder.
+    checkpoint.save(tmp_path / "checkpoints", 3, {"w": jnp.ones(3)})
+    listed = checkpoint._listed_latest_step
+    calls = []
+
+    def racing(directory):
+        calls.append(directory)
+        if len(calls) == 1:
+            raise error(f"{directory}/2")
+        return listed(directory)
+
+    monkeypatch.setattr(checkpoint, "_listed_latest_step", racing)
+    assert checkpoint.latest_step(tmp_path / "checkpoints") == 3 and len(calls) == 2

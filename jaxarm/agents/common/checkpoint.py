@@ -125,9 +125,11 @@ def latest_step(directory: pathlib.Path) -> int | None:
     for _ in range(_LISTING_ATTEMPTS - 1):
         try:
             return _listed_latest_step(directory)
-        except FileNotFoundError:
+        except (FileNotFoundError, NotADirectoryError):
             # A live run prunes old steps (max_to_keep) while another process lists them (a test or a viewer
-            # watching it): orbax then stats a step folder that has just gone. Looking again sees the new list.
+            # watching it): orbax then stats a step folder that has just gone, or finds it there and then not a
+            # folder (its `exists()` then `is_dir()`: NotADirectoryError, seen once in CI). Looking again sees the
+            # new list.
             pass
     return _listed_latest_step(directory)
 
