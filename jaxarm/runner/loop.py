@@ -103,23 +103,39 @@ def _train_locked(
 ) -> dict:
     """`train`, with the lock held: the run's learner (`_train_learner`), after its stages: the run it warm-starts
     from and its teacher, where the config names them by preset (a stage's evaluation is returned where a time
-    limit stopped it)."""
-    for stage, stage_config in teacher.stages(config, run_dir, options):
+    limit stopped it). Where each try trains its warm start again (`retry_warm_start`), a try that failed its gate
+    comes back here, set aside with its warm start, and the stages and the learner run again."""
+    failed_wall_time = None
+    while True:
+        for stage, stage_config in teacher.stages(config, run_dir, options):
+            clock = time.perf_counter()
+            stopped = teacher.train_stage(
+                stage, stage_config, config, preset, run_dir, resuming, options, train=train, resume=resume
+            )
+            if stopped is not None:
+                return stopped
+            options = _less_time(options, time.perf_counter() - clock)
         clock = time.perf_counter()
-        stopped = teacher.train_stage(
-            stage, stage_config, config, preset, run_dir, resuming, options, train=train, resume=resume
-        )
-        if stopped is not None:
-            return stopped
-        options = _less_time(options, time.perf_counter() - clock)
-    return _train_learner(config, preset, run_dir, resuming, options, overrides)
+        try:
+            return _train_learner(config, preset, run_dir, resuming, options, overrides, failed_wall_time)
+        except tries.TryFailed as failed:
+            failed_wall_time, overrides = failed.wall_time, ()
+            options = _less_time(options, time.perf_counter() - clock)
 
 
 def _train_learner(
-    config: RunConfig, preset: str, run_dir: pathlib.Path, resume: bool, options: Options, overrides: Sequence[str]
+    config: RunConfig,
+    preset: str,
+    run_dir: pathlib.Path,
+    resume: bool,
+    options: Options,
+    overrides: Sequence[str],
+    failed_wall_time: float | None = None,
 ) -> dict:
     """Trains `config`'s own learner into `run_dir`, the lock held; a resume's `overrides` are recorded once its
-    checkpoint is restored."""
+    checkpoint is restored. `failed_wall_time`: the train wall time of the tries before, where this starts a try
+    after one that failed its gate with its warm start set aside (`retry_warm_start`), which raises TryFailed
+    out of here once set aside."""
     trainer = learners.make_trainer(config, run_dir)
     if processes.is_primary():
         progress.explain_slow_compiles(config.make_env(randomized=False)[0])
@@ -139,13 +155,15 @@ def _train_learner(
     # pool compiles the first chunk while the start state is made, then the evaluations while it runs; leaving
     # it waits for that.
     with envs_split_over(mesh), ThreadPoolExecutor(1, thread_name_prefix="compile") as compiling:
-        resume = _resumes(run_dir, resume)
+        resume = _resumes(run_dir, resume) if failed_wall_time is None else False
         like = state_like(trainer, config, mesh)
         resumed_at = (checkpoint.latest_step(run_dir / "checkpoints") or 0) if resume else 0
         runners = ChunkRunners.ahead(trainer, config, like, resumed_at, compiling)
         # Behind the first chunk's program on the pool: compiled while the first chunk runs, ready at its end.
         evaluators.compile_ahead(compiling, like, eval_key(config))
         start = _start(trainer, config, preset, run_dir, resume, overrides, like)
+        if failed_wall_time is not None:
+            start = dataclasses.replace(start, wall_offset=failed_wall_time)
         clock = time.perf_counter()
         while True:
             try:
@@ -155,6 +173,8 @@ def _train_learner(
                 break
             except tries.TryFailed as failed:
                 _set_aside(config, run_dir, failed)
+                if config.retry_warm_start:
+                    raise
                 options = _less_time(options, time.perf_counter() - clock)
                 clock = time.perf_counter()
                 # The failed tries' time counts: a retried run's train wall time is all it took.
@@ -170,10 +190,12 @@ def _set_aside(config: RunConfig, run_dir: pathlib.Path, failed: tries.TryFailed
     """Sets the failed try's files aside (the primary process, the others waiting for it) and says so."""
     if processes.is_primary():
         done = tries.tries_set_aside(run_dir) + 1
-        folder = tries.set_aside_try(run_dir)
+        stages = (rundir.WARM_START_DIR,) if config.retry_warm_start else ()
+        folder = tries.set_aside_try(run_dir, stages)
+        again = ", its warm start trained again first" if stages else ""
         print(
             f"try {done} of {config.tries} failed its gate ({failed}; it asks {config.retry_below:.0%} by "
-            f"{config.retry_at_env_steps:,}): set aside in {folder}; starting try {done + 1}",
+            f"{config.retry_at_env_steps:,}): set aside in {folder}; starting try {done + 1}{again}",
             file=sys.stderr,
         )
     processes.wait_for_all("try set aside")

@@ -16,7 +16,7 @@ import jax
 from jaxarm.agents import registry
 from jaxarm.agents.common.config import RunConfig, apply_overrides
 from jaxarm.agents.common.teachers import teacher_input, teacher_preset_name
-from jaxarm.runner import processes, rundir
+from jaxarm.runner import processes, rundir, tries
 from jaxarm.runner.options import Options
 
 
@@ -54,11 +54,20 @@ def stages(config: RunConfig, run_dir: pathlib.Path, options: Options) -> list[t
     """The stages `config` trains before its own learner, in order, each with how its config is made: the run it
     warm-starts from where named by preset (`init_from=preset:NAME`, into `run_dir/warm_start`), then its teacher
     where named by preset (`teacher=preset:NAME`, into `run_dir/teacher`)."""
+    # Each try its own warm start where the run trains it again (retry_warm_start); else every try shares the first.
+    try_index = tries.tries_set_aside(run_dir) if config.retry_warm_start else 0
+    seed = tries.warm_start_seed(config.seed, try_index)
     candidates = [
-        (Stage("warm-start", warm_start_preset(config), run_dir / rundir.WARM_START_DIR), warm_start_config),
-        (Stage("teacher", teacher_preset(config), run_dir / rundir.TEACHER_DIR), teacher_config),
+        (
+            Stage("warm-start", warm_start_preset(config), run_dir / rundir.WARM_START_DIR),
+            functools.partial(warm_start_config, config, options.presets, seed),
+        ),
+        (
+            Stage("teacher", teacher_preset(config), run_dir / rundir.TEACHER_DIR),
+            functools.partial(teacher_config, config, options.presets),
+        ),
     ]
-    return [(stage, functools.partial(make, config, options.presets)) for stage, make in candidates if stage.preset]
+    return [(stage, make) for stage, make in candidates if stage.preset]
 
 
 def train_stage(
@@ -145,11 +154,12 @@ def preset_config(
         raise ValueError(f"{setting}=preset:{name}: {error}") from None
 
 
-def warm_start_config(config: RunConfig, presets: Callable[[str], RunConfig] | None) -> RunConfig:
-    """The config of the run `config` warm-starts from, named by preset, with `config`'s seed (each seed of the run
-    its own first stage); ValueError in one line for an unknown preset, or one with a preset stage of its own."""
+def warm_start_config(config: RunConfig, presets: Callable[[str], RunConfig] | None, seed: int) -> RunConfig:
+    """The config of the run `config` warm-starts from, named by preset, with `seed` (the run's own, or its try's:
+    each seed of the run its own first stage); ValueError in one line for an unknown preset, or one with a preset
+    stage of its own."""
     name = warm_start_preset(config)
-    stage = preset_config("init_from", name, presets, [f"seed={config.seed}"])
+    stage = preset_config("init_from", name, presets, [f"seed={seed}"])
     if warm_start_preset(stage) or teacher_preset(stage):
         raise ValueError(f"init_from=preset:{name} trains a stage of its own first; train it and give init_from=RUN")
     learner = registry.learner_for(config)

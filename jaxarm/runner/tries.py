@@ -4,6 +4,8 @@ loop (loop.py) starts the tries, the chunk loop (chunks.py) applies the gate."""
 
 import pathlib
 
+import numpy as np
+
 from jaxarm.agents.common.config import RunConfig
 
 TRIES_DIR = "tries"
@@ -39,12 +41,22 @@ def tries_set_aside(run_dir: pathlib.Path) -> int:
     return sum(path.name.isdigit() for path in directory.iterdir()) if directory.is_dir() else 0
 
 
-def set_aside_try(run_dir: pathlib.Path) -> pathlib.Path:
-    """Moves what the current try of the run in `run_dir` wrote (`TRY_FILES`) to `tries/K/`, K its index, and returns
-    that folder; the run's config, provenance and other stages stay."""
+def warm_start_seed(seed: int, try_index: int) -> int:
+    """The seed of try `try_index`'s warm-start stage in a run that trains it again for each try
+    (`RunConfig.retry_warm_start`): the run's own for the first try, then one drawn from (seed, try) by numpy's
+    `SeedSequence`, below 2**31, so that each try's first stage has randomness of its own."""
+    if try_index == 0:
+        return seed
+    return int(np.random.SeedSequence([seed, try_index]).generate_state(1)[0] >> 1)
+
+
+def set_aside_try(run_dir: pathlib.Path, stages: tuple[str, ...] = ()) -> pathlib.Path:
+    """Moves what the current try of the run in `run_dir` wrote (`TRY_FILES`, and the stage directories `stages` its
+    next try trains again) to `tries/K/`, K its index, and returns that folder; the run's config, provenance and
+    other stages stay."""
     folder = run_dir / TRIES_DIR / str(tries_set_aside(run_dir))
     folder.mkdir(parents=True)
-    for name in TRY_FILES:
+    for name in (*TRY_FILES, *stages):
         if (run_dir / name).exists():
             (run_dir / name).replace(folder / name)
     return folder

@@ -303,6 +303,11 @@ def test_a_critic_warm_up_as_long_as_the_run_is_refused():
         ),
         ({"retry_below": 0.5, "tries": 2}, "^retry_at_env_steps=0 must lie inside the run's 320 env steps, after its"),
         ({"retry_below": 0.5, "retry_at_env_steps": 320, "tries": 2}, "^retry_at_env_steps=320 must lie inside"),
+        ({"retry_warm_start": True}, r"^retry_warm_start=true trains a warm start again .* needs a gate \(retry_below"),
+        (
+            {"retry_below": 0.5, "retry_at_env_steps": 32, "tries": 2, "retry_warm_start": True},
+            r"a warm start named by preset \(init_from=preset:NAME, got ''\)$",
+        ),
     ],
 )
 def test_a_gate_without_tries_evaluations_or_a_point_inside_the_run_is_refused(changes, message):

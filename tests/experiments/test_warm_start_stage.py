@@ -1,5 +1,6 @@
 """A warm start named by preset (`init_from=preset:NAME`): that preset trained into the run's warm_start/ first, with
-the run's seed, in the same command; refused in one line where it cannot serve."""
+the run's seed, in the same command, and again for each try where a gated run asks it (`retry_warm_start`); refused
+in one line where it cannot serve."""
 
 import json
 
@@ -7,7 +8,7 @@ import pytest
 
 from experiments import configs
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import loop, rundir
+from jaxarm.runner import loop, metrics_log, rundir, tries
 
 TINY = [
     "num_envs=16",
@@ -36,6 +37,56 @@ def test_a_preset_warm_start_trains_first_with_the_runs_seed_then_the_run(tmp_pa
     assert result["finished"] and rundir.read_config(run_dir)[0].init_from == "preset:ppo_arm2d_fixed"
     # Resumed once finished, neither stage trains again.
     assert loop.resume(run_dir)[0] == result
+
+
+RETRIED = [
+    "init_from=preset:ppo_arm2d_fixed",
+    "seed=3",
+    "total_env_steps=256",
+    "eval_every_updates=2",
+    "retry_below=1.0",
+    "retry_at_env_steps=64",
+    "tries=2",
+    "retry_warm_start=true",
+]
+"""A run whose first try fails its gate at update 2 (its evaluations are below 100% there), each try training its
+warm start first."""
+
+
+def test_a_try_that_fails_its_gate_trains_its_warm_start_again_with_a_seed_of_its_own(tmp_path, capsys):
+    run_dir = tmp_path / "retried"
+    config = apply_overrides(tiny_preset("ppo_arm2d_fixed"), RETRIED)
+    result = loop.train(config, run_dir, options=loop.Options(presets=tiny_preset))
+    assert "starting try 2, its warm start trained again first" in capsys.readouterr().err
+    set_aside = run_dir / tries.TRIES_DIR / "0"
+    first, second = (rundir.read_config(folder / rundir.WARM_START_DIR)[0] for folder in (set_aside, run_dir))
+    assert first.seed == 3 and second.seed == tries.warm_start_seed(3, 1) != 3
+    for stage in (set_aside, run_dir):
+        assert json.loads((stage / rundir.WARM_START_DIR / "eval.json").read_text())["finished"]
+    # The failed try stopped at its gate (update 2); the last trained to its end, its clock after the first's.
+    failed, rows = metrics_log.read_metrics(set_aside), metrics_log.read_metrics(run_dir)
+    assert [row["updates"] for row in failed] == [1, 2] and [row["updates"] for row in rows] == [1, 2, 3, 4]
+    assert rows[0]["wall_time"] > failed[-1]["wall_time"]
+    assert result["finished"] and result["tries"] == 2
+    # Resumed once finished, nothing trains again.
+    assert loop.resume(run_dir)[0] == result
+
+
+def test_a_run_stopped_in_any_stage_of_its_second_try_resumes_there(tmp_path):
+    run_dir = tmp_path / "stopped"
+    # Each command stops after its first chunk, in whichever stage it is; a warm start takes two chunks: the
+    # commands stop in the first warm start, then in the second, then in the second try.
+    stopping = loop.Options(
+        presets=lambda name: apply_overrides(tiny_preset(name), ["updates_per_chunk=1"]), stop_after_s=0.0
+    )
+    result = loop.train(apply_overrides(tiny_preset("ppo_arm2d_fixed"), RETRIED), run_dir, options=stopping)
+    commands = 1
+    while not result["finished"]:
+        result, _ = loop.resume(run_dir, options=stopping)
+        commands += 1
+    assert commands == 4 and result["tries"] == 2 and tries.tries_set_aside(run_dir) == 1
+    assert rundir.read_config(run_dir / rundir.WARM_START_DIR)[0].seed == tries.warm_start_seed(3, 1)
+    assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == [1, 2, 3, 4]
 
 
 @pytest.mark.parametrize(

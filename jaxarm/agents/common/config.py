@@ -20,6 +20,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm import envs, ranges
+from jaxarm.agents.common.teachers import PRESET_TEACHER
 from jaxarm.envs.randomize import Randomized, parse_ranges
 from jaxarm.envs.registry import closest_match_hint
 from jaxarm.ranges import COUNT, Range
@@ -123,6 +124,10 @@ class RunConfig:
         whatever it scores: for recipes that fail on some draws and show it early. 0 for never.
       retry_at_env_steps: the env steps by which a try must reach `retry_below`.
       tries: the most tries a run makes under `retry_below`, the first included (without a gate, one).
+      retry_warm_start: with a gate and a warm start named by preset (`init_from=preset:NAME`), a try that fails the
+        gate sets its warm start aside too (`tries/K/warm_start/`), and the next try trains that preset again first,
+        with a seed of its own (`jaxarm.runner.tries.warm_start_seed`): for recipes whose first stage, more than
+        the try's own randomness, decides whether a try learns.
     """
 
     env: str = "arm2d"
@@ -142,6 +147,7 @@ class RunConfig:
     retry_below: float = static(0.0, ranges.UNIT_INTERVAL)
     retry_at_env_steps: int = static(0, ranges.NON_NEGATIVE)
     tries: int = static(1, ranges.TRIES)
+    retry_warm_start: bool = False
 
     @property
     def budget_shapes_updates(self) -> str:
@@ -207,7 +213,14 @@ class RunConfig:
             raise ValueError(error.args[0] if error.args else str(error)) from None
 
     def _validate_retries(self) -> None:
-        """ValueError where `retry_below`, `retry_at_env_steps` and `tries` do not make a gate a run can apply."""
+        """ValueError where `retry_below`, `retry_at_env_steps`, `tries` and `retry_warm_start` do not make a gate a
+        run can apply."""
+        if self.retry_warm_start and not (self.retry_below and self.init_from.startswith(PRESET_TEACHER)):
+            raise ValueError(
+                "retry_warm_start=true trains a warm start again after a try fails its gate: it needs a gate "
+                f"(retry_below=P, got {self.retry_below:g}) and a warm start named by preset (init_from=preset:NAME, "
+                f"got {self.init_from!r})"
+            )
         if not self.retry_below:
             return
         if self.tries < 2:
