@@ -60,7 +60,7 @@ def sgd_seconds(config: PPOConfig, unrolls: Sequence[int], repeats: int) -> list
     opt_state = make_optimizer(hparams, hparams.learning_rate).init(params)
     normalizer = observation_normalizer.init(spec)
     samples = random_samples(samples_key, spec, config.rollout_length, config.num_envs)
-    inputs = SGDInputs(samples, normalizer, None, hparams, hparams.learning_rate, jnp.ones(()))
+    inputs = SGDInputs(samples, normalizer, None, hparams, hparams.learning_rate, jnp.ones(()), hparams.imitation_coef)
     args = (params, opt_state, inputs, run_key)
     rows = []
     for unroll in unrolls:

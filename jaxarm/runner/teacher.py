@@ -15,7 +15,7 @@ import jax
 
 from jaxarm.agents import registry
 from jaxarm.agents.common.config import RunConfig, apply_overrides
-from jaxarm.agents.common.teachers import teacher_input, teacher_preset_name
+from jaxarm.agents.common.teachers import WARM_START_TEACHER, teacher_input, teacher_preset_name
 from jaxarm.runner import processes, rundir, tries
 from jaxarm.runner.options import Options
 
@@ -26,18 +26,21 @@ def teacher_preset(config: RunConfig) -> str:
 
 
 def teacher_run(config: RunConfig, run_dir: pathlib.Path | None) -> pathlib.Path | None:
-    """The run directory of `config`'s teacher (None for none): the one it names, or for a teacher named by preset
-    `run_dir/teacher` (RunDirError without `run_dir`: such a student is read from its run directory)."""
+    """The run directory of `config`'s teacher (None for none): the one it names, for a teacher named by preset
+    `run_dir/teacher`, and for `teacher=init_from` the run it warm-starts from (RunDirError without `run_dir` where
+    that is a stage of the student's: such a student is read from its run directory)."""
     teacher = registry.teacher_of(config)
     if not teacher:
         return None
-    if not teacher_preset(config):
-        return pathlib.Path(teacher)
+    kickstart = teacher == WARM_START_TEACHER
+    named = config.init_from if kickstart else teacher
+    if teacher_preset_name(named) is None:
+        return pathlib.Path(named)
     if run_dir is None:
         raise rundir.RunDirError(
             f"teacher={teacher} is trained into the student's run directory: build the trainer of a run from it"
         )
-    return pathlib.Path(run_dir) / rundir.TEACHER_DIR
+    return pathlib.Path(run_dir) / (rundir.WARM_START_DIR if kickstart else rundir.TEACHER_DIR)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -116,6 +116,7 @@ BOUNDED_BY_A_RELATION = {
     "checkpoint_every_updates": "compared with the update count: allocates nothing",
     "eval_every_updates": "compared with the update count: allocates nothing",
     "critic_warm_up_updates": "below num_updates, which fits in int32",
+    "imitation_decay_updates": "divides an update count in float32: allocates nothing",
     "retry_at_env_steps": "inside the run's env steps: allocates nothing",
 }
 
@@ -282,6 +283,21 @@ def test_a_budget_beyond_int32_env_steps_is_taken_and_one_beyond_int32_updates_i
     PPOConfig(num_envs=1024, rollout_length=16, updates_per_chunk=4096, total_env_steps=10_000_000_000).validate()
     with pytest.raises(ValueError, match="needs 2,147,483,650 updates, more than the learners' int32 update counter"):
         PPOConfig(num_envs=1, rollout_length=1, num_minibatches=1, total_env_steps=2**31).validate()
+
+
+@pytest.mark.parametrize("changes", [{}, {"teacher": "scripted"}])
+def test_a_decaying_distillation_without_a_teacher_beside_ppo_is_refused(changes):
+    config = PPOConfig(num_envs=8, rollout_length=4, num_minibatches=2, total_env_steps=320, imitation_decay_updates=5)
+    dataclasses.replace(config, teacher="scripted", imitation_only=False).validate()
+    with pytest.raises(ValueError, match="^imitation_decay_updates=5 decays .* needs teacher=... and imitation_only"):
+        dataclasses.replace(config, **changes).validate()
+
+
+def test_a_teacher_named_as_the_warm_start_needs_one():
+    config = PPOConfig(num_envs=8, rollout_length=4, num_minibatches=2, total_env_steps=320, teacher="init_from")
+    dataclasses.replace(config, init_from="runs/somewhere").validate()
+    with pytest.raises(ValueError, match="^teacher=init_from names the run this one warm-starts from: give init_from$"):
+        config.validate()
 
 
 def test_a_critic_warm_up_as_long_as_the_run_is_refused():

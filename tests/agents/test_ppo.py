@@ -13,7 +13,7 @@ from jaxarm.agents.common.evaluate import evaluate
 from jaxarm.agents.common.teachers import teacher_input
 from jaxarm.agents.common.trainer import make_chunk_runner, make_train
 from jaxarm.agents.ppo import PPOConfig, make_networks, make_trainer
-from jaxarm.agents.ppo.train import Samples, shuffled_minibatches
+from jaxarm.agents.ppo.train import Samples, imitation_weight_at, shuffled_minibatches
 from jaxarm.envs.observation import PRIVILEGED, actor_observation
 from tests.agents.probe_envs import HOST_CHECKS, ConstantRewardEnv, HostCheckedEnv, ImageTargetEnv, TargetActionEnv
 
@@ -182,6 +182,28 @@ def test_a_student_distilled_from_a_scripted_teacher_takes_its_actions(imitation
     np.testing.assert_allclose(trainer.act(state, targets), teacher_sign * targets, atol=0.1)
     imitation = np.asarray(metrics.loss.imitation)
     assert imitation[-1] < 0.05 * imitation[0], (imitation[0], imitation[-1])
+
+
+@pytest.mark.parametrize("decay_updates", [20, 0])
+def test_a_kickstarting_teacher_leads_until_its_weight_has_decayed_then_the_reward_decides(decay_updates):
+    # The teacher acts against the reward (−target), its loss weighted 20: kept for the whole run, the student
+    # sides with it; falling to 0 over the first 20 of 60 updates, the student follows it, then the reward.
+    env = TargetActionEnv()
+    config = dataclasses.replace(
+        PROBE, teacher="scripted", imitation_only=False, imitation_coef=20.0, imitation_decay_updates=decay_updates
+    )
+    trainer = make_trainer(config, env, env.default_params(), teacher=lambda obs: -obs)
+    state, metrics = jax.jit(make_train(trainer))(jax.random.PRNGKey(0), config.hparams())
+    targets = jnp.linspace(-0.5, 0.5, 11)[:, None]
+    actions = np.asarray(trainer.act(state, targets))
+    imitation = np.asarray(metrics.loss.imitation)
+    if decay_updates:
+        np.testing.assert_allclose(actions, targets, atol=0.1)
+        assert imitation[4] < 0.05 * imitation[-1], (imitation[4], imitation[-1])
+        weights = [float(imitation_weight_at(config, config.hparams(), jnp.array(u))) for u in (0, 10, 20, 40)]
+        np.testing.assert_allclose(weights, [20.0, 10.0, 0.0, 0.0])
+    else:
+        assert np.all(actions[targets != 0] * np.asarray(targets)[targets != 0] < 0), actions.ravel()
 
 
 def test_a_teacher_reads_the_privileged_state_of_a_camera_observation():

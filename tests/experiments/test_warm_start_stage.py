@@ -8,7 +8,7 @@ import pytest
 
 from experiments import configs
 from jaxarm.agents.common.config import apply_overrides
-from jaxarm.runner import loop, metrics_log, rundir, tries
+from jaxarm.runner import loop, metrics_log, rundir, teacher, tries
 
 TINY = [
     "num_envs=16",
@@ -87,6 +87,28 @@ def test_a_run_stopped_in_any_stage_of_its_second_try_resumes_there(tmp_path):
     assert commands == 4 and result["tries"] == 2 and tries.tries_set_aside(run_dir) == 1
     assert rundir.read_config(run_dir / rundir.WARM_START_DIR)[0].seed == tries.warm_start_seed(3, 1)
     assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == [1, 2, 3, 4]
+
+
+def test_a_student_kickstarted_by_its_warm_start_is_taught_by_the_run_it_starts_from(tmp_path):
+    run_dir = tmp_path / "kickstarted"
+    kickstart = ["teacher=init_from", "imitation_only=false", "imitation_decay_updates=2", "total_env_steps=256"]
+    config = apply_overrides(tiny_preset("ppo_arm2d_fixed"), ["init_from=preset:ppo_arm2d_fixed", *kickstart])
+    assert teacher.teacher_run(config, run_dir) == run_dir / rundir.WARM_START_DIR
+    with pytest.raises(rundir.RunDirError, match="trained into the student's run directory"):
+        teacher.teacher_run(config, None)
+    # A warm start trained long enough to act apart from a fresh policy.
+    longer = loop.Options(presets=lambda name: apply_overrides(tiny_preset(name), ["total_env_steps=4096"]))
+    result = loop.train(config, run_dir, options=longer)
+    assert result["finished"] and not (run_dir / rundir.TEACHER_DIR).exists()
+    # From a run directory, that run teaches.
+    warm_start = run_dir / rundir.WARM_START_DIR
+    assert teacher.teacher_run(apply_overrides(config, [f"init_from={warm_start}"]), None) == warm_start
+    # The student starts as its teacher acts: far closer to it than a fresh student taught by the same run.
+    fresh_dir = tmp_path / "fresh"
+    fresh = apply_overrides(tiny_preset("ppo_arm2d_fixed"), [*kickstart[1:], f"teacher={warm_start}"])
+    loop.train(fresh, fresh_dir, options=loop.Options(presets=tiny_preset))
+    kickstarted, taught = (metrics_log.read_metrics(path)[0]["loss/imitation"] for path in (run_dir, fresh_dir))
+    assert kickstarted < 0.05 * taught, (kickstarted, taught)
 
 
 @pytest.mark.parametrize(

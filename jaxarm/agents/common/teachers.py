@@ -4,11 +4,11 @@ Any learner can teach (its `Trainer.act`); one that can be taught says where its
 learner registry (`jaxarm.agents.registry.Teaching`). PPO's student drives its own rollouts (DAgger: it is
 labelled where it goes, not where the teacher would have gone), and every observation of a rollout is labelled
 with the teacher's action inside the same compiled update (`PPOConfig.teacher`, `imitation_coef`,
-`imitation_only`). A teacher reads the observation's privileged part where it has one (a state policy teaching a
-camera policy), else the observation itself. A teacher run is loaded by the runner
+`imitation_only`, `imitation_decay_updates`). A teacher reads the observation's privileged part where it has one (a
+state policy teaching a camera policy), else the observation itself. A teacher run is loaded by the runner
 (`jaxarm.runner.learners.make_trainer`), which knows every learner through the registry. A teacher named by preset
-(`teacher=preset:NAME`) is trained by the runner first, into the student's run directory. Nothing here knows one
-learner.
+(`teacher=preset:NAME`) is trained by the runner first, into the student's run directory; `teacher=init_from` is
+the run the student warm-starts from (kickstarting). Nothing here knows one learner.
 """
 
 from collections.abc import Callable, Mapping
@@ -21,6 +21,10 @@ from jaxarm.envs.observation import PRIVILEGED
 PRESET_TEACHER = "preset:"
 """How a teacher setting (`PPOConfig.teacher`) names a preset to train as the teacher (`preset:NAME`) instead of
 a run directory."""
+
+WARM_START_TEACHER = "init_from"
+"""The teacher setting (`PPOConfig.teacher=init_from`) that names the run the student warm-starts from
+(`RunConfig.init_from`, a run directory or the run's warm_start/ stage) as its teacher."""
 
 Teacher = Callable[[Observation], jax.Array]
 """Observations [N, ...] -> the teacher's deterministic actions [N, A]."""

@@ -5,7 +5,7 @@ import dataclasses
 from jaxarm.agents.common.config import RunConfig, dynamic, static
 from jaxarm.agents.common.encoders import ENCODER
 from jaxarm.agents.common.networks import ACTIVATION
-from jaxarm.agents.common.teachers import teacher_preset_name
+from jaxarm.agents.common.teachers import WARM_START_TEACHER, teacher_preset_name
 from jaxarm.ranges import (
     COUNT,
     DISCOUNT,
@@ -43,13 +43,18 @@ class PPOConfig(RunConfig):
         action, read from the observation's privileged part where it has one (a state teacher for a camera
         student: `env_kwargs.privileged=true`), else from the observation; "" for none. `preset:NAME` names a
         preset instead: the runner first trains it into the run directory's `teacher/` (a finished one is
-        reused; a resumed run resumes the stage it stopped in), then the student from it.
+        reused; a resumed run resumes the stage it stopped in), then the student from it. `init_from` names the
+        run this one warm-starts from (`RunConfig.init_from`; with `imitation_only=false` and
+        `imitation_decay_updates`, kickstarting).
       teacher_overrides: with `teacher=preset:NAME`, `key=value` overrides of that preset (e.g. to shrink it on a
         CPU; on the command line comma-separated, so values without commas).
       imitation_coef: weight of the distillation loss (squared distance between the student's mean action and
         the teacher's); used with `teacher`.
       imitation_only: with `teacher`, the policy learns from the teacher alone (the distillation loss and the
         value loss, so the critic is ready for PPO afterwards); off, PPO's loss is added.
+      imitation_decay_updates: with `teacher` and `imitation_only=false`, the distillation loss's weight falls
+        linearly from `imitation_coef` to 0 over this many updates, then PPO's loss trains alone (kickstarting:
+        a teacher's behaviour kept while PPO learns a task that asks more of it); 0 keeps the weight constant.
       asymmetric: asymmetric actor-critic: the value MLP reads the env's privileged state observation
         (obs["privileged"] of an env built with `env_kwargs.privileged=true`, with its own running normaliser),
         while the policy reads only the rest (images and proprio), all a robot has; off, both read the policy's
@@ -87,6 +92,7 @@ class PPOConfig(RunConfig):
     teacher: str = ""
     teacher_overrides: tuple[str, ...] = ()
     imitation_only: bool = True
+    imitation_decay_updates: int = static(0, NON_NEGATIVE)
     critic_warm_up_updates: int = static(0, NON_NEGATIVE)
     normalize_observations: bool = True
     normalize_advantages: bool = True
@@ -124,6 +130,13 @@ class PPOConfig(RunConfig):
             raise ValueError(f"teacher={self.teacher} names no preset: give teacher=preset:NAME or a run directory")
         if self.teacher_overrides and preset is None:
             raise ValueError("teacher_overrides apply to a teacher named by preset (teacher=preset:NAME) alone")
+        if self.teacher == WARM_START_TEACHER and not self.init_from:
+            raise ValueError(f"teacher={WARM_START_TEACHER} names the run this one warm-starts from: give init_from")
+        if self.imitation_decay_updates and (not self.teacher or self.imitation_only):
+            raise ValueError(
+                f"imitation_decay_updates={self.imitation_decay_updates} decays the distillation loss beside PPO's: "
+                "it needs teacher=... and imitation_only=false"
+            )
         if self.asymmetric and self.shared_encoder:
             raise ValueError("asymmetric=true gives the critic the privileged state, not images: no encoder to share")
         if self.env_steps_per_update % self.num_minibatches:

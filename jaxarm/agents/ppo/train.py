@@ -125,6 +125,7 @@ class SGDInputs:
       hparams: the run's dynamic hyper-parameters.
       learning_rate: [] the update's step size (`learning_rate_at`).
       policy_weight: [] 1, or 0 while the critic warms up (`PPOConfig.critic_warm_up_updates`).
+      imitation_weight: [] the distillation loss's weight at this update (`imitation_weight_at`).
     """
 
     samples: Samples
@@ -133,6 +134,7 @@ class SGDInputs:
     hparams: HParams
     learning_rate: jax.Array
     policy_weight: jax.Array
+    imitation_weight: jax.Array
 
 
 @struct.dataclass
@@ -179,7 +181,7 @@ def minibatch_loss(
     if batch.teacher_action is not None:
         imitation = losses.imitation_loss(action_dist.mode(dist_params), batch.teacher_action)
         reinforced = hparams.value_coef * value_loss if config.imitation_only else total
-        total = reinforced + hparams.imitation_coef * imitation
+        total = reinforced + inputs.imitation_weight * imitation
     return total, losses.LossTerms(policy_loss, value_loss, entropy, approx_kl, clip_fraction, imitation)
 
 
@@ -320,6 +322,14 @@ def learning_rate_at(config: PPOConfig, hparams: HParams, updates: jax.Array) ->
     )
 
 
+def imitation_weight_at(config: PPOConfig, hparams: HParams, updates: jax.Array) -> jax.Array:
+    """[] the distillation loss's weight after `updates` updates: `imitation_coef`, falling linearly to 0 over
+    `imitation_decay_updates` (kickstarting), or constant where that is 0."""
+    if not config.imitation_decay_updates:
+        return hparams.imitation_coef
+    return hparams.imitation_coef * jnp.maximum(remaining_fraction(updates, config.imitation_decay_updates), 0.0)
+
+
 def optimizer_state_after_warm_up(config: PPOConfig, state: PPOState, hparams: HParams) -> optax.OptState:
     """`state.opt_state`, or a fresh one at the update that ends the critic's warm-up (`critic_warm_up_updates`):
     Adam's step count runs on through the warm-up while the policy's moments stay zero, and its bias correction
@@ -340,7 +350,8 @@ def update(setup: PPOSetup, state: PPOState, hparams: HParams) -> tuple[PPOState
         normalizer, critic_normalizer, samples = advantage_samples(setup, state, rollout, hparams)
     learning_rate = learning_rate_at(setup.config, hparams, state.updates)
     policy_weight = (state.updates >= setup.config.critic_warm_up_updates).astype(jnp.float32)
-    inputs = SGDInputs(samples, normalizer, critic_normalizer, hparams, learning_rate, policy_weight)
+    imitation_weight = imitation_weight_at(setup.config, hparams, state.updates)
+    inputs = SGDInputs(samples, normalizer, critic_normalizer, hparams, learning_rate, policy_weight, imitation_weight)
     with jax.named_scope("sgd"):
         opt_state = optimizer_state_after_warm_up(setup.config, state, hparams)
         (params, opt_state), (terms, grad_norms) = sgd_epochs(setup, state.params, opt_state, inputs, shuffle_key)
