@@ -7,6 +7,7 @@ import typing
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import pytest
 from flax import struct
 from mujoco import mjx
@@ -16,6 +17,7 @@ from jaxarm import envs, ranges
 from jaxarm.agents.common.config import HParams, RunConfig, apply_overrides, parse_literal
 from jaxarm.agents.ppo import PPOConfig
 from jaxarm.agents.td3 import TD3Config
+from jaxarm.envs.panda_sort.env import OBJECT_CARRY_TARGET, OBJECT_OBS_SIZE
 from jaxarm.envs.panda_sort.params import PandaSortParams
 from jaxarm.envs.peg_insert.params import PegInsertParams
 from jaxarm.runner import rundir, teacher
@@ -68,13 +70,18 @@ def test_every_sorter_preset_trains_with_curricula_and_evaluates_the_plain_task(
 
 
 def test_the_tosser_warm_starts_from_a_sorter_that_observes_and_acts_as_it_does():
-    # ppo_sorter_toss trains its stage first and starts from it: each of the tosser's inputs has its source there.
+    # ppo_sorter_toss trains its stage first and starts from it: each of the tosser's inputs has its source there
+    # but the vector to the object's bin, which points a metre farther than the sorter's ever did.
     toss = configs.get("ppo_sorter_toss")
     stage = configs.get(teacher.warm_start_preset(toss))
     tosser, sorter = toss.make_env()[0], stage.make_env()[0]
     assert tosser.spec.action_shape == sorter.spec.action_shape
     index = tosser.observation_source_index(sorter)
-    assert index.tolist() == list(range(tosser.spec.observation_size))
+    to_bin = np.arange(OBJECT_OBS_SIZE)[OBJECT_CARRY_TARGET]
+    identity = np.arange(tosser.spec.observation_size)
+    np.testing.assert_array_equal(index[to_bin], -1)
+    np.testing.assert_array_equal(np.delete(index, to_bin), np.delete(identity, to_bin))
+    assert sorter.observation_source_index(sorter).tolist() == identity.tolist()
 
 
 CONFIG_CLASSES = [PPOConfig, TD3Config]

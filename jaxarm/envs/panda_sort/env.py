@@ -84,6 +84,8 @@ the object's yaw relative to the hand as cos and sin of 4·Δyaw (a cube and the
 same every 90 degrees)."""
 OBJECT_RELATIVE_YAW = slice(OBJECT_OBS_SIZE - 2, OBJECT_OBS_SIZE)
 """Where cos and sin of 4·Δyaw sit in an object's observation."""
+OBJECT_CARRY_TARGET = slice(OBJECT_OBS_SIZE - 5, OBJECT_OBS_SIZE - 2)
+"""Where carry target − object sits in an object's observation."""
 START_HEIGHT = 0.25
 """Tool-centre height at reset, pointing down over the middle of the spawn region (the Panda's ready pose is
 twice as high, 70 steps of descent away)."""
@@ -166,13 +168,18 @@ class PandaSort(ArmBase[PandaSortParams, PandaSortSim, ModelIds]):
         """As `Env.observation_source_index`; from a sorter with another object count (same control mode), the
         object rows they share map row to row (with `target_first`, a one-object learner's object becomes the
         target) and the tool's inputs map onto each other; the extra objects' inputs, and the servos' lead where
-        only this env observes it, are new (−1)."""
+        only this env observes it, are new (−1). So are carry target − object where the source's bins stand
+        elsewhere: from the sorter, the tosser's lie 0.97 m farther from an object at rest, eight times that input's
+        spread over the sorter's starts (0.12 m), values the source's policy never read and that would shift every
+        hidden unit they feed."""
         camera = not (self.spec.flat_observation and source.spec.flat_observation)
         if camera or not isinstance(source, PandaSort) or source.control_mode != self.control_mode:
             return super().observation_source_index(source)
         shared = min(source.objects_count, self.objects_count)
         objects = np.full((self.objects_count, OBJECT_OBS_SIZE), -1)
         objects[:shared] = np.arange(shared * OBJECT_OBS_SIZE).reshape(shared, OBJECT_OBS_SIZE)
+        if source.layout.bin_centers != self.layout.bin_centers:
+            objects[:, OBJECT_CARRY_TARGET] = -1
         source_tool = source.objects_count * OBJECT_OBS_SIZE + np.arange(source.tool_obs_size)
         tool = np.full(self.tool_obs_size, -1)
         shared_tool = min(source.tool_obs_size, self.tool_obs_size)
