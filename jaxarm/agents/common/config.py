@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm import envs, ranges
-from jaxarm.agents.common.teachers import PRESET_TEACHER
+from jaxarm.agents.common.teachers import teacher_preset_name
 from jaxarm.envs.randomize import Randomized, parse_ranges
 from jaxarm.envs.registry import closest_match_hint
 from jaxarm.ranges import COUNT, Range
@@ -215,7 +215,7 @@ class RunConfig:
     def _validate_retries(self) -> None:
         """ValueError where `retry_below`, `retry_at_env_steps`, `tries` and `retry_warm_start` do not make a gate a
         run can apply."""
-        if self.retry_warm_start and not (self.retry_below and self.init_from.startswith(PRESET_TEACHER)):
+        if self.retry_warm_start and not (self.retry_below and teacher_preset_name(self.init_from) is not None):
             raise ValueError(
                 "retry_warm_start=true trains a warm start again after a try fails its gate: it needs a gate "
                 f"(retry_below=P, got {self.retry_below:g}) and a warm start named by preset (init_from=preset:NAME, "
