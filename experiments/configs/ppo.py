@@ -243,7 +243,9 @@ def ppo_sorter_toss() -> PPOConfig:
     # (critic_warm_up_updates=20: 0.0% on seed 104, 57-60% at 65M on seeds 102 and 103) nor fewer held starts (0.1%
     # at 26M) took that away. So a try that has not placed 80% by 52M env steps starts again from the warm start
     # with fresh randomness (at most 4 tries; a failed one costs ~2 minutes of an H200), and a try ends at 150M: the
-    # good ones held 95-97% from ~50M to 120M.
+    # good ones held 95-97% from ~50M to 120M. Those tries began without the first stage's pick: it read the
+    # vector to each object's bin a metre longer than ever before and grasped nothing from rest; the warm start now
+    # moves that input's statistics by the bins' displacement (PandaSort.observation_source_shift).
     return dataclasses.replace(
         SORTER_PPO,
         env="panda_sort_tosser",

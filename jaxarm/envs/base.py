@@ -292,6 +292,13 @@ class Env(abc.ABC, Generic[Params, Sim]):
             )
         return np.arange(self.spec.observation_size)
 
+    def observation_source_shift(self, source: "Env") -> np.ndarray:
+        """[observation_size] float32: per input, how much more it reads than its source input
+        (`observation_source_index`) where both envs stand in the same situation, as a vector to a target that
+        stands elsewhere in this env's scene does; 0 where it has no source. A warm start moves the source's
+        observation statistics by it, so that the trained networks read the same standardised inputs. Here: 0."""
+        return np.zeros(self.spec.observation_size, np.float32)
+
     def render(self, state: EnvState[Sim], params: Params) -> np.ndarray:
         """One (non-batched) state as an RGB frame, uint8 [H, W, 3], drawn without a window."""
         raise NotImplementedError(f"{type(self).__name__} has no renderer")

@@ -193,6 +193,9 @@ class Randomized(Env):
     def observation_source_index(self, source: Env) -> np.ndarray:
         return self.env.observation_source_index(getattr(source, "unwrapped", source))
 
+    def observation_source_shift(self, source: Env) -> np.ndarray:
+        return self.env.observation_source_shift(getattr(source, "unwrapped", source))
+
     def carried_over(self, ended: RandomizedSim, fresh: RandomizedSim) -> RandomizedSim:
         return fresh.replace(inner=self.env.carried_over(ended.inner, fresh.inner))
 

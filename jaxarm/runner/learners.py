@@ -79,8 +79,9 @@ def warm_starter(config: RunConfig, source_dir: pathlib.Path) -> Callable[[Any],
             f"({source_dir} is {registry.name_of(source)}, this run {registry.name_of(config)})"
         )
     trained = restore_state(source_dir, make_trainer(source, source_dir), source, acting=True)
-    index = config.make_env()[0].observation_source_index(source.make_env()[0])
-    return lambda state: warm_start(state, trained, index)
+    env, source_env = config.make_env()[0], source.make_env()[0]
+    index, shift = env.observation_source_index(source_env), env.observation_source_shift(source_env)
+    return lambda state: warm_start(state, trained, index, shift)
 
 
 class Evaluator:

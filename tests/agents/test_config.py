@@ -70,18 +70,23 @@ def test_every_sorter_preset_trains_with_curricula_and_evaluates_the_plain_task(
 
 
 def test_the_tosser_warm_starts_from_a_sorter_that_observes_and_acts_as_it_does():
-    # ppo_sorter_toss trains its stage first and starts from it: each of the tosser's inputs has its source there
-    # but the vector to the object's bin, which points a metre farther than the sorter's ever did.
+    # ppo_sorter_toss trains its stage first and starts from it: each of the tosser's inputs has its source there,
+    # and the vector to the object's bin reads the bins' displacement more (layout.py: bins 0.15 m to the left and
+    # 0.97 m farther), so that the stage's networks read what they read over the sorter's bins.
     toss = configs.get("ppo_sorter_toss")
     stage = configs.get(teacher.warm_start_preset(toss))
     tosser, sorter = toss.make_env()[0], stage.make_env()[0]
     assert tosser.spec.action_shape == sorter.spec.action_shape
-    index = tosser.observation_source_index(sorter)
-    to_bin = np.arange(OBJECT_OBS_SIZE)[OBJECT_CARRY_TARGET]
     identity = np.arange(tosser.spec.observation_size)
-    np.testing.assert_array_equal(index[to_bin], -1)
-    np.testing.assert_array_equal(np.delete(index, to_bin), np.delete(identity, to_bin))
+    assert tosser.observation_source_index(sorter).tolist() == identity.tolist()
+    shift = tosser.observation_source_shift(sorter)
+    to_bin = np.arange(OBJECT_OBS_SIZE)[OBJECT_CARRY_TARGET]
+    np.testing.assert_allclose(shift[to_bin], [-0.15, 0.97, 0.0], atol=1e-6)
+    np.testing.assert_array_equal(np.delete(shift, to_bin), 0.0)
     assert sorter.observation_source_index(sorter).tolist() == identity.tolist()
+    np.testing.assert_array_equal(sorter.observation_source_shift(sorter), 0.0)
+    randomized = configs.get("ppo_sorter_toss_dr").make_env()[0]
+    np.testing.assert_array_equal(randomized.observation_source_shift(sorter), shift)
 
 
 CONFIG_CLASSES = [PPOConfig, TD3Config]

@@ -3,8 +3,10 @@
 The trained learner may have seen a different observation (three objects instead of one, say): the new env
 says, per input, which input of the old observation holds the same quantity (`Env.observation_source_index`).
 Inputs without a counterpart get zero weight in each network's first layer, so the new policy starts by acting
-exactly as the trained one does on the shared inputs, and neutral statistics (mean 0, std 1). The optimiser
-state, env state and counters stay those of the fresh learner.
+exactly as the trained one does on the shared inputs, and neutral statistics (mean 0, std 1). An input that reads
+more than its counterpart in the same situation (`Env.observation_source_shift`: a target standing elsewhere) has
+its mean moved by as much, so the networks read the same standardised value. The optimiser state, env state and
+counters stay those of the fresh learner.
 """
 
 from collections.abc import Mapping
@@ -50,13 +52,14 @@ def transfer_network(trained: Mapping[str, Any], fresh: Mapping[str, Any], index
     return mapped
 
 
-def warm_start(fresh: PPOState, trained: PPOState, index: np.ndarray) -> PPOState:
-    """`fresh` with `trained`'s policy, value and observation statistics, inputs mapped through `index`."""
+def warm_start(fresh: PPOState, trained: PPOState, index: np.ndarray, shift: np.ndarray) -> PPOState:
+    """`fresh` with `trained`'s policy, value and observation statistics, inputs mapped through `index` [O], their
+    means moved by `shift` [O]."""
     index = np.asarray(index)
     stats = trained.normalizer
     normalizer = fresh.normalizer.replace(
         count=stats.count,
-        mean=map_inputs(stats.mean, index, 0.0),
+        mean=map_inputs(stats.mean, index, 0.0) + jnp.asarray(shift, stats.mean.dtype),
         std=map_inputs(stats.std, index, 1.0),
         summed_variance=map_inputs(stats.summed_variance, index, sample_count(stats.count)),
     )

@@ -168,23 +168,53 @@ class PandaSort(ArmBase[PandaSortParams, PandaSortSim, ModelIds]):
         """As `Env.observation_source_index`; from a sorter with another object count (same control mode), the
         object rows they share map row to row (with `target_first`, a one-object learner's object becomes the
         target) and the tool's inputs map onto each other; the extra objects' inputs, and the servos' lead where
-        only this env observes it, are new (−1). So are carry target − object where the source's bins stand
-        elsewhere: from the sorter, the tosser's lie 0.97 m farther from an object at rest, eight times that input's
-        spread over the sorter's starts (0.12 m), values the source's policy never read and that would shift every
-        hidden unit they feed."""
-        camera = not (self.spec.flat_observation and source.spec.flat_observation)
-        if camera or not isinstance(source, PandaSort) or source.control_mode != self.control_mode:
+        only this env observes it, are new (−1). So is carry target − object where the source's bins stand in
+        another arrangement (`bins_moved_from`); where they all moved by one displacement, it maps and
+        `observation_source_shift` says how much more it reads."""
+        sorter = self.row_source(source)
+        if sorter is None:
             return super().observation_source_index(source)
-        shared = min(source.objects_count, self.objects_count)
+        shared = min(sorter.objects_count, self.objects_count)
         objects = np.full((self.objects_count, OBJECT_OBS_SIZE), -1)
         objects[:shared] = np.arange(shared * OBJECT_OBS_SIZE).reshape(shared, OBJECT_OBS_SIZE)
-        if source.layout.bin_centers != self.layout.bin_centers:
+        if self.bins_moved_from(sorter) is None:
             objects[:, OBJECT_CARRY_TARGET] = -1
-        source_tool = source.objects_count * OBJECT_OBS_SIZE + np.arange(source.tool_obs_size)
+        source_tool = sorter.objects_count * OBJECT_OBS_SIZE + np.arange(sorter.tool_obs_size)
         tool = np.full(self.tool_obs_size, -1)
-        shared_tool = min(source.tool_obs_size, self.tool_obs_size)
+        shared_tool = min(sorter.tool_obs_size, self.tool_obs_size)
         tool[:shared_tool] = source_tool[:shared_tool]
         return np.concatenate([objects.ravel(), tool])
+
+    def observation_source_shift(self, source: Env) -> np.ndarray:
+        """As `Env.observation_source_shift`: carry target − object of each shared object reads the bins'
+        displacement (`bins_moved_from`) more than in the source. From the sorter, the tosser's bins stand 0.97 m
+        farther, eight times that input's spread over the sorter's starts (0.12 m): read unshifted, the first
+        stage's policy grasped none of 32 objects from rest in the tosser, as new inputs (at their mean) 31%, moved
+        all, each at the step it grasps in its own env (BENCHMARKS.md#tosser)."""
+        shift = super().observation_source_shift(source)
+        sorter = self.row_source(source)
+        moved = None if sorter is None else self.bins_moved_from(sorter)
+        if sorter is not None and moved is not None:
+            shared = min(sorter.objects_count, self.objects_count)
+            objects = shift[: self.objects_count * OBJECT_OBS_SIZE].reshape(self.objects_count, OBJECT_OBS_SIZE)
+            objects[:shared, OBJECT_CARRY_TARGET] = moved
+        return shift
+
+    def row_source(self, source: Env) -> "PandaSort | None":
+        """`source` where it is a sorter whose observation maps onto this one's row by row (both flat, the same
+        control mode); None otherwise."""
+        flat = self.spec.flat_observation and source.spec.flat_observation
+        if flat and isinstance(source, PandaSort) and source.control_mode == self.control_mode:
+            return source
+        return None
+
+    def bins_moved_from(self, source: "PandaSort") -> np.ndarray | None:
+        """[3] (dx, dy, 0): how far every bin of this env stands from the same shape's bin in `source`'s layout;
+        None where the bins moved by different amounts."""
+        moved = np.array(self.layout.bin_centers) - np.array(source.layout.bin_centers)
+        if not np.allclose(moved, moved[0]):
+            return None
+        return np.r_[moved[0], 0.0].astype(np.float32)
 
     # --- the physics model of one env -------------------------------------------------------------
 
