@@ -193,11 +193,11 @@ class PandaSort(ArmBase[PandaSortParams, PandaSortSim, ModelIds]):
         all, each at the step it grasps in its own env (BENCHMARKS.md#tosser)."""
         shift = super().observation_source_shift(source)
         sorter = self.row_source(source)
-        moved = None if sorter is None else self.bins_moved_from(sorter)
-        if sorter is not None and moved is not None:
-            shared = min(sorter.objects_count, self.objects_count)
-            objects = shift[: self.objects_count * OBJECT_OBS_SIZE].reshape(self.objects_count, OBJECT_OBS_SIZE)
-            objects[:shared, OBJECT_CARRY_TARGET] = moved
+        if sorter is None or (moved := self.bins_moved_from(sorter)) is None:
+            return shift
+        shared = min(sorter.objects_count, self.objects_count)
+        objects = shift[: self.objects_count * OBJECT_OBS_SIZE].reshape(self.objects_count, OBJECT_OBS_SIZE)
+        objects[:shared, OBJECT_CARRY_TARGET] = moved
         return shift
 
     def row_source(self, source: Env) -> "PandaSort | None":
