@@ -305,10 +305,17 @@ def test_a_decaying_distillation_without_a_teacher_beside_ppo_is_refused(changes
         dataclasses.replace(config, **changes).validate()
 
 
-def test_a_teacher_named_as_the_warm_start_needs_one():
-    config = PPOConfig(num_envs=8, rollout_length=4, num_minibatches=2, total_env_steps=320, teacher="init_from")
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"teacher": "init_from"}, "^teacher=init_from names the run this one warm-starts from: give init_from$"),
+        ({"warm_start_spread": True}, "^warm_start_spread=true sets a warm-started policy's spread: give init_from$"),
+    ],
+)
+def test_what_reads_a_warm_start_needs_one(changes, message):
+    config = PPOConfig(num_envs=8, rollout_length=4, num_minibatches=2, total_env_steps=320, **changes)
     dataclasses.replace(config, init_from="runs/somewhere").validate()
-    with pytest.raises(ValueError, match="^teacher=init_from names the run this one warm-starts from: give init_from$"):
+    with pytest.raises(ValueError, match=message):
         config.validate()
 
 

@@ -14,6 +14,7 @@ from jaxarm.agents.common.teachers import teacher_input
 from jaxarm.agents.common.trainer import make_chunk_runner, make_train
 from jaxarm.agents.ppo import PPOConfig, make_networks, make_trainer
 from jaxarm.agents.ppo.train import Samples, imitation_weight_at, shuffled_minibatches
+from jaxarm.agents.ppo.warm_start import warm_start
 from jaxarm.envs.observation import PRIVILEGED, actor_observation
 from tests.agents.probe_envs import HOST_CHECKS, ConstantRewardEnv, HostCheckedEnv, ImageTargetEnv, TargetActionEnv
 
@@ -40,6 +41,29 @@ def test_whole_run_equals_the_chunked_run():
     assert int(whole_state.updates) == trainer.num_updates == 4
     for whole, chunked in zip(jax.tree.leaves(whole_state.params), jax.tree.leaves(state.params), strict=True):
         np.testing.assert_allclose(whole, chunked, rtol=1e-5, atol=1e-6)
+
+
+def test_a_warm_start_with_a_fresh_spread_keeps_the_trained_means_at_a_fresh_policys_deviation():
+    plain = dataclasses.replace(TINY, initial_log_std=-0.6)
+    config = dataclasses.replace(plain, warm_start_spread=True)  # as a run with init_from has it
+    fresh = jax.jit(make_trainer(plain).init)(jax.random.PRNGKey(0), plain.hparams())
+    # A "trained" policy whose spread differs from state to state: every weight drawn at random.
+    leaves, tree = jax.tree.flatten(fresh.params)
+    keys = jax.random.split(jax.random.PRNGKey(1), len(leaves))
+    drawn = [jax.random.normal(key, leaf.shape) for key, leaf in zip(keys, leaves, strict=True)]
+    trained = fresh.replace(params=jax.tree.unflatten(tree, drawn))
+    size = fresh.normalizer.mean.shape[0]
+    started = warm_start(config, fresh, trained, np.arange(size), np.zeros(size, np.float32))
+    networks = make_networks(config, plain.make_env()[0].spec.action_size)
+    obs = jax.random.normal(jax.random.PRNGKey(2), (64, size))
+    trained_loc, trained_scale = jnp.split(networks.policy_params(trained.params, trained.normalizer, obs), 2, -1)
+    loc, scale = jnp.split(networks.policy_params(started.params, started.normalizer, obs), 2, -1)
+    np.testing.assert_allclose(loc, trained_loc, rtol=1e-6)
+    assert float(jnp.std(trained_scale)) > 0.1, "the trained spread was uniform: the test shows nothing"
+    np.testing.assert_allclose(jax.nn.softplus(scale), np.exp(-0.6), rtol=1e-5)
+    assert tree_equal(started.params.value, trained.params.value)
+    without = warm_start(plain, fresh, trained, np.arange(size), np.zeros(size, np.float32))
+    assert tree_equal(without.params.policy, trained.params.policy)
 
 
 def test_a_critic_warm_up_trains_the_value_alone_then_starts_the_policy_as_a_new_run_would():

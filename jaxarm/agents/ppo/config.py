@@ -63,6 +63,9 @@ class PPOConfig(RunConfig):
         and entropy bonus weighted 0; with `shared_encoder` the encoder learns from the value loss): after a warm
         start from another task (`init_from`), the critic learns this task's values before its advantages move the
         policy. 0 for none.
+      warm_start_spread: with a warm start (`init_from`), the policy keeps the trained means but takes a fresh
+        policy's standard deviation, exp(`initial_log_std`), at every observation: a trained policy's spread is
+        narrow where it was sure of itself in its own task, which may be where the new task asks it to explore.
       normalize_observations: keep running mean/std of observations in the learner state (of a camera
         observation, its proprio part only).
       normalize_advantages: standardise advantages per minibatch.
@@ -94,6 +97,7 @@ class PPOConfig(RunConfig):
     imitation_only: bool = True
     imitation_decay_updates: int = static(0, NON_NEGATIVE)
     critic_warm_up_updates: int = static(0, NON_NEGATIVE)
+    warm_start_spread: bool = False
     normalize_observations: bool = True
     normalize_advantages: bool = True
     anneal_learning_rate: bool = True
@@ -122,8 +126,9 @@ class PPOConfig(RunConfig):
 
     def validate(self) -> None:
         """RunConfig's checks, that each rollout splits into whole minibatches and shuffle groups, that an
-        asymmetric critic has no encoder to share, that the critic's warm-up ends before the run, and that a teacher
-        named by preset names one (which one exists, the runner checks: presets are not the library's)."""
+        asymmetric critic has no encoder to share, that a warm start's spread has a warm start, that the critic's
+        warm-up ends before the run, and that a teacher named by preset names one (which one exists, the runner
+        checks: presets are not the library's)."""
         super().validate()
         preset = teacher_preset_name(self.teacher)
         if preset == "":
@@ -149,6 +154,8 @@ class PPOConfig(RunConfig):
                 f"num_envs={self.num_envs} and the minibatch size {self.minibatch_size} must divide by "
                 f"shuffle_groups={self.shuffle_groups}"
             )
+        if self.warm_start_spread and not self.init_from:
+            raise ValueError("warm_start_spread=true sets a warm-started policy's spread: give init_from")
         if self.critic_warm_up_updates and self.critic_warm_up_updates >= self.num_updates:
             raise ValueError(
                 f"critic_warm_up_updates={self.critic_warm_up_updates} leaves the policy untrained: the run has "

@@ -5,7 +5,8 @@ says, per input, which input of the old observation holds the same quantity (`En
 Inputs without a counterpart get zero weight in each network's first layer, so the new policy starts by acting
 exactly as the trained one does on the shared inputs, and neutral statistics (mean 0, std 1). An input that reads
 more than its counterpart in the same situation (`Env.observation_source_shift`: a target standing elsewhere) has
-its mean moved by as much, so the networks read the same standardised value. The optimiser state, env state and
+its mean moved by as much, so the networks read the same standardised value. With `warm_start_spread`, the policy
+keeps the trained means but takes a fresh policy's spread (`with_fresh_spread`). The optimiser state, env state and
 counters stay those of the fresh learner.
 """
 
@@ -17,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 from brax.training.types import UInt64
 
+from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.agents.ppo.networks import NetworkParams
 from jaxarm.agents.ppo.train import PPOState
 
@@ -52,9 +54,26 @@ def transfer_network(trained: Mapping[str, Any], fresh: Mapping[str, Any], index
     return mapped
 
 
-def warm_start(fresh: PPOState, trained: PPOState, index: np.ndarray, shift: np.ndarray) -> PPOState:
+def output_layer(layers: Mapping[str, Any]) -> str:
+    """The name of a flax MLP's output layer: its last Dense."""
+    return max((name for name in layers if name.startswith("Dense_")), key=lambda name: int(name.split("_")[1]))
+
+
+def with_fresh_spread(policy: Mapping[str, Any]) -> dict[str, Any]:
+    """A policy MLP's params with the scale half of its output layer (weights and bias) zeroed: at every
+    observation its Gaussian's standard deviation is then a fresh policy's, exp(initial_log_std), and its means
+    stay as they were."""
+    layers = dict(policy["params"])
+    name = output_layer(layers)
+    out = layers[name]
+    means = out["bias"].shape[-1] // 2  # the output is [means A, raw scales A]
+    layers[name] = {**out, "kernel": out["kernel"].at[:, means:].set(0.0), "bias": out["bias"].at[means:].set(0.0)}
+    return {"params": layers}
+
+
+def warm_start(config: PPOConfig, fresh: PPOState, trained: PPOState, index: np.ndarray, shift: np.ndarray) -> PPOState:
     """`fresh` with `trained`'s policy, value and observation statistics, inputs mapped through `index` [O], their
-    means moved by `shift` [O]."""
+    means moved by `shift` [O]; the policy's spread a fresh one's where `config.warm_start_spread`."""
     index = np.asarray(index)
     stats = trained.normalizer
     normalizer = fresh.normalizer.replace(
@@ -63,8 +82,9 @@ def warm_start(fresh: PPOState, trained: PPOState, index: np.ndarray, shift: np.
         std=map_inputs(stats.std, index, 1.0),
         summed_variance=map_inputs(stats.summed_variance, index, sample_count(stats.count)),
     )
+    policy = transfer_network(trained.params.policy, fresh.params.policy, index)
     params = NetworkParams(
-        policy=transfer_network(trained.params.policy, fresh.params.policy, index),
+        policy=with_fresh_spread(policy) if config.warm_start_spread else policy,
         value=transfer_network(trained.params.value, fresh.params.value, index),
     )
     return fresh.replace(params=params, normalizer=normalizer)
