@@ -48,14 +48,23 @@ def apply_module(module: nn.Module, variables: Mapping[str, Any], *inputs: jax.A
     return cast(jax.Array, module.apply(variables, *inputs))
 
 
+DENSE = "Dense_"
+"""The prefix of flax's names for a module's dense layers, numbered from 0 in the order they apply."""
+
+
+def dense_layer_names(layers: Mapping[str, Any]) -> list[str]:
+    """The names of the dense layers among one flax module's `layers` (its params), the input layer first."""
+    return sorted((name for name in layers if name.startswith(DENSE)), key=lambda name: int(name.removeprefix(DENSE)))
+
+
 def mlp_layers(variables: Mapping[str, Any]) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
     """The dense layers of the one `MLP` in a module's flax variables, in order: ([in, out] kernels, [out] biases)
     as float32 numpy arrays (the form `jaxarm.export.numpy_policy` runs)."""
     tree = variables["params"]
-    while not any(name.startswith("Dense_") for name in tree):
+    while not dense_layer_names(tree):
         # A module wrapping one MLP (TD3's actor), perhaps beside its encoder (a camera policy's).
         (tree,) = (part for name, part in tree.items() if name != "encoder")
-    names = sorted(tree, key=lambda name: int(name.removeprefix("Dense_")))
+    names = dense_layer_names(tree)
     return (
         tuple(np.asarray(tree[name]["kernel"], np.float32) for name in names),
         tuple(np.asarray(tree[name]["bias"], np.float32) for name in names),

@@ -18,11 +18,12 @@ import jax.numpy as jnp
 import numpy as np
 from brax.training.types import UInt64
 
+from jaxarm.agents.common.networks import DENSE, dense_layer_names
 from jaxarm.agents.ppo.config import PPOConfig
 from jaxarm.agents.ppo.networks import NetworkParams
 from jaxarm.agents.ppo.train import PPOState
 
-FIRST_LAYER = "Dense_0"
+FIRST_LAYER = f"{DENSE}0"
 """Flax's name for an MLP's input layer."""
 
 
@@ -54,17 +55,12 @@ def transfer_network(trained: Mapping[str, Any], fresh: Mapping[str, Any], index
     return mapped
 
 
-def output_layer(layers: Mapping[str, Any]) -> str:
-    """The name of a flax MLP's output layer: its last Dense."""
-    return max((name for name in layers if name.startswith("Dense_")), key=lambda name: int(name.split("_")[1]))
-
-
 def with_fresh_spread(policy: Mapping[str, Any]) -> dict[str, Any]:
     """A policy MLP's params with the scale half of its output layer (weights and bias) zeroed: at every
     observation its Gaussian's standard deviation is then a fresh policy's, exp(initial_log_std), and its means
     stay as they were."""
     layers = dict(policy["params"])
-    name = output_layer(layers)
+    name = dense_layer_names(layers)[-1]  # the output layer
     out = layers[name]
     means = out["bias"].shape[-1] // 2  # the output is [means A, raw scales A]
     layers[name] = {**out, "kernel": out["kernel"].at[:, means:].set(0.0), "bias": out["bias"].at[means:].set(0.0)}
