@@ -42,10 +42,10 @@ class Learner:
     Attributes:
       config_class: its run config, a `RunConfig` subclass.
       make_trainer: (config, env=None, env_params=None) -> `Trainer`; `env`, `env_params` replace the config's.
-      warm_start: (the new run's config, fresh learner state, trained learner state, index [O], shift [O]) -> the
-        fresh state with the trained networks (and whatever else carries over), the new observation's input o read
-        from the trained one's input index[o] (−1: none), reading shift[o] more (`Env.observation_source_index`,
-        `Env.observation_source_shift`); None where the learner has no warm start.
+      warm_start: (the new run's config, the trained run's config, fresh learner state, trained learner state,
+        index [O], shift [O]) -> the fresh state with the trained networks (and whatever else carries over), the new
+        observation's input o read from the trained one's input index[o] (−1: none), reading shift[o] more
+        (`Env.observation_source_index`, `Env.observation_source_shift`); None where the learner has no warm start.
       teaching: how its config names a teacher (`Teaching`); None where the learner cannot be taught.
       one_process_per_gpu: measured faster as one process per GPU than as one process driving them all (on MJX
         Warp, BENCHMARKS.md#devices), so a run of it starts them by itself (without a teacher: distillation has not
@@ -54,7 +54,7 @@ class Learner:
 
     config_class: type[RunConfig]
     make_trainer: Callable[..., Trainer]
-    warm_start: Callable[[Any, Any, Any, np.ndarray, np.ndarray], Any] | None = None
+    warm_start: Callable[[Any, Any, Any, Any, np.ndarray, np.ndarray], Any] | None = None
     teaching: Teaching | None = None
     one_process_per_gpu: bool = False
 

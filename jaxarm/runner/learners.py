@@ -81,7 +81,7 @@ def warm_starter(config: RunConfig, source_dir: pathlib.Path) -> Callable[[Any],
     trained = restore_state(source_dir, make_trainer(source, source_dir), source, acting=True)
     env, source_env = config.make_env()[0], source.make_env()[0]
     index, shift = env.observation_source_index(source_env), env.observation_source_shift(source_env)
-    return lambda state: warm_start(config, state, trained, index, shift)
+    return lambda state: warm_start(config, source, state, trained, index, shift)
 
 
 class Evaluator:

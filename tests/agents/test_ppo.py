@@ -43,7 +43,8 @@ def test_whole_run_equals_the_chunked_run():
         np.testing.assert_allclose(whole, chunked, rtol=1e-5, atol=1e-6)
 
 
-def test_a_warm_start_with_a_fresh_spread_keeps_the_trained_means_at_a_fresh_policys_deviation():
+def test_a_warm_start_keeps_the_trained_means_with_the_trained_spread_or_a_fresh_one():
+    source = TINY  # trained with initial_log_std 0
     plain = dataclasses.replace(TINY, initial_log_std=-0.6)
     config = dataclasses.replace(plain, warm_start_spread=True)  # as a run with init_from has it
     fresh = jax.jit(make_trainer(plain).init)(jax.random.PRNGKey(0), plain.hparams())
@@ -53,17 +54,27 @@ def test_a_warm_start_with_a_fresh_spread_keeps_the_trained_means_at_a_fresh_pol
     drawn = [jax.random.normal(key, leaf.shape) for key, leaf in zip(keys, leaves, strict=True)]
     trained = fresh.replace(params=jax.tree.unflatten(tree, drawn))
     size = fresh.normalizer.mean.shape[0]
-    started = warm_start(config, fresh, trained, np.arange(size), np.zeros(size, np.float32))
-    networks = make_networks(config, plain.make_env()[0].spec.action_size)
+    action_size = plain.make_env()[0].spec.action_size
     obs = jax.random.normal(jax.random.PRNGKey(2), (64, size))
-    trained_loc, trained_scale = jnp.split(networks.policy_params(trained.params, trained.normalizer, obs), 2, -1)
-    loc, scale = jnp.split(networks.policy_params(started.params, started.normalizer, obs), 2, -1)
-    np.testing.assert_allclose(loc, trained_loc, rtol=1e-6)
+    trained_params = make_networks(source, action_size).policy_params(trained.params, trained.normalizer, obs)
+    trained_loc, trained_scale = jnp.split(trained_params, 2, -1)
     assert float(jnp.std(trained_scale)) > 0.1, "the trained spread was uniform: the test shows nothing"
+    networks = make_networks(plain, action_size)
+
+    def started_with(config):
+        started = warm_start(config, source, fresh, trained, np.arange(size), np.zeros(size, np.float32))
+        assert tree_equal(started.params.value, trained.params.value)
+        return jnp.split(networks.policy_params(started.params, started.normalizer, obs), 2, -1)
+
+    loc, scale = started_with(config)
+    np.testing.assert_allclose(loc, trained_loc, rtol=1e-6)
     np.testing.assert_allclose(jax.nn.softplus(scale), np.exp(-0.6), rtol=1e-5)
-    assert tree_equal(started.params.value, trained.params.value)
-    without = warm_start(plain, fresh, trained, np.arange(size), np.zeros(size, np.float32))
-    assert tree_equal(without.params.policy, trained.params.policy)
+    # Without: the trained spread, though the new run's initial_log_std differs from the source's.
+    loc, scale = started_with(plain)
+    np.testing.assert_allclose(loc, trained_loc, rtol=1e-6)
+    np.testing.assert_allclose(jax.nn.softplus(scale), jax.nn.softplus(trained_scale), rtol=1e-5)
+    same = warm_start(source, source, fresh, trained, np.arange(size), np.zeros(size, np.float32))
+    assert tree_equal(same.params.policy, trained.params.policy)
 
 
 def test_a_critic_warm_up_trains_the_value_alone_then_starts_the_policy_as_a_new_run_would():

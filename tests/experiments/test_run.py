@@ -315,14 +315,14 @@ def test_a_warm_start_begins_from_the_trained_networks_and_statistics(finished_r
     # An input the trained learner never saw gets zero weight: at its (normalised) mean the policy is unchanged.
     index = np.arange(9)
     index[4] = -1
-    partial = warm_start(warm, fresh, trained, index, np.zeros(9, np.float32))
+    partial = warm_start(warm, config, fresh, trained, index, np.zeros(9, np.float32))
     obs = jax.random.normal(jax.random.PRNGKey(6), (32, 9))
     obs = obs.at[:, 4].set(trained.normalizer.mean[4])
     np.testing.assert_allclose(trainer.act(partial, obs), trainer.act(trained, obs), atol=1e-5)
     # An input that reads more than its source in the same situation acts as the source did there.
     shift = np.zeros(9, np.float32)
     shift[2] = 3.0
-    moved = warm_start(warm, fresh, trained, np.arange(9), shift)
+    moved = warm_start(warm, config, fresh, trained, np.arange(9), shift)
     np.testing.assert_allclose(trainer.act(moved, obs + shift), trainer.act(trained, obs), atol=1e-5)
 
     assert run_cli(*SMALL, f"init_from={finished_run}", "--out", str(tmp_path / "warm")) == 0

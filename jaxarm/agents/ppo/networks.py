@@ -108,6 +108,12 @@ def shared_features(encoder: PixelEncoder, policy: Mapping[str, Any], obs: Obser
     return apply_module(encoder, {"params": policy["params"]["encoder"]}, obs)
 
 
+def scale_offset(initial_log_std: float) -> float:
+    """What the policy adds to its raw scale so that brax's softplus gives a standard deviation of
+    exp(`initial_log_std`) where the raw scale is 0 (`PPONetworks.scale_offset`)."""
+    return float(jnp.log(jnp.expm1(jnp.exp(initial_log_std))))
+
+
 def make_networks(config: PPOConfig, action_size: int, camera: bool = False) -> PPONetworks:
     """PPO's networks for `config`'s sizes, activation and initial spread, acting on [action_size] actions; with
     `camera`, for dict observations (`config.encoder` in front of the MLPs)."""
@@ -130,6 +136,6 @@ def make_networks(config: PPOConfig, action_size: int, camera: bool = False) -> 
         value_net=value_net,
         shared_encoder=shared_encoder,
         normalize_observations=config.normalize_observations,
-        scale_offset=float(jnp.log(jnp.expm1(jnp.exp(config.initial_log_std)))),
+        scale_offset=scale_offset(config.initial_log_std),
         asymmetric=config.asymmetric,
     )

@@ -5,12 +5,13 @@ says, per input, which input of the old observation holds the same quantity (`En
 Inputs without a counterpart get zero weight in each network's first layer, so the new policy starts by acting
 exactly as the trained one does on the shared inputs, and neutral statistics (mean 0, std 1). An input that reads
 more than its counterpart in the same situation (`Env.observation_source_shift`: a target standing elsewhere) has
-its mean moved by as much, so the networks read the same standardised value. With `warm_start_spread`, the policy
-keeps the trained means but takes a fresh policy's spread (`with_fresh_spread`). The optimiser state, env state and
-counters stay those of the fresh learner.
+its mean moved by as much, so the networks read the same standardised value. The policy keeps the trained spread
+whatever the two runs' `initial_log_std` (its offset moved into the output layer's bias), or with
+`warm_start_spread` keeps the trained means but takes a fresh policy's spread (`with_fresh_spread`). The optimiser
+state, env state and counters stay those of the fresh learner.
 """
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import jax
@@ -20,7 +21,7 @@ from brax.training.types import UInt64
 
 from jaxarm.agents.common.networks import DENSE, dense_layer_names
 from jaxarm.agents.ppo.config import PPOConfig
-from jaxarm.agents.ppo.networks import NetworkParams
+from jaxarm.agents.ppo.networks import NetworkParams, scale_offset
 from jaxarm.agents.ppo.train import PPOState
 
 FIRST_LAYER = f"{DENSE}0"
@@ -55,21 +56,41 @@ def transfer_network(trained: Mapping[str, Any], fresh: Mapping[str, Any], index
     return mapped
 
 
+def with_scale_bias(
+    policy: Mapping[str, Any], bias: Callable[[jax.Array], jax.Array], zero_weights: bool
+) -> dict[str, Any]:
+    """A policy MLP's params with `bias` applied to the scale half of its output layer's bias [A] (the output is
+    [means A, raw scales A]), and that half's weights zeroed where `zero_weights`."""
+    layers = dict(policy["params"])
+    name = dense_layer_names(layers)[-1]  # the output layer
+    out = layers[name]
+    means = out["bias"].shape[-1] // 2
+    kernel = out["kernel"].at[:, means:].set(0.0) if zero_weights else out["kernel"]
+    layers[name] = {**out, "kernel": kernel, "bias": out["bias"].at[means:].set(bias(out["bias"][means:]))}
+    return {"params": layers}
+
+
 def with_fresh_spread(policy: Mapping[str, Any]) -> dict[str, Any]:
     """A policy MLP's params with the scale half of its output layer (weights and bias) zeroed: at every
     observation its Gaussian's standard deviation is then a fresh policy's, exp(initial_log_std), and its means
     stay as they were."""
-    layers = dict(policy["params"])
-    name = dense_layer_names(layers)[-1]  # the output layer
-    out = layers[name]
-    means = out["bias"].shape[-1] // 2  # the output is [means A, raw scales A]
-    layers[name] = {**out, "kernel": out["kernel"].at[:, means:].set(0.0), "bias": out["bias"].at[means:].set(0.0)}
-    return {"params": layers}
+    return with_scale_bias(policy, jnp.zeros_like, zero_weights=True)
 
 
-def warm_start(config: PPOConfig, fresh: PPOState, trained: PPOState, index: np.ndarray, shift: np.ndarray) -> PPOState:
-    """`fresh` with `trained`'s policy, value and observation statistics, inputs mapped through `index` [O], their
-    means moved by `shift` [O]; the policy's spread a fresh one's where `config.warm_start_spread`."""
+def with_spread_kept(policy: Mapping[str, Any], source: PPOConfig, config: PPOConfig) -> dict[str, Any]:
+    """A policy MLP's params trained under `source`'s `initial_log_std`, acting with `config`'s: the scale half of
+    its output layer's bias moved by the difference of their offsets, so that its spread is the trained one at
+    every observation."""
+    moved = scale_offset(source.initial_log_std) - scale_offset(config.initial_log_std)
+    return with_scale_bias(policy, lambda bias: bias + moved, zero_weights=False)
+
+
+def warm_start(
+    config: PPOConfig, source: PPOConfig, fresh: PPOState, trained: PPOState, index: np.ndarray, shift: np.ndarray
+) -> PPOState:
+    """`fresh` with `trained`'s (a `source` run's) policy, value and observation statistics, inputs mapped through
+    `index` [O], their means moved by `shift` [O]; the policy's spread the trained one's, or a fresh one's where
+    `config.warm_start_spread`."""
     index = np.asarray(index)
     stats = trained.normalizer
     normalizer = fresh.normalizer.replace(
@@ -80,7 +101,7 @@ def warm_start(config: PPOConfig, fresh: PPOState, trained: PPOState, index: np.
     )
     policy = transfer_network(trained.params.policy, fresh.params.policy, index)
     params = NetworkParams(
-        policy=with_fresh_spread(policy) if config.warm_start_spread else policy,
+        policy=with_fresh_spread(policy) if config.warm_start_spread else with_spread_kept(policy, source, config),
         value=transfer_network(trained.params.value, fresh.params.value, index),
     )
     return fresh.replace(params=params, normalizer=normalizer)
