@@ -191,14 +191,13 @@ class PandaSort(ArmBase[PandaSortParams, PandaSortSim, ModelIds]):
         farther, eight times that input's spread over the sorter's starts (0.12 m): read unshifted, the first
         stage's policy grasped none of 32 objects from rest in the tosser, as new inputs (at their mean) 31%, moved
         all, each at the step it grasps in its own env (BENCHMARKS.md#tosser)."""
-        shift = super().observation_source_shift(source)
         sorter = self.row_source(source)
         if sorter is None or (moved := self.bins_moved_from(sorter)) is None:
-            return shift
+            return super().observation_source_shift(source)
         shared = min(sorter.objects_count, self.objects_count)
-        objects = shift[: self.objects_count * OBJECT_OBS_SIZE].reshape(self.objects_count, OBJECT_OBS_SIZE)
+        objects = np.zeros((self.objects_count, OBJECT_OBS_SIZE), np.float32)
         objects[:shared, OBJECT_CARRY_TARGET] = moved
-        return shift
+        return np.concatenate([objects.ravel(), np.zeros(self.tool_obs_size, np.float32)])
 
     def row_source(self, source: Env) -> "PandaSort | None":
         """`source` where it is a sorter whose observation maps onto this one's row by row (both flat, the same
