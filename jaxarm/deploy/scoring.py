@@ -94,6 +94,7 @@ class SortReward:
     carry_scale: float
     carry_height: float
     toss_scale: float
+    toss_held_share: float
     target_first: bool
 
 
@@ -137,13 +138,14 @@ def shaping_potential(state: SortState, bins: Bins, reward: SortReward) -> np.nd
     on_floor = state.outcome == ON_FLOOR
     toss_xy = np.where(on_floor[:, None], state.exit_xy, state.position[:, :2])
     toss = 1.0 - np.tanh(np.linalg.norm(toss_xy - carry_target[:, :2], axis=-1) / reward.toss_scale)
+    in_hand_toss = np.where(held, reward.toss_held_share * toss, toss)
     stages = np.stack(
         [
             1.0 - np.tanh(distance / reward.reach_scale),
             held.astype(np.float64),
             lift,
             lift * (1.0 - np.tanh(to_target / reward.carry_scale)),
-            toss,
+            in_hand_toss,
         ]
     )
     in_own_bin = (state.outcome == IN_CORRECT_BIN).astype(np.float64)

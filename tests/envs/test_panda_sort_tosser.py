@@ -10,6 +10,9 @@ import mujoco
 import numpy as np
 import pytest
 
+from jaxarm import deployable
+from jaxarm.deploy import scoring
+from jaxarm.deployable import panda_sort
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda_sort import MODE_JOINT, SHAPE_CUBE, SHAPE_SPHERE, PandaSort
 from jaxarm.envs.panda_sort.curriculum import wound_up_posture
@@ -248,6 +251,40 @@ def test_wound_up_starts_hold_the_object_facing_its_bin_and_their_swing_scores()
     )(postures, jnp.asarray(bins))
     scored, joint_speed, _ = thrown(states, throws, params)
     assert scored_in_own_bin(scored, joint_speed) >= 2
+
+
+@pytest.mark.mjx
+def test_a_held_object_counts_its_share_of_the_toss_term():
+    """A held object counts `toss_held_share` of its toss term (by hand: 1 − tanh(d / toss_scale), d from the
+    object to its own bin's centre), in the env and in the deployment package's numpy scoring: at 0, holding an
+    object out towards its bin earns nothing."""
+    env = joint_tosser()
+    held = env.default_params().replace(toss_weight=jnp.float32(TOSS_WEIGHT), held_start_prob=jnp.float32(1.0))
+    toss_scale = float(held.toss_scale)
+    for share in (1.0, 0.3, 0.0):
+        params = held.replace(toss_held_share=jnp.float32(share))
+        states = starts(params)
+        potential = np.asarray(states.sim.potential)
+        np.testing.assert_allclose(potential[:, SHAPING_TERMS.index("grasp")], float(params.grasp_weight), rtol=1e-6)
+        qpos = np.asarray(states.sim.qpos, np.float64)
+        position = qpos[:, env.ids.object_qpos[0] + np.arange(3)]
+        by_hand = TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(position[:, :2] - own_bins(states), axis=-1) / toss_scale))
+        assert by_hand.min() > 1e-3 * TOSS_WEIGHT, "a term well above the tolerances"
+        np.testing.assert_allclose(potential[:, SHAPING_TERMS.index("toss")], share * by_hand, rtol=1e-5, atol=1e-6)
+        controller = deployable.controller(env, params)
+        state = scoring.SortState(
+            position=position[:1],
+            shape=np.asarray(states.sim.shape[0]),
+            size=np.asarray(states.sim.size[0], np.float64),
+            outcome=np.asarray(states.sim.outcome[0]),
+            exit_xy=np.asarray(states.sim.exit_xy[0], np.float64),
+            target=int(states.sim.target[0]),
+            tcp=controller.kinematics.pose(qpos[0, :7]).tcp,
+            finger_q=qpos[0, 7:9],
+            finger_ctrl=np.asarray(states.sim.ctrl[0, 7:], np.float64),
+        )
+        ours = scoring.shaping_potential(state, controller.task.bins, panda_sort.sort_reward(env, params))
+        np.testing.assert_allclose(ours, potential[0], rtol=1e-4, atol=1e-4)
 
 
 @pytest.mark.mjx

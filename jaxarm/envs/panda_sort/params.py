@@ -62,6 +62,9 @@ class PandaSortParams(ArmParams):
         dropped below the table top): it rises while an object flies towards its bin, where the carry term (held
         objects only) cannot follow a throw (the tosser; 0 elsewhere).
       toss_scale: distance over which the toss term rises (metres).
+      toss_held_share: share of its toss term that a held object counts (1: all of it; 0: none until it is let
+        go, so that holding an object out towards its bin earns nothing and letting go there earns at once what
+        the hold would have).
       held_start_prob: chance that an episode starts with the focus object (a slot drawn uniformly per
         episode) already between the closed fingers, at the arm's start pose (a curriculum: the policy sees
         carrying and releasing before it can grasp; evaluate with 0).
@@ -117,6 +120,7 @@ class PandaSortParams(ArmParams):
     carry_height: jax.Array = ranged(0.15, NON_NEGATIVE)
     toss_weight: jax.Array = ranged(0.0)
     toss_scale: jax.Array = ranged(0.5, POSITIVE)
+    toss_held_share: jax.Array = ranged(1.0, UNIT_INTERVAL)
     held_start_prob: jax.Array = ranged(0.0, UNIT_INTERVAL)
     ready_start_prob: jax.Array = ranged(0.0, UNIT_INTERVAL)
     wind_up_start_prob: jax.Array = ranged(0.0, UNIT_INTERVAL)

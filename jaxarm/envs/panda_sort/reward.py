@@ -4,12 +4,12 @@ An object whose centre enters a bin (inside its walls, below the rim) is scored:
 bin of its shape, `wrong_bin_reward` in another. One that drops below the table top pays `floor_reward`.
 Either way it leaves play for the rest of the episode (the env parks it), so it is scored exactly once.
 
-Dense shaping is potential-based: each shaping term pays the change of its potential over the step (reach:
-the tool centre near an object; grasp: an object held; lift: a held object lifted; carry: a lifted object
-near the point above its own bin; toss: an object, held or flying, horizontally near its own bin), summed
-over objects, with an object in its own bin counting as the maximum of every term and one elsewhere as zero,
-except that one which fell to the floor keeps the toss term of where it fell: a throw that falls short of its
-bin keeps credit for its range and aim.
+Dense shaping is potential-based: each shaping term pays the change of its potential over the step (reach: the
+tool centre near an object; grasp: an object held; lift: a held object lifted; carry: a lifted object near the
+point above its own bin; toss: an object, flying or held (`toss_held_share` of it), horizontally near its own
+bin), summed over objects, with an object in its own bin counting as the maximum of every term and one
+elsewhere as zero, except that one which fell to the floor keeps the toss term of where it fell: a throw that
+falls short of its bin keeps credit for its range and aim.
 Over an episode the shaping sums to the final potential minus the first, so no behaviour (hovering with an
 object over its bin, say) can farm it.
 """
@@ -135,13 +135,14 @@ def shaping_potential(
     on_floor = sim.outcome == ON_FLOOR
     toss_xy = jnp.where(on_floor[:, None], sim.exit_xy, position[:, :2])
     toss = 1.0 - jnp.tanh(jnp.linalg.norm(toss_xy - carry_target[:, :2], axis=-1) / params.toss_scale)
+    in_hand_toss = jnp.where(held, params.toss_held_share * toss, toss)
     stages = jnp.stack(
         [
             1.0 - jnp.tanh(distance / params.reach_scale),
             held.astype(jnp.float32),
             lift,
             lift * (1.0 - jnp.tanh(to_target / params.carry_scale)),
-            toss,
+            in_hand_toss,
         ]
     )  # [S, N]
     in_own_bin = (sim.outcome == IN_CORRECT_BIN).astype(jnp.float32)
