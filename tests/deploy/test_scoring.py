@@ -29,30 +29,35 @@ def test_objects_score_as_in_the_env(tosser):
     assert {scoring.IN_PLAY, scoring.IN_CORRECT_BIN, scoring.IN_WRONG_BIN, scoring.ON_FLOOR} <= set(ours.tolist())
 
 
+def scoring_state(env, controller, sim, target: int) -> scoring.SortState:
+    """What the numpy scoring reads of a (non-batched) sorter `sim`, with slot `target` the target; the tool
+    centre by `controller`'s kinematics."""
+    qpos = np.asarray(sim.qpos, np.float64)
+    return scoring.SortState(
+        position=qpos[env.ids.object_qpos[:, None] + np.arange(3)],
+        shape=np.asarray(sim.shape),
+        size=np.asarray(sim.size, np.float64),
+        outcome=np.asarray(sim.outcome),
+        exit_xy=np.asarray(sim.exit_xy, np.float64),
+        target=target,
+        tcp=controller.kinematics.pose(qpos[:7]).tcp,
+        finger_q=qpos[7:9],
+        finger_ctrl=np.asarray(sim.ctrl, np.float64)[7:],
+    )
+
+
 @pytest.mark.mjx
 def test_target_and_shaping_potential_are_the_envs():
     env, params, sim, _, _, _, outcome, target, potential = sorter_case("ee")
-    qpos = np.asarray(sim.qpos, np.float64)
-    position = qpos[env.ids.object_qpos[:, None] + np.arange(3)]
     controller = deployable.controller(env, params)
-    tcp = controller.kinematics.pose(qpos[:7]).tcp
+    seen = scoring_state(env, controller, sim, int(sim.target))
     np.testing.assert_array_equal(
-        scoring.next_outcome(np.asarray(sim.outcome), np.asarray(sim.shape), position, controller.task.bins), outcome
+        scoring.next_outcome(seen.outcome, seen.shape, seen.position, controller.task.bins), outcome
     )
     # The target (slot 1) is out of play: the nearest in-play object takes over.
-    assert scoring.next_target(outcome, int(sim.target), position, tcp) == int(target) == 0
+    assert scoring.next_target(outcome, seen.target, seen.position, seen.tcp) == int(target) == 0
     for slot in range(2):
-        state = scoring.SortState(
-            position=position,
-            shape=np.asarray(sim.shape),
-            size=np.asarray(sim.size, np.float64),
-            outcome=np.asarray(sim.outcome),
-            exit_xy=np.asarray(sim.exit_xy, np.float64),
-            target=slot,
-            tcp=tcp,
-            finger_q=qpos[7:9],
-            finger_ctrl=np.asarray(sim.ctrl, np.float64)[7:],
-        )
+        state = scoring_state(env, controller, sim, slot)
         ours = scoring.shaping_potential(state, controller.task.bins, panda_sort.sort_reward(env, params))
         np.testing.assert_allclose(ours, potential[slot], atol=1e-5)
     # With slot 0 (in play) the target, its reach term counts beside slot 1's full marks.

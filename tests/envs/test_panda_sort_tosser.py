@@ -19,6 +19,7 @@ from jaxarm.envs.panda_sort.curriculum import wound_up_posture
 from jaxarm.envs.panda_sort.reward import FLOOR_Z, SHAPING_TERMS
 from jaxarm.envs.panda_sort.scripted_throw import aimed_throw, throw_action
 from jaxarm.robots import PANDA
+from tests.deploy.test_scoring import scoring_state
 from tests.envs.compiled import compiled, same_worker
 from tests.envs.test_panda_sort import shaping_potential, with_object
 
@@ -272,17 +273,8 @@ def test_a_held_object_counts_its_share_of_the_toss_term():
         assert by_hand.min() > 1e-3 * TOSS_WEIGHT, "a term well above the tolerances"
         np.testing.assert_allclose(potential[:, SHAPING_TERMS.index("toss")], share * by_hand, rtol=1e-5, atol=1e-6)
         controller = deployable.controller(env, params)
-        state = scoring.SortState(
-            position=position[:1],
-            shape=np.asarray(states.sim.shape[0]),
-            size=np.asarray(states.sim.size[0], np.float64),
-            outcome=np.asarray(states.sim.outcome[0]),
-            exit_xy=np.asarray(states.sim.exit_xy[0], np.float64),
-            target=int(states.sim.target[0]),
-            tcp=controller.kinematics.pose(qpos[0, :7]).tcp,
-            finger_q=qpos[0, 7:9],
-            finger_ctrl=np.asarray(states.sim.ctrl[0, 7:], np.float64),
-        )
+        first = jax.tree.map(lambda leaf: leaf[0], states.sim)
+        state = scoring_state(env, controller, first, int(first.target))
         ours = scoring.shaping_potential(state, controller.task.bins, panda_sort.sort_reward(env, params))
         np.testing.assert_allclose(ours, potential[0], rtol=1e-4, atol=1e-4)
 
