@@ -15,6 +15,8 @@ ON_FLOOR = 3
 """Outcome of a sorter object slot (the env's `jaxarm.envs.panda_sort.reward` reads these too)."""
 FLOOR_Z = -0.05
 """An object whose centre is this far below the table top has fallen off."""
+GRAVITY = 9.81
+"""m/s², downwards: MuJoCo's default, which the sorter's scenes keep (the toss term's ballistic paths)."""
 HELD_DISTANCE = 0.01
 """An object counts as held when its centre is within its size plus this of the tool centre ..."""
 HELD_MIN_SQUEEZE = 0.002
@@ -94,7 +96,7 @@ class SortReward:
     carry_scale: float
     carry_height: float
     toss_scale: float
-    toss_held_share: float
+    toss_flight: float
     target_first: bool
 
 
@@ -106,6 +108,7 @@ class SortState:
       position: [N, 3] object centres.
       shape: [N] int shapes; size: [N] sizes (m).
       outcome: [N] outcomes; exit_xy: [N, 2] where each out-of-play object left play.
+      velocity: [N, 3] object centres' velocities (world frame).
       target: the target slot.
       tcp: [3] the tool centre.
       finger_q: [2] the fingers' openings; finger_ctrl: [2] their targets.
@@ -116,10 +119,19 @@ class SortState:
     size: np.ndarray
     outcome: np.ndarray
     exit_xy: np.ndarray
+    velocity: np.ndarray
     target: int
     tcp: np.ndarray
     finger_q: np.ndarray
     finger_ctrl: np.ndarray
+
+
+def landing_xy(position: np.ndarray, velocity: np.ndarray, flight: float) -> np.ndarray:
+    """[N, 2] where each object would drop below the floor line if let go now, `flight` of the way along its
+    ballistic path from `position` [N, 3] with `velocity` [N, 3] (`reward.landing_xy`)."""
+    rise = velocity[:, 2]
+    fall_time = (rise + np.sqrt(np.maximum(rise**2 + 2 * GRAVITY * (position[:, 2] - FLOOR_Z), 0.0))) / GRAVITY
+    return position[:, :2] + flight * np.maximum(fall_time, 0.0)[:, None] * velocity[:, :2]
 
 
 def shaping_potential(state: SortState, bins: Bins, reward: SortReward) -> np.ndarray:
@@ -136,16 +148,16 @@ def shaping_potential(state: SortState, bins: Bins, reward: SortReward) -> np.nd
     carry_target = carry_targets(bins, state.shape, reward.carry_height)
     to_target = np.linalg.norm(state.position - carry_target, axis=-1)
     on_floor = state.outcome == ON_FLOOR
-    toss_xy = np.where(on_floor[:, None], state.exit_xy, state.position[:, :2])
+    in_flight = landing_xy(state.position, state.velocity, reward.toss_flight)
+    toss_xy = np.where(on_floor[:, None], state.exit_xy, in_flight)
     toss = 1.0 - np.tanh(np.linalg.norm(toss_xy - carry_target[:, :2], axis=-1) / reward.toss_scale)
-    in_hand_toss = np.where(held, reward.toss_held_share * toss, toss)
     stages = np.stack(
         [
             1.0 - np.tanh(distance / reward.reach_scale),
             held.astype(np.float64),
             lift,
             lift * (1.0 - np.tanh(to_target / reward.carry_scale)),
-            in_hand_toss,
+            toss,
         ]
     )
     in_own_bin = (state.outcome == IN_CORRECT_BIN).astype(np.float64)

@@ -121,6 +121,7 @@ def episode(robot: MujocoRobot, loop: DeploymentLoop, env: sort_env.PandaSort, p
             size=size,
             outcome=outcome,
             exit_xy=exit_xy,
+            velocity=data.qvel[velocity_index(ids)[:, :3]].copy(),
             target=target,
             tcp=data.site_xpos[tcp_site].copy(),
             finger_q=data.qpos[ids.robot.finger_qpos].copy(),

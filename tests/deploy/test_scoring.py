@@ -39,6 +39,7 @@ def scoring_state(env, controller, sim, target: int) -> scoring.SortState:
         size=np.asarray(sim.size, np.float64),
         outcome=np.asarray(sim.outcome),
         exit_xy=np.asarray(sim.exit_xy, np.float64),
+        velocity=np.asarray(sim.qvel, np.float64)[env.ids.object_qvel[:, None] + np.arange(3)],
         target=target,
         tcp=controller.kinematics.pose(qpos[:7]).tcp,
         finger_q=qpos[7:9],

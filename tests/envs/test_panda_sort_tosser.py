@@ -154,6 +154,45 @@ def test_a_throw_that_falls_short_keeps_the_toss_potential_of_where_it_fell():
     np.testing.assert_allclose(sum(tosses), kept - released, atol=1e-3)
 
 
+@pytest.mark.mjx
+def test_with_toss_flight_an_object_in_flight_counts_where_it_will_fall():
+    """At `toss_flight` 1 the toss term places an object let go in flight where its path drops below the floor
+    line: by hand at the release, in the env and in the deployment package's numpy scoring; over the flight the
+    term then pays no more than a step's travel is worth, where at 0 it pays the whole way (the test above)."""
+    shared = compiled("panda_sort_tosser")
+    env = shared.env
+    assert tuple(env.mj_model.opt.gravity) == (0.0, 0.0, -scoring.GRAVITY)
+    params = shared.params.replace(toss_weight=jnp.float32(TOSS_WEIGHT), toss_flight=jnp.float32(1.0))
+    toss_scale = float(params.toss_scale)
+    release, short = np.array([0.4, 0.6, 0.35]), np.array([0.36, 0.95, -0.3])
+    velocity = ballistic_velocity(release, short, flight_s=0.5)
+    state = shared.reset(jax.random.key(0), params)
+    state = with_object(env, state, SHAPE_CUBE, 0.025, [*release, 1, 0, 0, 0], [*velocity, 0, 0, 0])
+    potential = shaping_potential(env, state, params)
+    state = state.replace(sim=state.sim.replace(potential=jnp.asarray(potential)))
+    crossing_s = max(np.roots([-GRAVITY / 2, velocity[2], release[2] - FLOOR_Z]))
+    crossing = release[:2] + velocity[:2] * crossing_s
+    own_bin = np.array(env.layout.bin_centers[SHAPE_CUBE])
+    toss_index = SHAPING_TERMS.index("toss")
+    by_hand = TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(crossing - own_bin) / toss_scale))
+    # Where it is it would count far less: the flight carries it most of the way towards the bin.
+    assert by_hand > 2 * TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(release[:2] - own_bin) / toss_scale))
+    np.testing.assert_allclose(potential[toss_index], by_hand, rtol=1e-5)
+    controller = deployable.controller(env, params)
+    seen = scoring_state(env, controller, state.sim, int(state.sim.target))
+    ours = scoring.shaping_potential(seen, controller.task.bins, panda_sort.sort_reward(env, params))
+    np.testing.assert_allclose(ours, potential, rtol=1e-4, atol=1e-4)
+    tosses = []
+    for _ in itertools.repeat(None, 30):
+        state = shared.step(state, jnp.zeros(env.spec.action_shape), params)
+        tosses.append(float(state.info.reward_terms.toss))
+    assert int(state.sim.outcome[0]) == scoring.ON_FLOOR
+    # The term is 1/toss_scale-Lipschitz in the distance: what the flight pays is bounded by the gap between the
+    # step it fell in and the crossing (test above).
+    step_travel = np.linalg.norm(velocity[:2]) * CONTROL_DT
+    assert abs(sum(tosses)) <= TOSS_WEIGHT * step_travel / toss_scale, tosses
+
+
 THROW_STEPS = 110
 STARTS = 8
 SWING_START = 70  # two steps after the wind-up ends
@@ -252,31 +291,6 @@ def test_wound_up_starts_hold_the_object_facing_its_bin_and_their_swing_scores()
     )(postures, jnp.asarray(bins))
     scored, joint_speed, _ = thrown(states, throws, params)
     assert scored_in_own_bin(scored, joint_speed) >= 2
-
-
-@pytest.mark.mjx
-def test_a_held_object_counts_its_share_of_the_toss_term():
-    """A held object counts `toss_held_share` of its toss term (by hand: 1 − tanh(d / toss_scale), d from the
-    object to its own bin's centre), in the env and in the deployment package's numpy scoring: at 0, holding an
-    object out towards its bin earns nothing."""
-    env = joint_tosser()
-    held = env.default_params().replace(toss_weight=jnp.float32(TOSS_WEIGHT), held_start_prob=jnp.float32(1.0))
-    toss_scale = float(held.toss_scale)
-    for share in (1.0, 0.3, 0.0):
-        params = held.replace(toss_held_share=jnp.float32(share))
-        states = starts(params)
-        potential = np.asarray(states.sim.potential)
-        np.testing.assert_allclose(potential[:, SHAPING_TERMS.index("grasp")], float(params.grasp_weight), rtol=1e-6)
-        qpos = np.asarray(states.sim.qpos, np.float64)
-        position = qpos[:, env.ids.object_qpos[0] + np.arange(3)]
-        by_hand = TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(position[:, :2] - own_bins(states), axis=-1) / toss_scale))
-        assert by_hand.min() > 1e-3 * TOSS_WEIGHT, "a term well above the tolerances"
-        np.testing.assert_allclose(potential[:, SHAPING_TERMS.index("toss")], share * by_hand, rtol=1e-5, atol=1e-6)
-        controller = deployable.controller(env, params)
-        first = jax.tree.map(lambda leaf: leaf[0], states.sim)
-        state = scoring_state(env, controller, first, int(first.target))
-        ours = scoring.shaping_potential(state, controller.task.bins, panda_sort.sort_reward(env, params))
-        np.testing.assert_allclose(ours, potential[0], rtol=1e-4, atol=1e-4)
 
 
 @pytest.mark.mjx

@@ -91,6 +91,11 @@ def object_positions(ids: ModelIds, qpos: jax.Array) -> jax.Array:
     return qpos[ids.object_qpos[:, None] + np.arange(3)]
 
 
+def object_velocities(ids: ModelIds, qvel: jax.Array) -> jax.Array:
+    """[nv] -> [N, 3] object centres' velocities (world frame)."""
+    return qvel[ids.object_qvel[:, None] + np.arange(3)]
+
+
 def park(ids: ModelIds, qpos: jax.Array, qvel: jax.Array, out_of_play: jax.Array) -> tuple[jax.Array, jax.Array]:
     """Holds every object where `out_of_play` [N] at its parking pose, at rest: (qpos [nq], qvel [nv])."""
     n = len(ids.object_qpos)

@@ -58,13 +58,14 @@ class PandaSortParams(ArmParams):
       carry_height: height above the table of the carry target (metres): over the bin walls, and in a straight
         line from anywhere in the spawn region without touching them.
       toss_weight: weight of the toss potential 1 − tanh(d / toss_scale), d the horizontal distance from an
-        in-play object, held or not, to the centre of its own bin (for one that fell to the floor, from where it
-        dropped below the table top): it rises while an object flies towards its bin, where the carry term (held
-        objects only) cannot follow a throw (the tosser; 0 elsewhere).
+        in-play object, held or not, to the centre of its own bin (from where it would land, `toss_flight`; for
+        one that fell to the floor, from where it dropped below the table top): it rises while an object flies
+        towards its bin, where the carry term (held objects only) cannot follow a throw (the tosser; 0 elsewhere).
       toss_scale: distance over which the toss term rises (metres).
-      toss_held_share: share of its toss term that a held object counts (1: all of it; 0: none until it is let
-        go, so that holding an object out towards its bin earns nothing and letting go there earns at once what
-        the hold would have).
+      toss_flight: how far along the path it would fly the toss term places an in-play object: 0 where it is,
+        1 where its centre would drop below the floor line (`FLOOR_Z`) if it were let go now, on a ballistic path
+        from its position and velocity (an object at rest is where it is either way). At 1 a swing towards the
+        bin pays as the object gathers speed, a release keeps what the swing earned, and stopping hands it back.
       held_start_prob: chance that an episode starts with the focus object (a slot drawn uniformly per
         episode) already between the closed fingers, at the arm's start pose (a curriculum: the policy sees
         carrying and releasing before it can grasp; evaluate with 0).
@@ -120,7 +121,7 @@ class PandaSortParams(ArmParams):
     carry_height: jax.Array = ranged(0.15, NON_NEGATIVE)
     toss_weight: jax.Array = ranged(0.0)
     toss_scale: jax.Array = ranged(0.5, POSITIVE)
-    toss_held_share: jax.Array = ranged(1.0, UNIT_INTERVAL)
+    toss_flight: jax.Array = ranged(0.0, UNIT_INTERVAL)
     held_start_prob: jax.Array = ranged(0.0, UNIT_INTERVAL)
     ready_start_prob: jax.Array = ranged(0.0, UNIT_INTERVAL)
     wind_up_start_prob: jax.Array = ranged(0.0, UNIT_INTERVAL)

@@ -4,12 +4,12 @@ An object whose centre enters a bin (inside its walls, below the rim) is scored:
 bin of its shape, `wrong_bin_reward` in another. One that drops below the table top pays `floor_reward`.
 Either way it leaves play for the rest of the episode (the env parks it), so it is scored exactly once.
 
-Dense shaping is potential-based: each shaping term pays the change of its potential over the step (reach: the
-tool centre near an object; grasp: an object held; lift: a held object lifted; carry: a lifted object near the
-point above its own bin; toss: an object, flying or held (`toss_held_share` of it), horizontally near its own
-bin), summed over objects, with an object in its own bin counting as the maximum of every term and one
-elsewhere as zero, except that one which fell to the floor keeps the toss term of where it fell: a throw that
-falls short of its bin keeps credit for its range and aim.
+Dense shaping is potential-based: each shaping term pays the change of its potential over the step (reach: the tool
+centre near an object; grasp: an object held; lift: a held object lifted; carry: a lifted object near the point
+above its own bin; toss: an object, flying or held, horizontally near its own bin, or where it would land if let go
+now, `toss_flight` of the way there), summed over objects, with an object in its own bin counting as the maximum of
+every term and one elsewhere as zero, except that one which fell to the floor keeps the toss term of where it fell:
+a throw that falls short of its bin keeps credit for its range and aim.
 Over an episode the shaping sums to the final potential minus the first, so no behaviour (hovering with an
 object over its bin, say) can farm it.
 """
@@ -25,6 +25,7 @@ from mujoco import mjx
 # the deployment loop (no JAX) scores a real or simulated robot too.
 from jaxarm.deploy.scoring import (
     FLOOR_Z,
+    GRAVITY,
     HELD_DISTANCE,
     HELD_MIN_SQUEEZE,
     HELD_MIN_WIDTH,
@@ -36,7 +37,7 @@ from jaxarm.deploy.scoring import (
 )
 from jaxarm.envs.panda_sort.layout import Layout
 from jaxarm.envs.panda_sort.model import ModelIds
-from jaxarm.envs.panda_sort.objects import object_positions
+from jaxarm.envs.panda_sort.objects import object_positions, object_velocities
 from jaxarm.envs.panda_sort.params import PandaSortParams
 from jaxarm.envs.panda_sort.sim import PandaSortSim
 
@@ -113,6 +114,14 @@ def next_target(ids: ModelIds, data: mjx.Data, sim: PandaSortSim) -> jax.Array:
     return jnp.where(in_play[sim.target], sim.target, nearest).astype(jnp.int32)
 
 
+def landing_xy(position: jax.Array, velocity: jax.Array, flight: jax.Array) -> jax.Array:
+    """[N, 2] where each object's centre would drop below the floor line (`FLOOR_Z`) if let go now, `flight` of
+    the way along its ballistic path from `position` [N, 3] with `velocity` [N, 3]: at 0 where it is."""
+    rise = velocity[:, 2]
+    fall_time = (rise + jnp.sqrt(jnp.maximum(rise**2 + 2 * GRAVITY * (position[:, 2] - FLOOR_Z), 0.0))) / GRAVITY
+    return position[:, :2] + flight * jnp.maximum(fall_time, 0.0)[:, None] * velocity[:, :2]
+
+
 def shaping_potential(
     ids: ModelIds, layout: Layout, data: mjx.Data, sim: PandaSortSim, params: PandaSortParams, target_first: bool
 ) -> jax.Array:
@@ -133,16 +142,16 @@ def shaping_potential(
     to_target = jnp.linalg.norm(position - carry_target, axis=-1)
     # The toss term follows an object to where it fell, so one that fell short keeps credit for its range and aim.
     on_floor = sim.outcome == ON_FLOOR
-    toss_xy = jnp.where(on_floor[:, None], sim.exit_xy, position[:, :2])
+    in_flight = landing_xy(position, object_velocities(ids, sim.qvel), params.toss_flight)
+    toss_xy = jnp.where(on_floor[:, None], sim.exit_xy, in_flight)
     toss = 1.0 - jnp.tanh(jnp.linalg.norm(toss_xy - carry_target[:, :2], axis=-1) / params.toss_scale)
-    in_hand_toss = jnp.where(held, params.toss_held_share * toss, toss)
     stages = jnp.stack(
         [
             1.0 - jnp.tanh(distance / params.reach_scale),
             held.astype(jnp.float32),
             lift,
             lift * (1.0 - jnp.tanh(to_target / params.carry_scale)),
-            in_hand_toss,
+            toss,
         ]
     )  # [S, N]
     in_own_bin = (sim.outcome == IN_CORRECT_BIN).astype(jnp.float32)
