@@ -81,6 +81,10 @@ def test_the_video_camera_frames_the_arm_wound_up_and_every_bin():
     assert np.all(np.abs(image[:, 1]) < 0.95 * half_height), image
 
 
+RELEASE = np.array([0.4, 0.6, 0.35])
+"""Where these tests' throws let go: beyond the near table's edge."""
+
+
 def ballistic_velocity(start: np.ndarray, target: np.ndarray, flight_s: float) -> np.ndarray:
     """[3] launch velocity carrying a point from `start` to `target` in `flight_s` seconds under gravity alone."""
     return (target - start) / flight_s + np.array([0.0, 0.0, GRAVITY * flight_s / 2])
@@ -94,15 +98,14 @@ def test_a_thrown_object_lands_in_the_aimed_bin_and_scores(shape, aimed, reward)
     shared = compiled("panda_sort_tosser")
     env, params = shared.env, shared.params
     size = 0.025
-    release = np.array([0.4, 0.6, 0.35])  # beyond the near table's edge, where a throw lets go
     target = np.array([*env.layout.bin_centers[aimed], size])
-    velocity = ballistic_velocity(release, target, flight_s=0.6)
+    velocity = ballistic_velocity(RELEASE, target, flight_s=0.6)
     state = shared.reset(jax.random.key(0), params)
-    state = with_object(env, state, shape, size, [*release, 1, 0, 0, 0], [*velocity, 0, 0, 0])
+    state = with_object(env, state, shape, size, [*RELEASE, 1, 0, 0, 0], [*velocity, 0, 0, 0])
     # The toss potential of the object in flight, by hand: 1 − tanh(d / toss_scale), d to its own bin's centre.
     params = params.replace(toss_weight=jnp.float32(TOSS_WEIGHT))
     own_bin = np.array(env.layout.bin_centers[shape])
-    toss = TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(release[:2] - own_bin) / float(params.toss_scale)))
+    toss = TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(RELEASE[:2] - own_bin) / float(params.toss_scale)))
     state = state.replace(sim=state.sim.replace(potential=jnp.asarray(shaping_potential(env, state, params))))
     np.testing.assert_allclose(float(state.sim.potential[SHAPING_TERMS.index("toss")]), toss, rtol=1e-5)
     rewards, tosses = [], []
@@ -123,27 +126,48 @@ def test_a_thrown_object_lands_in_the_aimed_bin_and_scores(shape, aimed, reward)
         np.testing.assert_allclose(sum(tosses), -toss, atol=1e-3)
 
 
+SHORT = np.array([0.36, 0.95, -0.3])
+"""A point on the floor between the tables, short of every bin."""
+
+
+def let_go_towards_short(shared, params):
+    """A cube let go at RELEASE on its way to SHORT (0.5 s of flight): (the state, its shaping potential under
+    `params` stored; [3] the velocity)."""
+    velocity = ballistic_velocity(RELEASE, SHORT, flight_s=0.5)
+    state = shared.reset(jax.random.key(0), params)
+    state = with_object(shared.env, state, SHAPE_CUBE, 0.025, [*RELEASE, 1, 0, 0, 0], [*velocity, 0, 0, 0])
+    potential = jnp.asarray(shaping_potential(shared.env, state, params))
+    return state.replace(sim=state.sim.replace(potential=potential)), velocity
+
+
+def floor_crossing(velocity: np.ndarray) -> np.ndarray:
+    """[2] where the path from RELEASE at `velocity` drops below the floor line (`FLOOR_Z`)."""
+    crossing_s = max(np.roots([-GRAVITY / 2, velocity[2], RELEASE[2] - FLOOR_Z]))
+    return RELEASE[:2] + velocity[:2] * crossing_s
+
+
+def fly(shared, state, params):
+    """30 steps of zero actions (1.2 s): (the last state, [30] toss terms, [30] floor terms)."""
+    tosses, floors = [], []
+    for _ in itertools.repeat(None, 30):
+        state = shared.step(state, jnp.zeros(shared.env.spec.action_shape), params)
+        tosses.append(float(state.info.reward_terms.toss))
+        floors.append(float(state.info.reward_terms.floor))
+    return state, tosses, floors
+
+
 @pytest.mark.mjx
 def test_a_throw_that_falls_short_keeps_the_toss_potential_of_where_it_fell():
     shared = compiled("panda_sort_tosser")
     env, params = shared.env, shared.params.replace(toss_weight=jnp.float32(TOSS_WEIGHT))
-    release, short = np.array([0.4, 0.6, 0.35]), np.array([0.36, 0.95, -0.3])  # onto the floor between the tables
-    velocity = ballistic_velocity(release, short, flight_s=0.5)
-    state = shared.reset(jax.random.key(0), params)
-    state = with_object(env, state, SHAPE_CUBE, 0.025, [*release, 1, 0, 0, 0], [*velocity, 0, 0, 0])
-    state = state.replace(sim=state.sim.replace(potential=jnp.asarray(shaping_potential(env, state, params))))
+    state, velocity = let_go_towards_short(shared, params)
     toss_index = SHAPING_TERMS.index("toss")
     released = float(state.sim.potential[toss_index])
-    tosses, floors = [], []
-    for _ in itertools.repeat(None, 30):
-        state = shared.step(state, jnp.zeros(env.spec.action_shape), params)
-        tosses.append(float(state.info.reward_terms.toss))
-        floors.append(float(state.info.reward_terms.floor))
+    state, tosses, floors = fly(shared, state, params)
     assert [value for value in floors if value] == [-50.0]
     # It left play where it dropped below the table top: on its flight path, within a step's travel of the
     # point where the path crosses that height.
-    crossing_s = max(np.roots([-GRAVITY / 2, velocity[2], release[2] - FLOOR_Z]))
-    crossing = release[:2] + velocity[:2] * crossing_s
+    crossing = floor_crossing(velocity)
     fell = np.asarray(state.sim.exit_xy[0])
     assert np.linalg.norm(fell - crossing) < np.linalg.norm(velocity[:2]) * CONTROL_DT, (fell, crossing)
     # On the floor it keeps the toss potential of that spot, by hand, and the toss terms telescope to it.
@@ -164,28 +188,18 @@ def test_with_toss_flight_an_object_in_flight_counts_where_it_will_fall():
     assert tuple(env.mj_model.opt.gravity) == (0.0, 0.0, -scoring.GRAVITY)
     params = shared.params.replace(toss_weight=jnp.float32(TOSS_WEIGHT), toss_flight=jnp.float32(1.0))
     toss_scale = float(params.toss_scale)
-    release, short = np.array([0.4, 0.6, 0.35]), np.array([0.36, 0.95, -0.3])
-    velocity = ballistic_velocity(release, short, flight_s=0.5)
-    state = shared.reset(jax.random.key(0), params)
-    state = with_object(env, state, SHAPE_CUBE, 0.025, [*release, 1, 0, 0, 0], [*velocity, 0, 0, 0])
-    potential = shaping_potential(env, state, params)
-    state = state.replace(sim=state.sim.replace(potential=jnp.asarray(potential)))
-    crossing_s = max(np.roots([-GRAVITY / 2, velocity[2], release[2] - FLOOR_Z]))
-    crossing = release[:2] + velocity[:2] * crossing_s
+    state, velocity = let_go_towards_short(shared, params)
+    potential = np.asarray(state.sim.potential)
     own_bin = np.array(env.layout.bin_centers[SHAPE_CUBE])
-    toss_index = SHAPING_TERMS.index("toss")
-    by_hand = TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(crossing - own_bin) / toss_scale))
+    by_hand = TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(floor_crossing(velocity) - own_bin) / toss_scale))
     # Where it is it would count far less: the flight carries it most of the way towards the bin.
-    assert by_hand > 2 * TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(release[:2] - own_bin) / toss_scale))
-    np.testing.assert_allclose(potential[toss_index], by_hand, rtol=1e-5)
+    assert by_hand > 2 * TOSS_WEIGHT * (1 - np.tanh(np.linalg.norm(RELEASE[:2] - own_bin) / toss_scale))
+    np.testing.assert_allclose(potential[SHAPING_TERMS.index("toss")], by_hand, rtol=1e-5)
     controller = deployable.controller(env, params)
     seen = scoring_state(env, controller, state.sim, int(state.sim.target))
     ours = scoring.shaping_potential(seen, controller.task.bins, panda_sort.sort_reward(env, params))
     np.testing.assert_allclose(ours, potential, rtol=1e-4, atol=1e-4)
-    tosses = []
-    for _ in itertools.repeat(None, 30):
-        state = shared.step(state, jnp.zeros(env.spec.action_shape), params)
-        tosses.append(float(state.info.reward_terms.toss))
+    state, tosses, _ = fly(shared, state, params)
     assert int(state.sim.outcome[0]) == scoring.ON_FLOOR
     # The term is 1/toss_scale-Lipschitz in the distance: what the flight pays is bounded by the gap between the
     # step it fell in and the crossing (test above).
