@@ -21,7 +21,7 @@ from jaxarm.runner.options import Options
 from jaxarm.runner.programs import ChunkRunners, Evaluators, eval_key
 from jaxarm.runner.runlog import RunLog, metric_rows
 from jaxarm.runner.signals import StopRequests
-from jaxarm.runner.tries import TryFailed, failed_gate, gated
+from jaxarm.runner.tries import TryFailed, failed_gate, failed_train_gate, gated
 
 
 class TrainingDiverged(RuntimeError):
@@ -91,20 +91,16 @@ def train_chunks(
                     count * steps_per_update / chunk_time,
                 )
             )
-            failed = False
-            if crossed(config.eval_every_updates, done_updates, done_updates + count):
+            evaluated = crossed(config.eval_every_updates, done_updates, done_updates + count)
+            if evaluated:
                 best = evaluate(evaluators, state, key, rows[-1], best, done_updates + count, run_dir)
-                failed = gate and failed_gate(config, best, (done_updates + count) * steps_per_update)
             done_updates += count
             if log:
                 log.write(rows, done_updates * steps_per_update, flat)
+            failed = gate_failure(config, run_dir, best if evaluated else None, rows) if gate else None
             # Agreed by every process, as the stops below are; a run without a gate asks nobody.
-            if gate and processes.any_process(failed):
-                raise TryFailed(
-                    best["success_rate"] if best else 0.0,
-                    done_updates * steps_per_update,
-                    start.wall_offset + time.perf_counter() - clock,
-                )
+            if gate and processes.any_process(failed is not None):
+                raise TryFailed(failed or "another process's gate", start.wall_offset + time.perf_counter() - clock)
             out_of_time = options.stop_after_s is not None and time.perf_counter() - clock > options.stop_after_s
             # Agreed by every process: one that stopped alone would leave the others waiting in a collective.
             out_of_time, stopping = processes.any_process(out_of_time), processes.any_process(stop.requested)
@@ -131,6 +127,22 @@ def train_chunks(
             if out_of_time:
                 break
     return state, done_updates, start.wall_offset + time.perf_counter() - clock
+
+
+def gate_failure(config: RunConfig, run_dir: pathlib.Path, evaluated: dict | None, rows: list[dict]) -> str | None:
+    """How the try in `run_dir` failed a gate at the end of a chunk (its metric `rows`, one per update, written),
+    None where it did not: the evaluation's gate where the chunk ended in an evaluation (`evaluated`: the best so
+    far), the training episodes' where the chunk crossed `retry_train_at_env_steps`. Only the primary process keeps
+    the metrics that gate reads (resumed or not): the others pass it, and follow the primary's word."""
+    env_steps = rows[-1]["env_steps"]
+    if evaluated is not None and (failed := failed_gate(config, evaluated, env_steps)):
+        return failed
+    chunk_start = rows[0]["env_steps"] - rows[0]["env_steps"] // rows[0]["updates"]
+    crossing = config.retry_train_below and chunk_start < config.retry_train_at_env_steps <= env_steps
+    if not (crossing and processes.is_primary()):
+        return None
+    window = metrics_log.read_metrics(run_dir)[-config.updates_per_time_limit() :]
+    return failed_train_gate(config, window, env_steps)
 
 
 def evaluate(

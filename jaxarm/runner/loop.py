@@ -194,8 +194,8 @@ def _set_aside(config: RunConfig, run_dir: pathlib.Path, failed: tries.TryFailed
         folder = tries.set_aside_try(run_dir, stages)
         again = ", its warm start trained again first" if stages else ""
         print(
-            f"try {done} of {config.tries} failed its gate ({failed}; it asks {config.retry_below:.0%} by "
-            f"{config.retry_at_env_steps:,}): set aside in {folder}; starting try {done + 1}{again}",
+            f"try {done} of {config.tries} failed its gate ({failed}): set aside in {folder}; starting try "
+            f"{done + 1}{again}",
             file=sys.stderr,
         )
     processes.wait_for_all("try set aside")

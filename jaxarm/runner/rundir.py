@@ -26,8 +26,8 @@ Layout of `runs/<config>-<timestamp>/`:
   warm_start/      the run it warm-starts from, named by preset (`init_from=preset:NAME`), trained first; kept
                    likewise
   tries/K/         the metrics, TensorBoard events, checkpoints and best state of try K, set aside when it failed
-                   the config's gate (`retry_below`), with its warm_start/ where each try trains its own
-                   (`retry_warm_start`); the run trains its next try in the directory itself
+                   a gate of the config (`retry_below`, `retry_train_below`), with its warm_start/ where each try
+                   trains its own (`retry_warm_start`); the run trains its next try in the directory itself
   .lock            held (flock) by the one process writing to the directory
 
 A directory becomes a run when its config.json is written (before its stages, where it has them); until its first

@@ -1,6 +1,7 @@
-"""A run's gated tries (`RunConfig.retry_below`, `retry_at_env_steps`, `tries`): the gate a try's evaluations must
-pass, and where a try that failed it is set aside (`tries/K/` of the run directory) before the next starts. The run
-loop (loop.py) starts the tries, the chunk loop (chunks.py) applies the gate."""
+"""A run's gated tries (`RunConfig.retry_below`, `retry_at_env_steps`, `tries`; the earlier gate on training
+episodes, `retry_train_below` at `retry_train_at_env_steps`): the gates a try must pass, and where a try that failed
+one is set aside (`tries/K/` of the run directory) before the next starts. The run loop (loop.py) starts the tries,
+the chunk loop (chunks.py) applies the gates."""
 
 import pathlib
 
@@ -15,19 +16,45 @@ TRY_FILES = ("metrics.jsonl", "tensorboard", "checkpoints", "best", "best.json")
 
 
 class TryFailed(RuntimeError):
-    """A try of a run with a gate (`RunConfig.retry_below`) had not reached it by `retry_at_env_steps`: its best
-    evaluation's success rate was `best` after `env_steps`, and the run had trained `wall_time` seconds in all."""
+    """A try of a run with a gate (`RunConfig.retry_below`) failed one: the message says which gate and by how much;
+    the run had trained `wall_time` seconds in all."""
 
-    def __init__(self, best: float, env_steps: int, wall_time: float):
-        super().__init__(f"best evaluation {best:.1%} after {env_steps:,} env steps")
+    def __init__(self, reason: str, wall_time: float):
+        super().__init__(reason)
         self.wall_time = wall_time
 
 
-def failed_gate(config: RunConfig, best: dict | None, env_steps: int) -> bool:
-    """Whether a try whose best evaluation so far is `best` has failed the config's gate after `env_steps`: at or
-    past `retry_at_env_steps` and below `retry_below`. The best evaluation only rises, so a try that passed at its
-    first evaluation past the gate passes at every later one, and on resume."""
-    return env_steps >= config.retry_at_env_steps and (best is None or best["success_rate"] < config.retry_below)
+def failed_gate(config: RunConfig, best: dict | None, env_steps: int) -> str | None:
+    """How a try whose best evaluation so far is `best` has failed the config's gate after `env_steps`, None where it
+    has not: at or past `retry_at_env_steps` and below `retry_below`. The best evaluation only rises, so a try that
+    passed at its first evaluation past the gate passes at every later one, and on resume."""
+    if env_steps < config.retry_at_env_steps or (best is not None and best["success_rate"] >= config.retry_below):
+        return None
+    score = best["success_rate"] if best is not None else 0.0
+    return (
+        f"best evaluation {score:.1%} after {env_steps:,} env steps; it asks {config.retry_below:.0%} by "
+        f"{config.retry_at_env_steps:,}"
+    )
+
+
+def training_success(rows: list[dict]) -> float:
+    """The share of the training episodes of metrics `rows` that succeeded: each row's `episodes/success_rate`
+    weighted by its `episodes/judged` (0 where none was judged)."""
+    judged = sum(row["episodes/judged"] for row in rows)
+    return sum(row["episodes/success_rate"] * row["episodes/judged"] for row in rows) / max(judged, 1.0)
+
+
+def failed_train_gate(config: RunConfig, rows: list[dict], env_steps: int) -> str | None:
+    """How a try failed the config's gate on training episodes (`retry_train_below`), None where it has not:
+    `rows` are its metrics of the last time limit of updates to `env_steps` (every env's last episode there at
+    least: a shorter span may see the failures, which end together at the time limit, or miss them)."""
+    rate = training_success(rows)
+    if rate >= config.retry_train_below:
+        return None
+    return (
+        f"training episodes {rate:.2%} over the {len(rows)} updates to {env_steps:,} env steps; it asks "
+        f"{config.retry_train_below:.2%} by {config.retry_train_at_env_steps:,}"
+    )
 
 
 def gated(config: RunConfig, try_index: int) -> bool:

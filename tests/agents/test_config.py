@@ -130,6 +130,7 @@ BOUNDED_BY_A_RELATION = {
     "critic_warm_up_updates": "below num_updates, which fits in int32",
     "imitation_decay_updates": "divides an update count in float32: allocates nothing",
     "retry_at_env_steps": "inside the run's env steps: allocates nothing",
+    "retry_train_at_env_steps": "before retry_at_env_steps: allocates nothing",
 }
 
 
@@ -343,6 +344,21 @@ def test_a_critic_warm_up_as_long_as_the_run_is_refused():
             {"retry_below": 0.5, "retry_at_env_steps": 32, "tries": 2, "retry_warm_start": True},
             r"a warm start named by preset \(init_from=preset:NAME, got ''\)$",
         ),
+        ({"retry_train_below": 0.1}, r"^retry_train_below=0.1 is an earlier gate of retry_below's tries: it needs"),
+        (
+            {"retry_below": 0.5, "retry_at_env_steps": 64, "tries": 2, "retry_train_below": 0.1},
+            r"^retry_train_at_env_steps=0 must lie after the run's start and before retry_at_env_steps=64 ",
+        ),
+        (
+            {
+                "retry_below": 0.5,
+                "retry_at_env_steps": 64,
+                "tries": 2,
+                "retry_train_below": 0.1,
+                "retry_train_at_env_steps": 64,
+            },
+            "^retry_train_at_env_steps=64 must lie after",
+        ),
     ],
 )
 def test_a_gate_without_tries_evaluations_or_a_point_inside_the_run_is_refused(changes, message):
@@ -350,6 +366,9 @@ def test_a_gate_without_tries_evaluations_or_a_point_inside_the_run_is_refused(c
         num_envs=8, rollout_length=4, num_minibatches=2, total_env_steps=320, updates_per_chunk=5, eval_every_updates=2
     )
     dataclasses.replace(config, retry_below=0.5, retry_at_env_steps=319, tries=2).validate()
+    dataclasses.replace(
+        config, retry_below=0.5, retry_at_env_steps=319, tries=2, retry_train_below=0.1, retry_train_at_env_steps=318
+    ).validate()
     with pytest.raises(ValueError, match=message):
         dataclasses.replace(config, **changes).validate()
 

@@ -224,6 +224,48 @@ def test_a_run_stopped_in_its_second_try_resumes_in_it_bit_identically(retried_r
         np.testing.assert_array_equal(resumed, uninterrupted)
 
 
+TRAIN_GATED = [
+    "eval_every_updates=4",
+    "retry_below=0.01",
+    "retry_at_env_steps=20480",
+    "retry_train_below=1.0",
+    "retry_train_at_env_steps=16384",
+    "tries=2",
+]
+"""An earlier gate on the training episodes that SMALL's runs fail at update 16 (they have not all succeeded by
+then); the evaluations' gate, at update 20, asks next to nothing."""
+
+
+def test_a_try_below_its_training_episodes_gate_is_set_aside_reading_its_last_time_limit(tmp_path, capsys):
+    run_dir = tmp_path / "train-gated"
+    # Stopped after its first chunk (updates 1-4), resumed: the gate at update 16 reads rows from both commands.
+    assert run_cli(*SMALL, *TRAIN_GATED, "--out", str(run_dir), "--stop-after-minutes", "0") == 0
+    assert run.main(["--resume", str(run_dir)]) == 0
+    config, _ = rundir.read_config(run_dir)
+    window = config.updates_per_time_limit()
+    assert 12 < window < 16, "a window across the resume, inside the try"
+    failed = metrics_log.read_metrics(run_dir / tries.TRIES_DIR / "0")
+    assert [row["updates"] for row in failed] == list(range(1, 17))
+    rate = tries.training_success(failed[-window:])
+    assert rate < 1.0
+    assert (
+        f"try 1 of 2 failed its gate (training episodes {rate:.2%} over the {window} updates to 16,384 env steps; "
+        "it asks 100.00% by 16,384)"
+    ) in capsys.readouterr().err
+    assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == list(range(1, 25))
+    assert json.loads((run_dir / "eval.json").read_text())["tries"] == 2
+
+
+def test_training_success_weighs_each_update_by_its_judged_episodes():
+    rows = [
+        {"episodes/success_rate": 0.5, "episodes/judged": 2.0},
+        {"episodes/success_rate": 0.0, "episodes/judged": 6.0},
+        {"episodes/success_rate": 1.0, "episodes/judged": 0.0},
+    ]
+    assert tries.training_success(rows) == 1 / 8
+    assert tries.training_success(rows[2:]) == 0.0
+
+
 def test_nan_stops_the_run_naming_the_update_and_keeps_the_last_good_checkpoint(finished_run, tmp_path, capsys):
     config, preset = rundir.read_config(finished_run)
     good = final_params(finished_run)

@@ -123,6 +123,11 @@ class RunConfig:
         start, where it has one) with fresh randomness, up to `tries` tries in all, the last trained to the end
         whatever it scores: for recipes that fail on some draws and show it early. 0 for never.
       retry_at_env_steps: the env steps by which a try must reach `retry_below`.
+      retry_train_below: an earlier gate of the same tries, on the training episodes (no evaluation, and what a
+        try that will learn shows first): the share of them that succeeded over the last time limit of updates up
+        to `retry_train_at_env_steps` (`episodes/success_rate` weighted by `episodes/judged`) must reach it, or the
+        try is set aside as at `retry_below`. 0 for none.
+      retry_train_at_env_steps: the env steps at whose first chunk end `retry_train_below` is applied.
       tries: the most tries a run makes under `retry_below`, the first included (without a gate, one).
       retry_warm_start: with a gate and a warm start named by preset (`init_from=preset:NAME`), a try that fails the
         gate sets its warm start aside too (`tries/K/warm_start/`), and the next try trains that preset again first,
@@ -146,6 +151,8 @@ class RunConfig:
     eval_every_updates: int = static(0, ranges.NON_NEGATIVE)
     retry_below: float = static(0.0, ranges.UNIT_INTERVAL)
     retry_at_env_steps: int = static(0, ranges.NON_NEGATIVE)
+    retry_train_below: float = static(0.0, ranges.UNIT_INTERVAL)
+    retry_train_at_env_steps: int = static(0, ranges.NON_NEGATIVE)
     tries: int = static(1, ranges.TRIES)
     retry_warm_start: bool = False
 
@@ -213,16 +220,26 @@ class RunConfig:
             raise ValueError(error.args[0] if error.args else str(error)) from None
 
     def _validate_retries(self) -> None:
-        """ValueError where `retry_below`, `retry_at_env_steps`, `tries` and `retry_warm_start` do not make a gate a
-        run can apply."""
+        """ValueError where `retry_below`, `retry_at_env_steps`, `retry_train_below`, `retry_train_at_env_steps`,
+        `tries` and `retry_warm_start` do not make gates a run can apply."""
         if self.retry_warm_start and not (self.retry_below and teacher_preset_name(self.init_from) is not None):
             raise ValueError(
                 "retry_warm_start=true trains a warm start again after a try fails its gate: it needs a gate "
                 f"(retry_below=P, got {self.retry_below:g}) and a warm start named by preset (init_from=preset:NAME, "
                 f"got {self.init_from!r})"
             )
+        if self.retry_train_below and not self.retry_below:
+            raise ValueError(
+                f"retry_train_below={self.retry_train_below:g} is an earlier gate of retry_below's tries: it needs "
+                "retry_below=P as well (retry_below=0 switches the gates off)"
+            )
         if not self.retry_below:
             return
+        if self.retry_train_below and not 0 < self.retry_train_at_env_steps < self.retry_at_env_steps:
+            raise ValueError(
+                f"retry_train_at_env_steps={self.retry_train_at_env_steps:,} must lie after the run's start and "
+                f"before retry_at_env_steps={self.retry_at_env_steps:,} (retry_train_below=0 switches that gate off)"
+            )
         if self.tries < 2:
             raise ValueError(f"retry_below={self.retry_below:g} needs tries=N of at least 2 (the first included)")
         if not self.eval_every_updates:
