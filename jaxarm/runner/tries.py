@@ -24,16 +24,16 @@ class TryFailed(RuntimeError):
         self.wall_time = wall_time
 
 
-def failed_gate(config: RunConfig, best: dict | None, env_steps: int) -> str | None:
-    """How a try whose best evaluation so far is `best` has failed the config's gate after `env_steps`, None where it
-    has not: at or past `retry_at_env_steps` and below `retry_below`. The best evaluation only rises, so a try that
-    passed at its first evaluation past the gate passes at every later one, and on resume."""
-    if env_steps < config.retry_at_env_steps or (best is not None and best["success_rate"] >= config.retry_below):
+def failed_gate(config: RunConfig, best: dict, env_steps: int) -> str | None:
+    """How a try whose best evaluation so far, just evaluated, is `best` has failed the config's gate after
+    `env_steps`, None where it has not: at or past `retry_at_env_steps` and below `retry_below`. The best evaluation
+    only rises, so a try that passed at its first evaluation past the gate passes at every later one, and on
+    resume."""
+    if env_steps < config.retry_at_env_steps or best["success_rate"] >= config.retry_below:
         return None
-    score = best["success_rate"] if best is not None else 0.0
     return (
-        f"best evaluation {score:.1%} after {env_steps:,} env steps; it asks {config.retry_below:.0%} by "
-        f"{config.retry_at_env_steps:,}"
+        f"best evaluation {best['success_rate']:.1%} after {env_steps:,} env steps; it asks {config.retry_below:.0%} "
+        f"by {config.retry_at_env_steps:,}"
     )
 
 
