@@ -8,6 +8,7 @@ from jaxarm import deployable
 from jaxarm.deploy import scoring
 from jaxarm.deployable import panda_sort
 from jaxarm.envs.panda_sort import make_layout, reward
+from jaxarm.envs.panda_sort.objects import pose_index, velocity_index
 from tests.deploy.test_controller import sorter_case
 
 
@@ -34,12 +35,12 @@ def scoring_state(env, controller, sim, target: int) -> scoring.SortState:
     centre by `controller`'s kinematics."""
     qpos = np.asarray(sim.qpos, np.float64)
     return scoring.SortState(
-        position=qpos[env.ids.object_qpos[:, None] + np.arange(3)],
+        position=qpos[pose_index(env.ids)[:, :3]],
         shape=np.asarray(sim.shape),
         size=np.asarray(sim.size, np.float64),
         outcome=np.asarray(sim.outcome),
         exit_xy=np.asarray(sim.exit_xy, np.float64),
-        velocity=np.asarray(sim.qvel, np.float64)[env.ids.object_qvel[:, None] + np.arange(3)],
+        velocity=np.asarray(sim.qvel, np.float64)[velocity_index(env.ids)[:, :3]],
         target=target,
         tcp=controller.kinematics.pose(qpos[:7]).tcp,
         finger_q=qpos[7:9],
