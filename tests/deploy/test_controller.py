@@ -18,6 +18,7 @@ from jaxarm.deploy.reading import ArmReading, HoleEstimate, ObjectEstimate
 from jaxarm.envs.panda.base import CONTROL_DT, ArmOptions
 from jaxarm.envs.panda.robot import tcp_pose_at
 from jaxarm.envs.panda_sort import IN_CORRECT_BIN, IN_PLAY, MODE_JOINT, PandaSort, PandaSortSim
+from jaxarm.envs.panda_sort.objects import pose_index, velocity_index
 from jaxarm.envs.panda_sort.reward import next_outcome, next_target, shaping_potential
 from jaxarm.envs.peg_insert.env import PegInsert, PegInsertSim
 from jaxarm.robots import ROBOTS
@@ -96,10 +97,9 @@ def sorter_case(control_mode: str):
 
 def sorter_inputs(env: PandaSort, sim: PandaSortSim) -> tuple[ArmReading, ObjectEstimate]:
     qpos, qvel = np.asarray(sim.qpos, np.float64), np.asarray(sim.qvel, np.float64)
-    pose_index = env.ids.object_qpos[:, None] + np.arange(7)
-    velocity_index = env.ids.object_qvel[:, None] + np.arange(6)
     reading = ArmReading(arm_q=qpos[:7], arm_qvel=qvel[:7], finger_q=qpos[7:9])
-    objects = ObjectEstimate(qpos[pose_index], qvel[velocity_index], np.asarray(sim.shape), np.asarray(sim.size))
+    pose, velocity = qpos[pose_index(env.ids)], qvel[velocity_index(env.ids)]
+    objects = ObjectEstimate(pose, velocity, np.asarray(sim.shape), np.asarray(sim.size))
     return reading, objects
 
 

@@ -88,12 +88,12 @@ def velocity_index(ids: ModelIds) -> np.ndarray:
 
 def object_positions(ids: ModelIds, qpos: jax.Array) -> jax.Array:
     """[nq] -> [N, 3] object centres."""
-    return qpos[ids.object_qpos[:, None] + np.arange(3)]
+    return qpos[pose_index(ids)[:, :3]]
 
 
 def object_velocities(ids: ModelIds, qvel: jax.Array) -> jax.Array:
     """[nv] -> [N, 3] object centres' velocities (world frame)."""
-    return qvel[ids.object_qvel[:, None] + np.arange(3)]
+    return qvel[velocity_index(ids)[:, :3]]
 
 
 def park(ids: ModelIds, qpos: jax.Array, qvel: jax.Array, out_of_play: jax.Array) -> tuple[jax.Array, jax.Array]:
