@@ -105,7 +105,7 @@ def _train_locked(
     from and its teacher, where the config names them by preset (a stage's evaluation is returned where a time
     limit stopped it). Where each try trains its warm start again (`retry_warm_start`), a try that failed its gate
     comes back here, set aside with its warm start, and the stages and the learner run again."""
-    failed_wall_time = None
+    after_failed_try = False
     while True:
         for stage, stage_config in teacher.stages(config, run_dir, options):
             clock = time.perf_counter()
@@ -117,9 +117,9 @@ def _train_locked(
             options = _less_time(options, time.perf_counter() - clock)
         clock = time.perf_counter()
         try:
-            return _train_learner(config, preset, run_dir, resuming, options, overrides, failed_wall_time)
-        except tries.TryFailed as failed:
-            failed_wall_time, overrides = failed.wall_time, ()
+            return _train_learner(config, preset, run_dir, resuming, options, overrides, after_failed_try)
+        except tries.TryFailed:
+            after_failed_try, overrides = True, ()
             options = _less_time(options, time.perf_counter() - clock)
 
 
@@ -130,12 +130,12 @@ def _train_learner(
     resume: bool,
     options: Options,
     overrides: Sequence[str],
-    failed_wall_time: float | None = None,
+    after_failed_try: bool = False,
 ) -> dict:
     """Trains `config`'s own learner into `run_dir`, the lock held; a resume's `overrides` are recorded once its
-    checkpoint is restored. `failed_wall_time`: the train wall time of the tries before, where this starts a try
-    after one that failed its gate with its warm start set aside (`retry_warm_start`), which raises TryFailed
-    out of here once set aside."""
+    checkpoint is restored. `after_failed_try`: this starts a try after one that failed its gate in this command,
+    its warm start set aside and trained again (`retry_warm_start`); such a try raises TryFailed out of here once
+    set aside."""
     trainer = learners.make_trainer(config, run_dir)
     if processes.is_primary():
         progress.explain_slow_compiles(config.make_env(randomized=False)[0])
@@ -155,15 +155,13 @@ def _train_learner(
     # pool compiles the first chunk while the start state is made, then the evaluations while it runs; leaving
     # it waits for that.
     with envs_split_over(mesh), ThreadPoolExecutor(1, thread_name_prefix="compile") as compiling:
-        resume = _resumes(run_dir, resume) if failed_wall_time is None else False
+        resume = False if after_failed_try else _resumes(run_dir, resume)
         like = state_like(trainer, config, mesh)
         resumed_at = (checkpoint.latest_step(run_dir / "checkpoints") or 0) if resume else 0
         runners = ChunkRunners.ahead(trainer, config, like, resumed_at, compiling)
         # Behind the first chunk's program on the pool: compiled while the first chunk runs, ready at its end.
         evaluators.compile_ahead(compiling, like, eval_key(config))
         start = _start(trainer, config, preset, run_dir, resume, overrides, like)
-        if failed_wall_time is not None:
-            start = dataclasses.replace(start, wall_offset=failed_wall_time)
         clock = time.perf_counter()
         while True:
             try:
@@ -177,10 +175,7 @@ def _train_learner(
                     raise
                 options = _less_time(options, time.perf_counter() - clock)
                 clock = time.perf_counter()
-                # The failed tries' time counts: a retried run's train wall time is all it took.
-                start = dataclasses.replace(
-                    _start(trainer, config, preset, run_dir, False, (), like), wall_offset=failed.wall_time
-                )
+                start = _start(trainer, config, preset, run_dir, False, (), like)
         return _final_evaluation(
             trainer, config, preset, run_dir, state, done_updates, train_time, start.try_index + 1, evaluators
         )
@@ -210,13 +205,19 @@ def _less_time(options: Options, spent: float) -> Options:
 
 def _resumes(run_dir: pathlib.Path, resume: bool) -> bool:
     """Whether the run in `run_dir` resumes from its latest checkpoint (`resume`), after checking that there is
-    one to resume, or none where the run starts; a run that died before its first checkpoint starts afresh."""
+    one to resume, or none where the run starts; a run that died before its first checkpoint starts afresh, and a
+    try after others set aside that did starts that try afresh."""
     primary = processes.is_primary()
     has_run = (run_dir / "config.json").exists()
     restart = has_run and not rundir.any_checkpoint_files(run_dir)
     # Every process has looked before the primary clears anything.
     processes.wait_for_all("run directory read")
-    if restart:
+    if restart and tries.tries_set_aside(run_dir):
+        # Between tries: the run's config, provenance and resumes, and its tries set aside, stay.
+        if primary:
+            rundir.clear_run(run_dir, tries.TRY_FILES)
+        resume = False
+    elif restart:
         # Died before its first checkpoint (Ctrl-C while compiling, NaN at once, a full disk), or while writing it
         # (a kill, a full disk): nothing to keep.
         if primary:
@@ -248,7 +249,7 @@ def _start(
 ) -> Start:
     """The run's starting point: a fresh (or warm-started) learner state like `like`, written as a new run, or
     the latest checkpoint's (`resume`, as `_resumes` decided), in the try the run directory holds (`tries_set_aside`):
-    each try draws its own randomness, the first the seed's own."""
+    each try draws its own randomness, the first the seed's own, and its clock goes on from the tries before."""
     primary = processes.is_primary()
     shardings = jax.tree.map(lambda leaf: leaf.sharding, like)
     index = tries.tries_set_aside(run_dir)
@@ -278,7 +279,16 @@ def _start(
         # Written once the start state exists: a warm start that fails leaves no half-made run directory.
         rundir.write_config(run_dir, config, preset)
         provenance.append_provenance(run_dir, f"try {index + 1}" if index else "start")
-    return Start(state, 0, 0.0, None, index)
+    # The failed tries' time counts: a retried run's train wall time is all it took.
+    return Start(state, 0, _tries_wall_time(run_dir), None, index)
+
+
+def _tries_wall_time(run_dir: pathlib.Path) -> float:
+    """The train wall time of the tries of the run in `run_dir` set aside so far (0 where none was): the latest clock
+    in their metrics, each try's clock going on from the tries before it, in the command that set it aside or in a
+    later one."""
+    folders = (run_dir / tries.TRIES_DIR / str(index) for index in range(tries.tries_set_aside(run_dir)))
+    return max((row["wall_time"] for folder in folders for row in metrics_log.read_metrics(folder)), default=0.0)
 
 
 def _final_evaluation(

@@ -31,7 +31,8 @@ Layout of `runs/<config>-<timestamp>/`:
   .lock            held (flock) by the one process writing to the directory
 
 A directory becomes a run when its config.json is written (before its stages, where it has them); until its first
-checkpoint, starting it again (or resuming it) starts it afresh, keeping the teacher/ and warm_start/ it has.
+checkpoint, starting it again (or resuming it) starts it afresh, keeping the teacher/ and warm_start/ it has; after
+a try set aside, until the next try's first checkpoint, it starts that try afresh, keeping the run's records.
 Nothing here deletes or overwrites a file that is not one of the above.
 """
 
@@ -230,9 +231,10 @@ def locked(
         handle.close()
 
 
-def clear_run(run_dir: pathlib.Path) -> None:
-    """Deletes what training wrote into `run_dir` (a run that died before its first checkpoint), nothing else."""
-    for name in RUN_FILES + ("curve.png", "eval.json"):
+def clear_run(run_dir: pathlib.Path, names: Sequence[str] = (*RUN_FILES, "curve.png", "eval.json")) -> None:
+    """Deletes what training wrote into `run_dir` (a run that died before its first checkpoint), nothing else; with
+    `names`, those of it alone (a try's `TRY_FILES`)."""
+    for name in names:
         path = run_dir / name
         if path.is_dir():
             shutil.rmtree(path)

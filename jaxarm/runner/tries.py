@@ -16,12 +16,8 @@ TRY_FILES = ("metrics.jsonl", "tensorboard", "checkpoints", "best", "best.json")
 
 
 class TryFailed(RuntimeError):
-    """A try of a run with a gate (`RunConfig.retry_below`) failed one: the message says which gate and by how much;
-    the run had trained `wall_time` seconds in all."""
-
-    def __init__(self, reason: str, wall_time: float):
-        super().__init__(reason)
-        self.wall_time = wall_time
+    """A try of a run with a gate (`RunConfig.retry_below`) failed one: the message says which gate and by how
+    much."""
 
 
 def failed_gate(config: RunConfig, best: dict, env_steps: int) -> str | None:

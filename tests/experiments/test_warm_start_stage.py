@@ -86,7 +86,12 @@ def test_a_run_stopped_in_any_stage_of_its_second_try_resumes_there(tmp_path):
         commands += 1
     assert commands == 4 and result["tries"] == 2 and tries.tries_set_aside(run_dir) == 1
     assert rundir.read_config(run_dir / rundir.WARM_START_DIR)[0].seed == tries.warm_start_seed(3, 1)
-    assert [row["updates"] for row in metrics_log.read_metrics(run_dir)] == [1, 2, 3, 4]
+    failed, rows = metrics_log.read_metrics(run_dir / tries.TRIES_DIR / "0"), metrics_log.read_metrics(run_dir)
+    assert [row["updates"] for row in rows] == [1, 2, 3, 4]
+    # Stopped between its tries, the run keeps its records and counts the failed try's time in its clock.
+    records = json.loads((run_dir / rundir.PROVENANCE_FILE).read_text())["records"]
+    assert [record["event"] for record in records] == ["start", "try 2", "resume"]
+    assert rows[0]["wall_time"] > failed[-1]["wall_time"]
 
 
 def test_a_student_kickstarted_by_its_warm_start_is_taught_by_the_run_it_starts_from(tmp_path):
