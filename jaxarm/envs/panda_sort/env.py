@@ -190,7 +190,7 @@ class PandaSort(ArmBase[PandaSortParams, PandaSortSim, ModelIds]):
         displacement (`bins_moved_from`) more than in the source. From the sorter, the tosser's bins stand 0.97 m
         farther, eight times that input's spread over the sorter's starts (0.12 m): read unshifted, the first
         stage's policy grasped none of 32 objects from rest in the tosser, as new inputs (at their mean) 31%, moved
-        all, each at the step it grasps in its own env (BENCHMARKS.md#tosser)."""
+        all, each at the step it grasps in its own env (docs/benchmarks-log.md, 2026-11-30)."""
         sorter = self.row_source(source)
         if sorter is None or (moved := self.bins_moved_from(sorter)) is None:
             return super().observation_source_shift(source)
