@@ -105,7 +105,6 @@ def _train_locked(
     from and its teacher, where the config names them by preset (a stage's evaluation is returned where a time
     limit stopped it). Where each try trains its warm start again (`retry_warm_start`), a try that failed its gate
     comes back here, set aside with its warm start, and the stages and the learner run again."""
-    after_failed_try = False
     while True:
         for stage, stage_config in teacher.stages(config, run_dir, options):
             clock = time.perf_counter()
@@ -117,9 +116,9 @@ def _train_locked(
             options = _less_time(options, time.perf_counter() - clock)
         clock = time.perf_counter()
         try:
-            return _train_learner(config, preset, run_dir, resuming, options, overrides, after_failed_try)
+            return _train_learner(config, preset, run_dir, resuming, options, overrides)
         except tries.TryFailed:
-            after_failed_try, overrides = True, ()
+            overrides = ()
             options = _less_time(options, time.perf_counter() - clock)
 
 
@@ -130,12 +129,10 @@ def _train_learner(
     resume: bool,
     options: Options,
     overrides: Sequence[str],
-    after_failed_try: bool = False,
 ) -> dict:
     """Trains `config`'s own learner into `run_dir`, the lock held; a resume's `overrides` are recorded once its
-    checkpoint is restored. `after_failed_try`: this starts a try after one that failed its gate in this command,
-    its warm start set aside and trained again (`retry_warm_start`); such a try raises TryFailed out of here once
-    set aside."""
+    checkpoint is restored. After a try set aside with its warm start (`retry_warm_start`) this starts the next
+    (`_resumes` finds the run between tries); such a try raises TryFailed out of here once set aside."""
     trainer = learners.make_trainer(config, run_dir)
     if processes.is_primary():
         progress.explain_slow_compiles(config.make_env(randomized=False)[0])
@@ -155,7 +152,7 @@ def _train_learner(
     # pool compiles the first chunk while the start state is made, then the evaluations while it runs; leaving
     # it waits for that.
     with envs_split_over(mesh), ThreadPoolExecutor(1, thread_name_prefix="compile") as compiling:
-        resume = False if after_failed_try else _resumes(run_dir, resume)
+        resume = _resumes(run_dir, resume)
         like = state_like(trainer, config, mesh)
         resumed_at = (checkpoint.latest_step(run_dir / "checkpoints") or 0) if resume else 0
         runners = ChunkRunners.ahead(trainer, config, like, resumed_at, compiling)
