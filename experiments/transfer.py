@@ -1,5 +1,5 @@
 """Run a policy in stock MuJoCo through the deployment loop: `python -m experiments.transfer RUN [--model NAME]
-[--episodes N] [--seed S] [--video [gif|mp4]] [--no-clip]`.
+[--episodes N] [--seed S] [--video [gif|mp4]] [--no-clip] [--pose-bias X,Y,Z]`.
 
 The "robot" is the task's scene in MuJoCo's C engine (`mujoco.mj_step`: the scene's timestep, MuJoCo's default
 constraint solver), with jaxarm's own model of the run's robot (`--model jaxarm`) or MuJoCo Menagerie's (`--model
@@ -9,14 +9,18 @@ deployment loop (`jaxarm.deploy`): the robot's reading -> the env's observation 
 `python -m experiments.export RUN`) -> the env's controller in numpy -> servo targets within the robot's speed and
 acceleration limits (clipped, and each clip counted; `--no-clip` only counts). Each episode starts where the run's
 eval env would start one (its reset, drawn by JAX); from there no jaxarm env code runs, and success and return are
-recomputed from MuJoCo's state in numpy (`jaxarm.deploy.scoring`). Writes
-RUN/transfer-<model>-<episodes>-<seed>-<update>[-noclip].json (<update>: the checkpoint the policy was exported from,
-as RUN/export/export.json says) and, with --video, the same name .gif (or .mp4) of the first episode.
+recomputed from MuJoCo's state in numpy (`jaxarm.deploy.scoring`). `--pose-bias X,Y,Z` (metres) adds a constant
+error to every position estimate the policy is given (the sorter's objects' centres, the peg's hole), all episode,
+as a miscalibrated camera would; the episodes are scored from the true positions. Writes
+`RUN/transfer-<model>-<episodes>-<seed>-<update>[-noclip][-bias<X>_<Y>_<Z>mm].json` (<update>: the checkpoint the
+policy was exported from, as RUN/export/export.json says) and, with --video, the same name .gif (or .mp4) of the first
+episode.
 
 A policy that reads cameras (a pixel run) gets, each tick, the env's camera image drawn by MuJoCo's own OpenGL
 renderer (`mujoco.Renderer`: each of the env's cameras at its resolution, RGB to the env's gray, the depth buffer to
 metres; `jaxarm.deploy.camera`) of the robot's scene, and the proprio part computed from the arm's reading; it needs
-an offscreen GL (MUJOCO_GL=egl). Object estimates are still read, to score the episode, but never shown to it.
+an offscreen GL (MUJOCO_GL=egl). Object estimates are still read, to score the episode, but never shown to it (so
+it takes no --pose-bias).
 """
 
 import sys
@@ -46,6 +50,9 @@ from jaxarm.runner import paths, rundir, video
 
 MODELS = ("jaxarm", "menagerie")
 VIDEO_SIZE = (240, 320)
+NO_BIAS = np.zeros(3)
+MAX_POSE_BIAS = 0.1
+"""The largest --pose-bias component (m), beyond the widest object (7.5 cm): a value meant in centimetres is refused."""
 
 
 def plant_model(env, params, model_name: str) -> mujoco.MjModel:
@@ -94,11 +101,21 @@ class Recorder:
             self._renderer.close()
 
 
-def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int, clip: bool, record: bool) -> dict:
+def run_episodes(
+    env,
+    params,
+    policy,
+    model_name: str,
+    episodes: int,
+    seed: int,
+    clip: bool,
+    record: bool,
+    pose_bias: np.ndarray = NO_BIAS,
+) -> dict:
     """Runs `episodes` episodes of `policy` (observation -> action, numpy) in the eval `env`'s scene with
-    `model_name`'s model of its robot, from the env's resets drawn from `seed`; the summary, and the first
-    episode's frames under "frames" when `record`. A camera's policy sees the scene drawn by MuJoCo's renderer at
-    each tick (`jaxarm.deploy.camera`)."""
+    `model_name`'s model of its robot, from the env's resets drawn from `seed`, every position estimate off by
+    `pose_bias` [3] (m); the summary, and the first episode's frames under "frames" when `record`. A camera's policy
+    sees the scene drawn by MuJoCo's renderer at each tick (`jaxarm.deploy.camera`)."""
     run_episode = deployable.entry(env).episode
     model = plant_model(env, params, model_name)
     robot = MujocoRobot(model, CONTROL_DT, env.robot)
@@ -115,7 +132,7 @@ def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int,
     try:
         for index in range(episodes):
             recorder = Recorder(model if record and index == 0 else None)
-            results.append(run_episode(robot, loop, env, params, one(sims, index), recorder.capture))
+            results.append(run_episode(robot, loop, env, params, one(sims, index), recorder.capture, pose_bias))
             recorder.close()
             frames = frames or recorder.frames
     finally:
@@ -134,6 +151,7 @@ def run_episodes(env, params, policy, model_name: str, episodes: int, seed: int,
         "return_mean": float(np.mean([result["return"] for result in results])),
         "steps_mean": float(np.mean([result["steps"] for result in results])),
         "clip": clip,
+        "pose_bias": [float(component) for component in pose_bias],
         "ticks": len(ticks),
         "acceleration_clips": loop.counts.acceleration.tolist(),
         "speed_clips": loop.counts.speed.tolist(),
@@ -164,15 +182,43 @@ def transferable_envs() -> list[str]:
     return [name for name in envs.names() if deployable.runs(envs.make(name))]
 
 
-def transfer(run_dir: pathlib.Path, model_name: str, episodes: int, seed: int, clip: bool, record: bool) -> dict:
+def parse_pose_bias(text: str) -> np.ndarray:
+    """'X,Y,Z' (metres) -> [3]; ValueError unless three finite numbers, each within ±MAX_POSE_BIAS."""
+    try:
+        bias = np.array([float(part) for part in text.split(",")])
+    except ValueError:
+        bias = np.array([])
+    if bias.shape != (3,) or not np.all(np.abs(bias) <= MAX_POSE_BIAS):
+        raise ValueError(f"--pose-bias is X,Y,Z in metres, each within ±{MAX_POSE_BIAS:g}, got {text!r}")
+    return bias
+
+
+def bias_words(pose_bias: np.ndarray) -> str:
+    """', position estimates off by (X, Y, Z) mm' where `pose_bias` [3] (m) is not zero; '' otherwise."""
+    if not np.any(pose_bias):
+        return ""
+    return f", position estimates off by ({', '.join(f'{component * 1e3:g}' for component in pose_bias)}) mm"
+
+
+def transfer(
+    run_dir: pathlib.Path,
+    model_name: str,
+    episodes: int,
+    seed: int,
+    clip: bool,
+    record: bool,
+    pose_bias: np.ndarray = NO_BIAS,
+) -> dict:
     """`run_episodes` of RUN's exported policy in its eval env, with the checkpoint it came from ("checkpoint");
     ValueError if the deployment loop does not run the env, or the policy or its export.json is missing or damaged,
-    or the policy does not fit the env."""
+    or the policy does not fit the env, or `pose_bias` is asked of a camera's policy (which sees no estimate)."""
     config, _ = rundir.read_config(run_dir)
     env, params = config.make_eval_env()
     if not deployable.runs(env):
         kwargs = f" with env_kwargs {dict(config.env_kwargs)}" if config.env_kwargs else ""
         raise ValueError(f"{run_dir}'s env is {config.env}{kwargs}; transfer runs {', '.join(transferable_envs())}")
+    if np.any(pose_bias) and not env.spec.flat_observation:
+        raise ValueError("--pose-bias: a camera's policy is shown no position estimate to bias")
     policy_path = run_dir / "export" / "policy.npz"
     if not policy_path.exists():
         raise ValueError(f"no {policy_path}: export the run first (python -m experiments.export {run_dir})")
@@ -180,7 +226,8 @@ def transfer(run_dir: pathlib.Path, model_name: str, episodes: int, seed: int, c
     if not fits(policy, env.spec):
         raise ValueError(f"{policy_path} does not fit the run's env ({env.spec})")
     checkpoint_name = origin.read(policy_path.parent)
-    return {"checkpoint": checkpoint_name} | run_episodes(env, params, policy, model_name, episodes, seed, clip, record)
+    summary = run_episodes(env, params, policy, model_name, episodes, seed, clip, record, pose_bias)
+    return {"checkpoint": checkpoint_name} | summary
 
 
 def main(argv=None) -> int:
@@ -193,6 +240,9 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=12345)
     parser.add_argument("--video", nargs="?", const="gif", choices=headless.FORMATS, help="write the first episode")
     parser.add_argument("--no-clip", action="store_true", help="count commands beyond the robot's limits, send them")
+    parser.add_argument(
+        "--pose-bias", default="0,0,0", metavar="X,Y,Z", help="metres added to every position estimate, all episode"
+    )
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     run_dir = pathlib.Path(args.run_dir)
     # Probed first, as eval does: a renderer failing after the episodes ran gives GLFW's warnings and no hint.
@@ -203,14 +253,18 @@ def main(argv=None) -> int:
     try:
         ranges.check_value("--episodes", args.episodes, int, ranges.AT_ONCE)
         ranges.check_value("--seed", args.seed, int, ranges.SEED)
-        result = transfer(run_dir, args.model, args.episodes, args.seed, not args.no_clip, args.video is not None)
+        pose_bias = parse_pose_bias(args.pose_bias)
+        clip, record = not args.no_clip, args.video is not None
+        result = transfer(run_dir, args.model, args.episodes, args.seed, clip, record, pose_bias)
         frames = result.pop("frames", [])
-        stem = rundir.transfer_stem(run_dir, args.model, args.episodes, args.seed, result["checkpoint"], result["clip"])
+        checkpoint = result["checkpoint"]
+        stem = rundir.transfer_stem(run_dir, args.model, args.episodes, args.seed, checkpoint, clip, pose_bias.tolist())
         path = stem.with_suffix(".json")
         rundir.write_json(path, result)
         low, high = result["success_ci95"]
         print(
-            f"{run_dir} in stock MuJoCo ({args.model}'s {result['robot']}): success_rate {result['success_rate']:.3f} "
+            f"{run_dir} in stock MuJoCo ({args.model}'s {result['robot']}{bias_words(pose_bias)}): "
+            f"success_rate {result['success_rate']:.3f} "
             f"[{low:.3f}, {high:.3f}] return_mean {result['return_mean']:.2f} over {args.episodes} episodes; "
             f"tick p50 {result['tick_ms_p50']:.2f} ms, p99 {result['tick_ms_p99']:.2f} ms; "
             f"{'clipped' if result['clip'] else 'beyond'} the {result['robot']}'s limits in {result['ticks']} ticks: "

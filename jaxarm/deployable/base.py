@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import mujoco
+import numpy as np
 
 from jaxarm.deploy.camera import SeesItself
 from jaxarm.deploy.loop import DeploymentLoop
@@ -26,12 +27,14 @@ class Deployable:
         proprio part for a camera's policy).
       scene: (env, params, robot_xml) -> the env's scene with its robot's model `robot_xml` in place of jaxarm's (a
         cached model: copy it before editing).
-      episode: (robot, loop, env, params, sim, capture) -> one episode from `sim` (the env's reset, as numpy arrays)
-        on `robot` (the task's scene) through `loop`, scored from MuJoCo's state in numpy: its "success", "return"
-        and "steps", and any of the task's own numbers ("placed": the sorter's fraction of objects placed).
+      episode: (robot, loop, env, params, sim, capture, pose_bias) -> one episode from `sim` (the env's reset, as
+        numpy arrays) on `robot` (the task's scene) through `loop`, scored from MuJoCo's state in numpy: its
+        "success", "return" and "steps", and any of the task's own numbers ("placed": the sorter's fraction of
+        objects placed). `pose_bias` [3] (m) is added to every position estimate the loop is given (the sorter's
+        objects' centres; the peg's hole centre, x and y), as a miscalibrated camera would err all episode.
     """
 
     env_class: type
     controller: Callable[[Any, Any], SeesItself]
     scene: Callable[[Any, Any, Path], mujoco.MjModel]
-    episode: Callable[[MujocoRobot, DeploymentLoop, Any, Any, Any, Capture], dict]
+    episode: Callable[[MujocoRobot, DeploymentLoop, Any, Any, Any, Capture, np.ndarray], dict]

@@ -104,8 +104,17 @@ def start_scene(
     return ids
 
 
-def episode(robot: MujocoRobot, loop: DeploymentLoop, env: sort_env.PandaSort, params, sim, capture: Capture) -> dict:
-    """One sorter episode from `sim` (the env's reset); its success, return, steps and objects placed."""
+def episode(
+    robot: MujocoRobot,
+    loop: DeploymentLoop,
+    env: sort_env.PandaSort,
+    params,
+    sim,
+    capture: Capture,
+    pose_bias: np.ndarray,
+) -> dict:
+    """One sorter episode from `sim` (the env's reset), the objects' estimated centres off by `pose_bias` [3] (m);
+    its success, return, steps and objects placed (scored from the true centres)."""
     model, data = robot.model, robot.data
     ids = start_scene(model, data, env, params, sim)
     robot.command(sim.ctrl)
@@ -135,7 +144,9 @@ def episode(robot: MujocoRobot, loop: DeploymentLoop, env: sort_env.PandaSort, p
     capture(data)
     while steps < int(params.max_episode_steps):
         steps += 1
-        estimate = ObjectEstimate(data.qpos[pose_index(ids)].copy(), data.qvel[velocity_index(ids)].copy(), shape, size)
+        pose = data.qpos[pose_index(ids)].copy()
+        pose[:, :3] += pose_bias
+        estimate = ObjectEstimate(pose, data.qvel[velocity_index(ids)].copy(), shape, size)
         robot.command(loop.tick(robot.reading(), estimate))
         robot.step()
         capture(data)

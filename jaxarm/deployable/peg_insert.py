@@ -54,8 +54,17 @@ def set_walls(model: mujoco.MjModel, ids: peg_model.PegIds, params) -> None:
     model.geom_size[ids.wall_geoms] = halves
 
 
-def episode(robot: MujocoRobot, loop: DeploymentLoop, env: peg_env.PegInsert, params, sim, capture: Capture) -> dict:
-    """One peg episode from `sim` (the env's reset); its success (inserted at any step), return and steps."""
+def episode(
+    robot: MujocoRobot,
+    loop: DeploymentLoop,
+    env: peg_env.PegInsert,
+    params,
+    sim,
+    capture: Capture,
+    pose_bias: np.ndarray,
+) -> dict:
+    """One peg episode from `sim` (the env's reset), the hole's estimated centre off by `pose_bias`' x and y (m);
+    its success (inserted at any step), return and steps."""
     model, data = robot.model, robot.data
     ids = peg_model.resolve_ids(model, env.robot.name)
     model.body_pos[ids.block_body] = [*sim.hole, 0.0]
@@ -84,13 +93,14 @@ def episode(robot: MujocoRobot, loop: DeploymentLoop, env: peg_env.PegInsert, pa
             data.geom_xmat[ids.table_geom].reshape(3, 3),
         )
 
+    hole = HoleEstimate(sim.hole.astype(np.float64) + pose_bias[:2])
     loop.begin(sim.ctrl)
     initial = previous = distance()
     total, steps, success = 0.0, 0, False
     capture(data)
     while steps < int(params.max_episode_steps):
         steps += 1
-        robot.command(loop.tick(robot.reading(), HoleEstimate(sim.hole.astype(np.float64))))
+        robot.command(loop.tick(robot.reading(), hole))
         robot.step(check_table)
         capture(data)
         now = distance()

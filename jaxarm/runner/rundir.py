@@ -18,7 +18,8 @@ Layout of `runs/<config>-<timestamp>/`:
   eval.json        deterministic evaluation at the end of training
   eval-<episodes>-<seed>-<update|best>.json, video.gif, video.mp4   written by `experiments.eval`
   robustness-<episodes>-<seed>-<update|best>-<digest>.json, .md, .png   written by `experiments.eval --perturb`
-  transfer-<model>-<episodes>-<seed>-<update|best>[-noclip].json, .gif, .mp4   written by `experiments.transfer`
+  `transfer-<model>-<episodes>-<seed>-<update|best>[-noclip][-bias<X>_<Y>_<Z>mm].json`, .gif, .mp4   written by
+    `experiments.transfer`
   rehearse-<episodes>-<seed>-<update>-<budget>ms[-<fault>-tick<K>].json   written by `experiments.rehearse`
   export/          the policy exported by `experiments.export`, and export.json: the checkpoint it came from
   teacher/         the run of a teacher named by preset (`teacher=preset:NAME`), trained first; kept when the
@@ -333,9 +334,15 @@ def robustness_stem(
 
 
 def transfer_stem(
-    run_dir: pathlib.Path, model: str, episodes: int, seed: int, checkpoint_name: str, clip: bool
+    run_dir: pathlib.Path, model: str, episodes: int, seed: int, checkpoint: str, clip: bool, pose_bias: Sequence[float]
 ) -> pathlib.Path:
     """Where `experiments.transfer` writes its results (stem of its .json and video): named by the Panda `model`,
-    the episodes, the seed, the checkpoint the exported policy came from (as `eval_path` names it) and `-noclip`
-    where commands beyond Franka's limits were sent, so that no other transfer replaces it."""
-    return run_dir / f"transfer-{model}-{episodes}-{seed}-{checkpoint_name}{'' if clip else '-noclip'}"
+    the episodes, the seed, the `checkpoint` the exported policy came from (as `eval_path` names it), `-noclip`
+    where commands beyond Franka's limits were sent and `-bias<X>_<Y>_<Z>mm` where the position estimates were off
+    by `pose_bias` (x, y, z in m; a decimal point written "p", as the name's only dot starts its suffix), so that no
+    other transfer replaces it."""
+    bias = "_".join(f"{component * 1e3:g}".replace(".", "p") for component in pose_bias)
+    return run_dir / (
+        f"transfer-{model}-{episodes}-{seed}-{checkpoint}{'' if clip else '-noclip'}"
+        f"{f'-bias{bias}mm' if any(pose_bias) else ''}"
+    )

@@ -148,6 +148,29 @@ def test_a_scripted_peg_inserts_in_stock_mujoco_with_both_models_of_each_robot(r
 
 @pytest.mark.mjx
 @pytest.mark.slow
+def test_a_pose_bias_moves_the_estimates_the_policy_sees_and_not_the_scoring():
+    bias = np.array([0.01, -0.004, 0.002])
+    peg = PegInsert()
+    result = transfer.run_episodes(peg, peg.default_params(), scripted_insertion, "jaxarm", 2, 0, True, False, bias)
+    assert result["success_rate"] == 0.0 and result["pose_bias"] == bias.tolist()  # inserts 2 of 2 without
+
+    sorter = PandaSort()
+    params = sorter.default_params().replace(max_episode_steps=1)
+    seen: dict[str, np.ndarray] = {}
+    for name, pose_bias in (("plain", transfer.NO_BIAS), ("biased", bias)):
+
+        def still(obs: np.ndarray, name=name) -> np.ndarray:
+            seen[name] = obs
+            return np.zeros(sorter.spec.action_shape[0])
+
+        transfer.run_episodes(sorter, params, still, "jaxarm", 1, 0, True, False, pose_bias)
+    moved = seen["biased"] - seen["plain"]
+    np.testing.assert_allclose(moved[:3], bias, atol=1e-6)  # the object's centre, its first entries
+    assert np.count_nonzero(np.abs(moved) > 1e-6) == 9  # and its offsets from the tool and from its carry target
+
+
+@pytest.mark.mjx
+@pytest.mark.slow
 def test_the_transfer_cli_runs_an_exported_sorter_policy_on_both_pandas(tmp_path, capsys):
     config = sorter_run(tmp_path, 20)
     assert transfer.main([str(tmp_path)]) == 2
@@ -178,6 +201,9 @@ def test_transfer_refuses_a_damaged_policy_too_many_episodes_and_a_video_without
     assert capsys.readouterr().err == "error: --episodes must be in [1, 1048576], got 100000000\n"
     assert transfer.main([str(tmp_path), "--seed", "99999999999999999999999"]) == 2  # JAX's OverflowError before
     assert capsys.readouterr().err.startswith("error: --seed must fit in int32")
+    for bias in ("0.01,0", "0.2,0,0", "nan,0,0", "1cm,0,0"):
+        assert transfer.main([str(tmp_path), "--pose-bias", bias]) == 2
+        assert capsys.readouterr().err == f"error: --pose-bias is X,Y,Z in metres, each within ±0.1, got {bias!r}\n"
 
     # A policy without its record of the checkpoint it came from (an earlier version's export) is refused: its
     # results could not be told from another checkpoint's.
@@ -220,6 +246,8 @@ def test_the_transfer_cli_runs_an_exported_camera_policy_on_both_pandas(tmp_path
     assert transfer.main([str(tmp_path), "--episodes", "1"]) == 2
     assert "does not fit the run's env" in capsys.readouterr().err
     random_camera_policy((16, 16, 4), 9, 3, np.random.default_rng(0)).save(tmp_path / "export" / "policy.npz")
+    assert transfer.main([str(tmp_path), "--pose-bias", "0,0.01,0"]) == 2
+    assert capsys.readouterr().err == "error: --pose-bias: a camera's policy is shown no position estimate to bias\n"
     for name in transfer.MODELS:
         assert transfer.main([str(tmp_path), "--model", name, "--episodes", "2"]) == 0, capsys.readouterr().err
         result = json.loads((tmp_path / f"transfer-{name}-2-12345-7.json").read_text())

@@ -431,15 +431,20 @@ def test_robustness_tables_of_other_checkpoints_or_requests_never_replace_each_o
     assert rundir.foreign_files(tmp_path) == []
 
 
-def test_transfers_of_other_checkpoints_or_clipping_never_replace_each_other(tmp_path):
+def test_transfers_of_other_checkpoints_clipping_or_biases_never_replace_each_other(tmp_path):
+    none = (0.0, 0.0, 0.0)
     stems = [
-        rundir.transfer_stem(tmp_path, "jaxarm", 200, 7, "24", clip=True),
-        rundir.transfer_stem(tmp_path, "jaxarm", 200, 7, "24", clip=False),
-        rundir.transfer_stem(tmp_path, "jaxarm", 200, 7, "best", clip=True),
-        rundir.transfer_stem(tmp_path, "menagerie", 200, 7, "24", clip=True),
+        rundir.transfer_stem(tmp_path, "jaxarm", 200, 7, "24", True, none),
+        rundir.transfer_stem(tmp_path, "jaxarm", 200, 7, "24", False, none),
+        rundir.transfer_stem(tmp_path, "jaxarm", 200, 7, "best", True, none),
+        rundir.transfer_stem(tmp_path, "menagerie", 200, 7, "24", True, none),
+        rundir.transfer_stem(tmp_path, "jaxarm", 200, 7, "24", True, (0.01, 0.0, 0.0)),
+        rundir.transfer_stem(tmp_path, "jaxarm", 200, 7, "24", False, (-0.0005, 0.01, 0.0)),
     ]
     assert stems[0].name == "transfer-jaxarm-200-7-24" and stems[1].name == "transfer-jaxarm-200-7-24-noclip"
-    assert len(set(stems)) == 4
+    assert stems[4].name == "transfer-jaxarm-200-7-24-bias10_0_0mm"
+    assert stems[5].with_suffix(".json").name == "transfer-jaxarm-200-7-24-noclip-bias-0p5_10_0mm.json"
+    assert len(set(stems)) == 6
     for stem in stems:
         for suffix in (".json", ".gif", ".mp4"):
             stem.with_suffix(suffix).write_text("")
