@@ -40,6 +40,13 @@ from jaxarm.robots import PANDA
 RESOLUTION = 32
 
 
+def cast_image(env, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """The env's ray-cast image (uint8 [R, R, 2 per camera]) of `model`'s scene posed in `data` (after a forward)."""
+    poses = SimpleNamespace(**{name: getattr(data, name) for name in ("geom_xpos", "geom_xmat", "xpos", "xmat")})
+    sizes = SimpleNamespace(geom_size=model.geom_size)
+    return np.asarray(env.camera_image(sizes, poses, env.default_params(), jax.random.key(0)))
+
+
 @pytest.fixture(scope="module")
 def both_images():
     """(MuJoCo's image, the caster's image, the drawn image as the MJCF declares it) of the peg's scene, the arm
@@ -49,9 +56,7 @@ def both_images():
     data = mujoco.MjData(model)
     data.qpos[env.ids.robot.arm_qpos] = env.start_qpos
     mujoco.mj_forward(model, data)
-    poses = SimpleNamespace(**{name: getattr(data, name) for name in ("geom_xpos", "geom_xmat", "xpos", "xmat")})
-    sizes = SimpleNamespace(geom_size=model.geom_size)
-    cast = env.camera_image(sizes, poses, env.default_params(), jax.random.key(0))
+    cast = cast_image(env, model, data)
     drawn = []
     for as_env in (True, False):
         renderer = CameraRenderer(model, CAMERAS, RESOLUTION, as_env=as_env)
@@ -120,10 +125,7 @@ def test_the_wrist_camera_just_over_the_table_sees_it_lit_as_the_caster_does():
     data.qpos[env.ids.robot.arm_qpos] = env.start_qpos + np.array([0.0, 0.4, 0.0, 0.0, 0.0, 0.0, 0.0])
     mujoco.mj_forward(model, data)
     assert data.site_xpos[env.ids.robot.tcp_site][2] < 0.07, "the gripper a few cm over the table"
-    poses = SimpleNamespace(**{name: getattr(data, name) for name in ("geom_xpos", "geom_xmat", "xpos", "xmat")})
-    cast = np.asarray(
-        env.camera_image(SimpleNamespace(geom_size=model.geom_size), poses, env.default_params(), jax.random.key(0))
-    )
+    cast = cast_image(env, model, data)
     renderer = CameraRenderer(model, CAMERAS, 64)
     drawn = renderer.image(data)
     renderer.close()
@@ -174,9 +176,7 @@ def test_a_sorter_object_recoloured_for_videos_is_drawn_as_the_caster_sees_it():
     data.qpos[env.ids.robot.arm_qpos] = env.start_qpos
     data.qpos[ids.object_qpos[0] : ids.object_qpos[0] + 7] = [0.5, -0.05, size, 1, 0, 0, 0]
     mujoco.mj_forward(model, data)
-    poses = SimpleNamespace(**{name: getattr(data, name) for name in ("geom_xpos", "geom_xmat", "xpos", "xmat")})
-    sizes = SimpleNamespace(geom_size=model.geom_size)
-    cast = np.asarray(env.camera_image(sizes, poses, env.default_params(), jax.random.key(0)))
+    cast = cast_image(env, model, data)
     drawn, recoloured = renderer.image(data), CameraRenderer(model, CAMERAS, 64)
     renderer.close()
     as_dressed = recoloured.image(data)
