@@ -73,8 +73,8 @@ def depth_of(depth: np.ndarray) -> np.ndarray:
 
 def light_as_env(scene: mujoco.MjvScene, rgba: np.ndarray) -> None:
     """Edits a scene `mujoco.Renderer.update_scene` made from a camera: its head light alone, of the env's
-    ambient and diffuse light, and each of the model's geoms in its colour of `rgba` [ngeom, 4] (none where its
-    alpha is 0), without material, texture, emission or specular highlight (in place)."""
+    ambient and diffuse light, and each of the model's geoms in its colour of `rgba` [ngeom, 4], without material,
+    texture, emission or specular highlight (in place)."""
     headlight = scene.lights[0]
     # A light at the camera, as the caster's: each pixel lit by the cosine of its own ray (a directional head light
     # lights a plane evenly, 25 gray levels off the caster's at a 64-pixel image's corners). A spot of a 90° cone
@@ -90,8 +90,6 @@ def light_as_env(scene: mujoco.MjvScene, rgba: np.ndarray) -> None:
         geom = scene.geoms[index]
         if geom.objtype == mujoco.mjtObj.mjOBJ_GEOM:
             geom.rgba[:] = rgba[geom.objid]
-            if rgba[geom.objid, 3] == 0:
-                geom.size[:] = 0.0  # the caster skips it; a transparent geom would still write depth
         geom.matid, geom.texid = -1, -1
         geom.emission, geom.specular, geom.reflectance = 0.0, 0.0, 0.0
 
@@ -131,6 +129,7 @@ class CameraRenderer:
             quality.numquads, quality.offsamples = max(quads, LIT_QUADS), 0
             # Read at each drawing: it stays.
             model.vis.map.znear = min(model.vis.map.znear, NEAR_CLIP / model.stat.extent)
+        self._posed = mujoco.MjData(model)
         self._gray = mujoco.Renderer(model, resolution, resolution)
         quality.numquads = quads
         self._depth = mujoco.Renderer(model, resolution, resolution)
@@ -141,19 +140,44 @@ class CameraRenderer:
                 for flag in HIDDEN_FLAGS:
                     renderer.scene.flags[flag] = False
 
+    def _pose(self, data: mujoco.MjData) -> mujoco.MjData:
+        """The scene posed at `data`'s qpos and mocap poses, its cameras placed. After `mj_step`, `data`'s poses
+        are those of the step's start, a physics step behind its qpos (10 ms in jaxarm's scenes, where the wrist
+        camera turns a few pixels in that time); the env casts its images from the poses of its state's qpos."""
+        posed = self._posed
+        posed.qpos[:] = data.qpos
+        posed.mocap_pos[:] = data.mocap_pos
+        posed.mocap_quat[:] = data.mocap_quat
+        mujoco.mj_kinematics(self.model, posed)
+        mujoco.mj_comPos(self.model, posed)  # the centres of mass a tracking camera follows
+        mujoco.mj_camlight(self.model, posed)
+        return posed
+
     def _render(self, data: mujoco.MjData, camera: str, depth: bool) -> np.ndarray:
         renderer = self._depth if depth else self._gray
-        renderer.update_scene(data, camera=camera)
-        if self.as_env:
-            light_as_env(renderer.scene, self._rgba)
+        if not self.as_env:
+            renderer.update_scene(data, camera=camera)
+            return renderer.render()
+        # MuJoCo leaves out each geom whose alpha is 0 in the model now; the caster casts those of the model as
+        # built. A task that shows one of several shapes per episode hides the others (the sorter's cylinder is a
+        # drawing-only geom, its collision prism made transparent): drawn with the episode's alphas, a cylinder
+        # went missing from every image.
+        shown = self.model.geom_rgba.copy()
+        self.model.geom_rgba[:] = self._rgba
+        try:
+            renderer.update_scene(data, camera=camera)
+        finally:
+            self.model.geom_rgba[:] = shown
+        light_as_env(renderer.scene, self._rgba)
         return renderer.render()
 
     def image(self, data: mujoco.MjData) -> np.ndarray:
-        """uint8 [R, R, 2 per camera]: each camera's gray, then its depth, of the scene posed in `data` (after
-        `mj_forward` or a step: its cameras' poses)."""
+        """uint8 [R, R, 2 per camera]: each camera's gray, then its depth, of the scene at `data`'s qpos (whether
+        or not its poses have been computed since; `data` is left as it is)."""
+        posed = self._pose(data)
         channels = []
         for camera in self.cameras:
-            channels += [gray_of(self._render(data, camera, False)), depth_of(self._render(data, camera, True))]
+            channels += [gray_of(self._render(posed, camera, False)), depth_of(self._render(posed, camera, True))]
         return np.stack(channels, axis=-1)
 
     def close(self) -> None:
