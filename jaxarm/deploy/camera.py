@@ -155,29 +155,28 @@ class CameraRenderer:
 
     def _render(self, data: mujoco.MjData, camera: str, depth: bool) -> np.ndarray:
         renderer = self._depth if depth else self._gray
-        if not self.as_env:
-            renderer.update_scene(data, camera=camera)
-            return renderer.render()
-        # MuJoCo leaves out each geom whose alpha is 0 in the model now; the caster casts those of the model as
-        # built. A task that shows one of several shapes per episode hides the others (the sorter's cylinder is a
-        # drawing-only geom, its collision prism made transparent): drawn with the episode's alphas, a cylinder
-        # went missing from every image.
-        shown = self.model.geom_rgba.copy()
-        self.model.geom_rgba[:] = self._rgba
-        try:
-            renderer.update_scene(data, camera=camera)
-        finally:
-            self.model.geom_rgba[:] = shown
-        light_as_env(renderer.scene, self._rgba)
+        renderer.update_scene(data, camera=camera)
+        if self.as_env:
+            light_as_env(renderer.scene, self._rgba)
         return renderer.render()
 
     def image(self, data: mujoco.MjData) -> np.ndarray:
         """uint8 [R, R, 2 per camera]: each camera's gray, then its depth, of the scene at `data`'s qpos (whether
         or not its poses have been computed since; `data` is left as it is)."""
         posed = self._pose(data)
-        channels = []
-        for camera in self.cameras:
-            channels += [gray_of(self._render(posed, camera, False)), depth_of(self._render(posed, camera, True))]
+        shown = self.model.geom_rgba.copy()
+        if self.as_env:
+            # MuJoCo leaves out each geom whose alpha is 0 in the model now; the caster casts those of the model as
+            # built. A task that shows one of several shapes per episode hides the others (the sorter's cylinder is
+            # a drawing-only geom, its collision prism made transparent): drawn with the episode's alphas, a
+            # cylinder went missing from every image.
+            self.model.geom_rgba[:] = self._rgba
+        try:
+            channels = []
+            for camera in self.cameras:
+                channels += [gray_of(self._render(posed, camera, False)), depth_of(self._render(posed, camera, True))]
+        finally:
+            self.model.geom_rgba[:] = shown
         return np.stack(channels, axis=-1)
 
     def close(self) -> None:
