@@ -75,8 +75,12 @@ class MujocoRobot:
         self.data.ctrl[self._finger_actuators] = fingers * self._finger_scale
 
     def step(self, after_substep=None) -> None:
-        """One control period of physics; `after_substep(data)`, if given, runs after each physics step."""
+        """One control period of physics; `after_substep(data)`, if given, runs after each physics step. The scene's
+        poses (bodies, geoms, sites) are left where each step ends."""
         for _ in range(self.substeps):
             mujoco.mj_step(self.model, self.data)
+            # mj_step leaves the poses it integrated from, a timestep behind qpos; whoever reads them (scoring, a
+            # video) wants the scene as it stands. The next mj_step computes them again from qpos: physics unchanged.
+            mujoco.mj_kinematics(self.model, self.data)
             if after_substep is not None:
                 after_substep(self.data)

@@ -6,6 +6,7 @@ import sys
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 import pytest
 
@@ -126,6 +127,25 @@ def test_the_loop_drives_stock_mujoco_as_a_robot_on_its_clock():
         assert plant.now() == pytest.approx(0.04 * tick)
     np.testing.assert_allclose(sent[:7], start + 0.05)
     assert np.all(plant.reading().arm_q - start > 0.01)
+
+
+def test_stock_mujoco_leaves_the_scene_posed_where_its_tick_ended_and_its_physics_as_mj_step_makes_it():
+    # Scoring reads the sorter's tool and the peg's tip from the scene's poses, which mj_step leaves a timestep
+    # behind the qpos it integrated.
+    plant = MujocoRobot(sort_model.build_model(2, make_layout()), period=0.04)
+    plain = mujoco.MjData(plant.model)
+    for data in (plant.data, plain):
+        data.qpos[:7] = [0.0, -0.3, 0.0, -2.2, 0.0, 1.9, 0.8]
+        data.qvel[:7] = 2.0
+    for _ in range(3):
+        plant.step()
+        for _ in range(plant.substeps):
+            mujoco.mj_step(plant.model, plain)
+    np.testing.assert_array_equal(plant.data.qpos, plain.qpos)
+    np.testing.assert_array_equal(plant.data.qvel, plain.qvel)
+    mujoco.mj_kinematics(plant.model, plain)
+    np.testing.assert_array_equal(plant.data.site_xpos, plain.site_xpos)
+    np.testing.assert_array_equal(plant.data.geom_xmat, plain.geom_xmat)
 
 
 def test_the_loop_and_stock_mujoco_take_a_six_joint_arm_from_its_description():
