@@ -365,6 +365,27 @@ def test_a_pandas_default_camera_params_leave_its_images_exactly_as_cast(peg_cam
         np.testing.assert_array_equal(image[..., 2 * index : 2 * index + 2], np.stack([*map(np.round, levels)], -1))
 
 
+def test_the_cameras_draw_the_fingers_at_the_params_scale_and_nothing_else_changes():
+    # Another model's fingers or the real robot's look otherwise than the model's pads, which the wrist camera sees.
+    env = PandaSort(options=ArmOptions(obs_mode="pixels", resolution=32))
+    data = mujoco.MjData(env.mj_model)
+    data.qpos[env.ids.robot.arm_qpos] = env.start_qpos
+    mujoco.mj_forward(env.mj_model, data)
+    model, poses = SimpleNamespace(geom_size=env.mj_model.geom_size), SimpleNamespace(**vars_of(data))
+    key = jax.random.key(0)
+    image = jax.jit(lambda scale: env.camera_image(model, poses, RobotParams(camera_finger_scale=scale), key))
+    fingers = env.ids.robot.finger_geoms
+    assert [env.mj_model.geom(geom).name for geom in fingers] == ["left_pad", "right_pad"]
+    np.testing.assert_array_equal(image(1.0), env.camera_image(model, poses, RobotParams(), key))
+    hidden, larger = np.asarray(image(0.0)), np.asarray(image(1.5))
+    sizes = env.mj_model.geom_size.copy()
+    sizes[fingers] = 0.0
+    np.testing.assert_array_equal(hidden, env.camera_image(SimpleNamespace(geom_size=sizes), poses, RobotParams(), key))
+    wrist = 2 * env.camera_names.index("hand_camera")
+    assert np.sum(hidden[..., wrist] != image(1.0)[..., wrist]) > 0, "the wrist camera sees the pads"
+    assert np.sum(larger != image(1.0)) > np.sum(hidden != image(1.0)), "larger pads cover more"
+
+
 def test_the_peg_draws_its_block_and_table_gray_each_episode_and_the_cameras_see_them(peg_cameras):
     env, model, poses = peg_cameras
     params = env.default_params()

@@ -100,6 +100,9 @@ class CameraParams(Protocol):
     @property
     def camera_depth_noise(self) -> jax.Array: ...
 
+    @property
+    def camera_finger_scale(self) -> jax.Array: ...
+
 
 class IkParams(HasEpisodeLimit, CameraParams, Protocol):
     """What `ArmBase` reads of a task's params (scalars): the time limit, the IK's settings (`ArmParams`') and
@@ -344,17 +347,19 @@ class ArmBase(Env[ParamsT, SimT], Generic[ParamsT, SimT, IdsT]):
     ) -> jax.Array:
         """uint8 [R, R, 2 per camera]: each camera's grayscale, then its depth over `DEPTH_RANGE`, cast in JAX
         (`camera.render`, each camera moved by the params' `camera_offset`) from the poses in `data` (after
-        `poses`) and the episode's geom sizes, its geoms as bright as `luma` [G] where given (else as modelled),
-        and put through `image_channels` with `params` and `key`."""
+        `poses`) and the episode's geom sizes, the fingers' times the params' `camera_finger_scale`, its geoms as
+        bright as `luma` [G] where given (else as modelled), and put through `image_channels` with `params` and
+        `key`."""
         scene = self.camera_scene
         offset = params.camera_offset
+        geom_size = jnp.asarray(model.geom_size).at[self.ids.robot.finger_geoms].multiply(params.camera_finger_scale)
         channels = []
         for view in self.cameras:
             depth, gray = camera.render(
                 scene,
                 view,
                 self.resolution,
-                model.geom_size,
+                geom_size,
                 data.geom_xpos,
                 data.geom_xmat,
                 data.xpos,

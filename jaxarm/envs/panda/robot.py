@@ -27,6 +27,7 @@ class RobotIds:
       arm_qpos: [J] qpos addresses of the arm joints (also their dof addresses: the arm comes first; J: the arm's
         joint count, `RobotDescription.arm_joints`).
       finger_qpos: [2] qpos addresses of the finger joints.
+      finger_geoms: ids of the geoms on the fingers' bodies.
       hand_body: body id of the hand.
       tcp_site: site id of the tool centre point (between the finger pads).
       arm_limits: [J, 2] arm joint ranges.
@@ -35,6 +36,7 @@ class RobotIds:
 
     arm_qpos: np.ndarray
     finger_qpos: np.ndarray
+    finger_geoms: np.ndarray
     hand_body: int
     tcp_site: int
     arm_limits: np.ndarray
@@ -64,9 +66,11 @@ def scene_spec(scene_xml: Path, robot: RobotDescription, dynamics: str, robot_xm
 def resolve_robot_ids(model: mujoco.MjModel, robot: RobotDescription) -> RobotIds:
     """Looks up the ids of `robot` in `model` by the names of its description."""
     joint = model.joint
+    finger_bodies = [joint(name).bodyid[0] for name in robot.finger_joints]
     return RobotIds(
         arm_qpos=np.array([joint(name).qposadr[0] for name in robot.arm_joints]),
         finger_qpos=np.array([joint(name).qposadr[0] for name in robot.finger_joints]),
+        finger_geoms=np.flatnonzero(np.isin(model.geom_bodyid, finger_bodies)),
         hand_body=model.body(robot.hand_body).id,
         tcp_site=model.site(robot.tcp_site).id,
         arm_limits=np.stack([joint(name).range for name in robot.arm_joints]),

@@ -1,7 +1,7 @@
 """What separates a simulated Panda from a real one, as functions of env params: servo gains and damping, joint
-friction, force limits, the control period, action latency, sensor noise, and the cameras' pose, gray level and
-depth. Tasks apply them where they build their model, act and observe, and their params extend `RobotParams`;
-nothing here knows about a task.
+friction, force limits, the control period, action latency, sensor noise, and the cameras' pose, gray level, depth
+and view of the fingers. Tasks apply them where they build their model, act and observe, and their params extend
+`RobotParams`; nothing here knows about a task.
 """
 
 import jax
@@ -55,6 +55,9 @@ class RobotParams:
         calibration error (pixel modes only).
       camera_depth_noise: standard deviation (metres) of Gaussian noise on every depth pixel, drawn afresh at
         each step from the task's observation noise key (pixel modes only).
+      camera_finger_scale: factor on the size of the fingers' geoms as the cameras draw them, about each one's
+        centre (0 hides them), their physics untouched: fingers that look otherwise than the model's pads, as
+        another model's or the real robot's do (pixel modes only).
     """
 
     action_latency: jax.Array = ranged(0, NON_NEGATIVE)
@@ -73,6 +76,7 @@ class RobotParams:
     camera_gray_offset: jax.Array = ranged(0.0)
     camera_depth_offset: jax.Array = ranged(0.0)
     camera_depth_noise: jax.Array = ranged(0.0, NON_NEGATIVE)
+    camera_finger_scale: jax.Array = ranged(1.0, NON_NEGATIVE)
 
     @property
     def camera_offset(self) -> PoseOffset:
