@@ -135,7 +135,7 @@ def test_stock_mujoco_leaves_the_scene_posed_where_its_tick_ended_and_its_physic
     plant = MujocoRobot(sort_model.build_model(2, make_layout()), period=0.04)
     plain = mujoco.MjData(plant.model)
     for data in (plant.data, plain):
-        data.qpos[:7] = [0.0, -0.3, 0.0, -2.2, 0.0, 1.9, 0.8]
+        data.qpos[:7] = PANDA.home_qpos
         data.qvel[:7] = 2.0
     for _ in range(3):
         plant.step()
