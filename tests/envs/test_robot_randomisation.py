@@ -17,7 +17,7 @@ from jaxarm.envs.panda.sim_to_real import with_robot_params
 from jaxarm.envs.panda_sort import PandaSort
 from jaxarm.envs.panda_sort.env import OBJECT_OBS_SIZE
 from jaxarm.envs.panda_sort.objects import pose_index
-from jaxarm.envs.peg_insert.env import POSITION_SCALE
+from jaxarm.envs.peg_insert.env import POSITION_SCALE, PegInsert
 from jaxarm.envs.randomize import Randomized, parse_ranges
 from tests.envs.compiled import compiled, same_worker
 
@@ -120,11 +120,43 @@ def test_robot_params_reach_the_arm_alone(franka_sorter):
     assert float(scaled.opt.timestep) == pytest.approx(0.8 * float(model.opt.timestep))
 
 
+def test_finger_pad_scale_resizes_the_pads_alone_about_their_centres(franka_sorter):
+    env = franka_sorter
+    model, pads = env.mjx_model, env.ids.robot.finger_geoms
+    others = np.setdiff1d(np.arange(env.mj_model.ngeom), pads)
+    assert [env.mj_model.geom(geom).name for geom in pads] == ["left_pad", "right_pad"]
+    default = with_robot_params(model, env.ids.robot, env.default_params())
+    for field in ("geom_size", "geom_rbound", "geom_aabb", "geom_pos"):
+        np.testing.assert_array_equal(getattr(default, field), getattr(model, field), err_msg=field)
+    smaller = with_robot_params(model, env.ids.robot, env.default_params().replace(finger_pad_scale=jnp.float32(0.7)))
+    np.testing.assert_allclose(smaller.geom_size[pads], 0.7 * env.mj_model.geom_size[pads], rtol=1e-6)
+    np.testing.assert_allclose(smaller.geom_rbound[pads], 0.7 * env.mj_model.geom_rbound[pads], rtol=1e-6)
+    # Warp's broadphase culls by the bounding box: a pad's box is its half-sizes about its centre.
+    boxes = np.asarray(smaller.geom_aabb).reshape(-1, 2, 3)
+    np.testing.assert_allclose(boxes[pads, 1], smaller.geom_size[pads], rtol=1e-6)
+    np.testing.assert_array_equal(boxes[pads, 0], np.asarray(model.geom_aabb).reshape(-1, 2, 3)[pads, 0])
+    np.testing.assert_array_equal(smaller.geom_pos, model.geom_pos)
+    for field in ("geom_size", "geom_rbound"):
+        np.testing.assert_array_equal(getattr(smaller, field)[others], getattr(model, field)[others], err_msg=field)
+
+
+@pytest.mark.mjx
+def test_each_task_steps_and_draws_with_the_params_pads():
+    # The sorter's and the peg's episode model, which their physics steps and their cameras draw.
+    for env in (PandaSort(), PegInsert()):
+        params = env.default_params().replace(finger_pad_scale=jnp.float32(0.5))
+        sim = env.reset(jax.random.key(0), params).sim
+        pads = env.ids.robot.finger_geoms
+        sizes = env.episode_model(sim, params).geom_size[pads]
+        np.testing.assert_allclose(sizes, 0.5 * env.mj_model.geom_size[pads], rtol=1e-6, err_msg=type(env).__name__)
+
+
 @pytest.mark.parametrize(
     ("name", "value", "message"),
     [
         ("joint_friction_scale", -0.5, ">= 0"),
         ("force_limit_scale", 0.0, "> 0"),
+        ("finger_pad_scale", 0.0, "> 0"),
         ("control_period_scale", 2.0, r"in \[0.5, 1.5\]"),
         ("object_pose_bias", -0.01, ">= 0"),
         ("camera_gray_gain", -0.5, ">= 0"),
@@ -144,6 +176,7 @@ def test_randomize_draws_the_new_params_within_their_ranges():
         "joint_friction_scale": "0..2",
         "force_limit_scale": "0.7..1.3",
         "control_period_scale": "0.8..1.2",
+        "finger_pad_scale": "0.6..1.2",
         "action_latency": "0..2",
         "object_pose_bias": "0..0.01",
         "camera_gray_gain": "0.7..1.3",

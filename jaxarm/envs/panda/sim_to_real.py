@@ -1,7 +1,7 @@
 """What separates a simulated Panda from a real one, as functions of env params: servo gains and damping, joint
-friction, force limits, the control period, action latency, sensor noise, and the cameras' pose, gray level, depth
-and view of the fingers. Tasks apply them where they build their model, act and observe, and their params extend
-`RobotParams`; nothing here knows about a task.
+friction, force limits, the control period, the fingers' pads, action latency, sensor noise, and the cameras' pose,
+gray level, depth and view of the fingers. Tasks apply them where they build their model, act and observe, and
+their params extend `RobotParams`; nothing here knows about a task.
 """
 
 import jax
@@ -11,6 +11,7 @@ from flax import struct
 from mujoco import mjx
 
 from jaxarm.envs.panda.camera import PoseOffset
+from jaxarm.envs.panda.mjx_impl import with_geom_sizes
 from jaxarm.envs.panda.robot import RobotIds
 from jaxarm.ranges import NON_NEGATIVE, POSITIVE, Range, ranged
 
@@ -41,6 +42,9 @@ class RobotParams:
       control_period_scale: factor on the physics timestep, so each env step spans `CONTROL_DT` times this of
         simulated time (the substeps per step are fixed when the program is traced; see `CONTROL_PERIOD_SCALES`
         for the range): a control loop that runs slower or faster than its nominal rate.
+      finger_pad_scale: factor on the size of the fingers' geoms (the pads objects touch) about each one's centre,
+        in the physics and so in the cameras: fingertips smaller or larger than the model's, as another model's or
+        the real robot's are (menagerie's Panda's pads are 0.71 of jaxarm's across and sit further out).
       camera_shift_x, camera_shift_y, camera_shift_z: metres every camera is moved from its MJCF pose along its
         own x (right), y (up in the image) and z (backwards, away from what it sees) axes: a camera mounted or
         calibrated off its nominal pose (pixel modes only; each camera by the same offset in its own frame).
@@ -66,6 +70,7 @@ class RobotParams:
     joint_friction_scale: jax.Array = ranged(1.0, NON_NEGATIVE)
     force_limit_scale: jax.Array = ranged(1.0, POSITIVE)
     control_period_scale: jax.Array = ranged(1.0, CONTROL_PERIOD_SCALES)
+    finger_pad_scale: jax.Array = ranged(1.0, POSITIVE)
     camera_shift_x: jax.Array = ranged(0.0)
     camera_shift_y: jax.Array = ranged(0.0)
     camera_shift_z: jax.Array = ranged(0.0)
@@ -89,9 +94,13 @@ class RobotParams:
 
 def with_robot_params(model: mjx.Model, robot: RobotIds, params: RobotParams) -> mjx.Model:
     """`model` with `params`' robot randomisation applied: servo gains and damping (`with_servo_scales`), the
-    arm joints' friction loss and servo force limits scaled, and the timestep scaled by `control_period_scale`.
-    Each is a model field replaced per env, as MJX-JAX and Warp both batch them."""
+    arm joints' friction loss and servo force limits scaled, the fingers' pads resized by `finger_pad_scale`, and
+    the timestep scaled by `control_period_scale`. Each is a model field replaced per env, as MJX-JAX and Warp
+    both batch them."""
     model = with_servo_scales(model, robot, params.servo_gain_scale, params.joint_damping_scale)
+    pads = robot.finger_geoms
+    pad_size = model.geom_size[pads] * params.finger_pad_scale
+    model = with_geom_sizes(model, pads, pad_size, model.geom_rbound[pads] * params.finger_pad_scale)
     forcerange = model.actuator_forcerange.at[robot.arm_actuators].multiply(params.force_limit_scale)
     return model.replace(
         dof_frictionloss=model.dof_frictionloss.at[robot.arm_qpos].multiply(params.joint_friction_scale),
