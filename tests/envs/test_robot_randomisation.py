@@ -9,8 +9,10 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 import pytest
+from mujoco import mjx
 
 from jaxarm import envs
 from jaxarm.envs.panda.sim_to_real import with_robot_params
@@ -138,6 +140,35 @@ def test_finger_pad_scale_resizes_the_pads_alone_about_their_centres(franka_sort
     np.testing.assert_array_equal(smaller.geom_pos, model.geom_pos)
     for field in ("geom_size", "geom_rbound"):
         np.testing.assert_array_equal(getattr(smaller, field)[others], getattr(model, field)[others], err_msg=field)
+
+
+@pytest.mark.mjx
+def test_a_smaller_pad_misses_an_object_its_full_size_touches(franka_sorter):
+    # An object turned as the left pad and overlapping its edge by 2 mm; MJX's collision of the two.
+    env, overlap = franka_sorter, 0.002
+    mj_model, pad = env.mj_model, env.ids.robot.finger_geoms[0]
+    box = mj_model.geom("object0_box").id
+    data = mujoco.MjData(mj_model)
+    data.qpos[env.ids.robot.arm_qpos] = env.start_qpos
+    mujoco.mj_kinematics(mj_model, data)
+    turn = data.geom_xmat[pad].reshape(3, 3)
+    reach = mj_model.geom_size[pad, 0] + mj_model.geom_size[box, 0] - overlap
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, data.geom_xmat[pad])
+    start = mj_model.jnt_qposadr[mj_model.body_jntadr[mj_model.geom_bodyid[box]]]
+    data.qpos[start : start + 7] = [*(data.geom_xpos[pad] + turn[:, 0] * reach), *quat]
+    placed = mjx.put_data(mj_model, data)
+
+    @jax.jit
+    def depth(scale):
+        params = env.default_params().replace(finger_pad_scale=scale)
+        model = with_robot_params(env.mjx_model, env.ids.robot, params)
+        contact = mjx.collision(model, mjx.kinematics(model, placed))._impl.contact
+        pair = jnp.all(jnp.sort(contact.geom, axis=-1) == jnp.sort(jnp.array([pad, box])), axis=-1)
+        return jnp.min(jnp.where(pair, contact.dist, jnp.inf))
+
+    assert float(depth(1.0)) == pytest.approx(-overlap, abs=1e-5)
+    assert float(depth(0.5)) > 0.0
 
 
 @pytest.mark.mjx
