@@ -77,10 +77,12 @@ class MujocoRobot:
     def step(self, after_substep=None) -> None:
         """One control period of physics; `after_substep(data)`, if given, runs after each physics step. The scene's
         poses (bodies, geoms, sites) are left where each step ends."""
-        for _ in range(self.substeps):
+        for substep in range(self.substeps):
             mujoco.mj_step(self.model, self.data)
             # mj_step leaves the poses it integrated from, a timestep behind qpos; whoever reads them (scoring, a
-            # video) wants the scene as it stands. The next mj_step computes them again from qpos: physics unchanged.
-            mujoco.mj_kinematics(self.model, self.data)
+            # video) wants the scene as it stands. The next mj_step computes them again from qpos (physics
+            # unchanged), so they are posed only where someone reads them: for `after_substep` and at the tick's end.
+            if after_substep is not None or substep == self.substeps - 1:
+                mujoco.mj_kinematics(self.model, self.data)
             if after_substep is not None:
                 after_substep(self.data)
