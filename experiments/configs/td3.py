@@ -157,7 +157,7 @@ def td3_peg_pixels() -> TD3Config:
     # 512. With an encoder per network, 64 envs and batches of 256, none of 704k env steps' training episodes
     # inserted (6 minutes). The replay keeps uint8 frames, 16 KiB per observation (2 cameras x gray and depth),
     # twice per transition: 200k transitions are 6.6 GB of GPU memory. 2M env steps with both step sizes annealed
-    # to 0, as td3_peg's recipe: fresh seeds 10-13 inserted 100% each (H200, two runs per GPU, 2026-11-30). At
+    # to 0, as td3_peg's recipe: fresh seeds 10-14 inserted 100% each (H200, 2026-11-30 and 12-01). At
     # constant step sizes over 1M, seed 9 inserted 87.4% while its training episodes (with exploration noise)
     # succeeded 99.1%. BENCHMARKS.md#peg-pixels.
     return dataclasses.replace(
