@@ -74,7 +74,8 @@ def parse_args(argv):
     parser.add_argument(
         "--stop-after-minutes",
         type=minutes,
-        help="checkpoint and stop after the chunk that passes this wall time (resume later)",
+        help="checkpoint and stop after the chunk that passes this wall time since the run started, its stages and "
+        "compilations included (resume later)",
     )
     parser.add_argument("--wandb", metavar="PROJECT", help="also log to this Weights & Biases project")
     parser.add_argument(

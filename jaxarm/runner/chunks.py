@@ -101,7 +101,7 @@ def train_chunks(
             # Agreed by every process, as the stops below are; a run without a gate asks nobody.
             if gate and processes.any_process(failed is not None):
                 raise TryFailed(failed or "another process's gate")
-            out_of_time = options.stop_after_s is not None and time.perf_counter() - clock > options.stop_after_s
+            out_of_time = options.out_of_time()
             # Agreed by every process: one that stopped alone would leave the others waiting in a collective.
             out_of_time, stopping = processes.any_process(out_of_time), processes.any_process(stop.requested)
             if (

@@ -19,10 +19,8 @@ starts a try again (tries.py).
 """
 
 import contextlib
-import dataclasses
 import pathlib
 import sys
-import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
@@ -49,12 +47,14 @@ def train(
     With `resume`, continues from the directory's latest checkpoint (a directory with none starts afresh).
     Without, the directory must be new, empty, or hold a run that never reached its first checkpoint. Raises
     rundir.RunDirError (foreign files, in use, already a run), TrainingDiverged on NaN/inf, TrainingInterrupted
-    after Ctrl-C or SIGTERM; with `options.stop_after_s`, the first chunk past it is checkpointed and the
-    evaluation describes that state. With several processes (`jax.distributed`) every process calls this with
-    the same arguments; process 0 alone writes the directory (processes.py). A run to warm-start from and a teacher
-    named by preset (`init_from=preset:NAME`, `teacher=preset:NAME`, found through `options.presets`) are trained
-    first, into `run_dir/warm_start` and `run_dir/teacher` (teacher.py); a time limit counts every stage.
+    after Ctrl-C or SIGTERM; with `options.stop_after_s`, the first chunk that ends past it, counted from this call
+    (or from `options.clock_start`), is checkpointed and the evaluation describes that state. With several processes
+    (`jax.distributed`) every process calls this with the same arguments; process 0 alone writes the directory
+    (processes.py). A run to warm-start from and a teacher named by preset (`init_from=preset:NAME`,
+    `teacher=preset:NAME`, found through `options.presets`) are trained first, into `run_dir/warm_start` and
+    `run_dir/teacher` (teacher.py); a time limit counts every stage, and every compilation.
     """
+    options = options.clock_started()  # the time limit counts from here, every stage and compilation included
     run_dir = pathlib.Path(run_dir)
     rundir.check_holds_a_run_or_nothing(run_dir)
     with _locked_by_primary(run_dir):
@@ -65,6 +65,7 @@ def resume(run_dir: pathlib.Path, overrides: Sequence[str] = (), options=Options
     """Continues the run in `run_dir` from its latest checkpoint with the `key=value` overrides a resumed run may
     take (resumes.RESUMABLE_KEYS; recorded in config.json and resumes.jsonl). Returns (evaluation, config). A run
     that has finished, resumed without overrides, is left as it is: its eval.json is returned."""
+    options = options.clock_started()  # as in `train`
     run_dir = pathlib.Path(run_dir)
     # Checked before the lock writes anything: a directory that is no run, or overrides it may not take.
     config, preset = rundir.read_config(run_dir)
@@ -107,19 +108,15 @@ def _train_locked(
     comes back here, set aside with its warm start, and the stages and the learner run again."""
     while True:
         for stage, stage_config in teacher.stages(config, run_dir, options):
-            clock = time.perf_counter()
             stopped = teacher.train_stage(
                 stage, stage_config, config, preset, run_dir, resuming, options, train=train, resume=resume
             )
             if stopped is not None:
                 return stopped
-            options = _less_time(options, time.perf_counter() - clock)
-        clock = time.perf_counter()
         try:
             return _train_learner(config, preset, run_dir, resuming, options, overrides)
         except tries.TryFailed:
             overrides = ()
-            options = _less_time(options, time.perf_counter() - clock)
 
 
 def _train_learner(
@@ -159,7 +156,6 @@ def _train_learner(
         # Behind the first chunk's program on the pool: compiled while the first chunk runs, ready at its end.
         evaluators.compile_ahead(compiling, like, eval_key(config))
         start = _start(trainer, config, preset, run_dir, resume, overrides, like)
-        clock = time.perf_counter()
         while True:
             try:
                 state, done_updates, train_time = train_chunks(
@@ -170,8 +166,6 @@ def _train_learner(
                 _set_aside(config, run_dir, failed)
                 if config.retry_warm_start:
                     raise
-                options = _less_time(options, time.perf_counter() - clock)
-                clock = time.perf_counter()
                 start = _start(trainer, config, preset, run_dir, False, (), like)
         return _final_evaluation(
             trainer, config, preset, run_dir, state, done_updates, train_time, start.try_index + 1, evaluators
@@ -191,13 +185,6 @@ def _set_aside(config: RunConfig, run_dir: pathlib.Path, failed: tries.TryFailed
             file=sys.stderr,
         )
     processes.wait_for_all("try set aside")
-
-
-def _less_time(options: Options, spent: float) -> Options:
-    """`options` with `spent` seconds taken from its time limit, if it has one."""
-    if options.stop_after_s is None:
-        return options
-    return dataclasses.replace(options, stop_after_s=max(0.0, options.stop_after_s - spent))
 
 
 def _resumes(run_dir: pathlib.Path, resume: bool) -> bool:

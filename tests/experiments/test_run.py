@@ -17,10 +17,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from experiments import configs, run
 from experiments import eval as eval_cli
-from experiments import run
 from jaxarm import envs
 from jaxarm.agents.common import checkpoint
+from jaxarm.agents.common.config import apply_overrides
 from jaxarm.agents.ppo.warm_start import warm_start
 from jaxarm.runner import learners, loop, metrics_log, robustness, rundir, runlog, tries
 
@@ -315,6 +316,18 @@ def test_an_empty_checkpoint_folder_is_named_with_the_checkpoint_before_it(tmp_p
     (run_dir / "checkpoints" / "8").rmdir()
     assert run.main(["--resume", str(run_dir), "--stop-after-minutes", "0"]) == 0
     assert checkpoint.latest_step(run_dir / "checkpoints") == 8
+
+
+def test_a_time_limit_counts_the_time_before_the_first_chunk(tmp_path):
+    # A minute's limit whose clock started 61 s ago, as when a command's stages and compilations took its time: the
+    # run stops after its first chunk. Before, each chunk loop started a clock of its own, and a pixel run given
+    # 575 s went on past its machine's 600 s limit, its compilations uncounted.
+    config = apply_overrides(configs.get("ppo_arm2d_fixed"), SMALL)
+    late = loop.Options(stop_after_s=60.0, clock_start=time.perf_counter() - 61.0)
+    assert not loop.train(config, tmp_path / "late", options=late)["finished"]
+    assert checkpoint.latest_step(tmp_path / "late" / "checkpoints") == 4
+    with pytest.raises(ValueError, match="has not started"):
+        loop.Options(stop_after_s=60.0).out_of_time()
 
 
 def test_evaluation_reads_the_policy_alone_and_still_refuses_another_one(finished_run, tmp_path, capsys):
