@@ -16,7 +16,8 @@ seed reaches --goal within --minutes: a result is its worst seed.
 
 `python -m experiments.seeds --resume OUT [--stop-after-minutes M]` continues: finished seeds are kept, a stopped
 one resumes from its checkpoint. `--stop-after-minutes` passes to each run, for machines that limit a command's
-time; a seed whose runs were stopped counts its commands' wall clocks together.
+time; a seed whose runs were stopped counts its commands' wall clocks together. A study killed outright (SIGKILL, a
+machine's time limit) counts a command it did not see end to the last line of that seed's log.
 """
 
 import sys
@@ -46,7 +47,8 @@ from jaxarm.exits import STOPPED_BY_SIGNAL
 from jaxarm.runner import filelock, paths, rundir, stats
 
 SEEDS_FILE = "seeds.json"
-"""What was asked (preset, seeds, goal, overrides) and each seed's commands so far: `--resume` reads it."""
+"""What was asked (preset, seeds, goal, overrides), each seed's commands' wall clocks so far ("walls") and the
+commands started and not yet seen to end ("unended": seed -> the Unix time each started): `--resume` reads it."""
 MAX_SEEDS = 1000
 """More separate runs than a study of seeds needs; a bound checked before anything is written."""
 POLL_S = 0.5
@@ -310,12 +312,19 @@ class GpuPool:
 
 
 def train_seeds(
-    protocol: Protocol, out: pathlib.Path, walls: dict[int, list[float]], stop_after: float | None, record
+    protocol: Protocol,
+    out: pathlib.Path,
+    walls: dict[int, list[float]],
+    unended: dict[int, float],
+    stop_after: float | None,
+    record,
 ) -> list[int]:
     """Runs every unfinished seed's next command, as many at once as there are GPUs free of other studies'
     runs (`GpuPool`), appending each command's wall clock to `walls[seed]` and calling `record()` after each ends,
     an interrupted one too: on Ctrl-C or SIGTERM the runs are told to stop (they checkpoint) and waited for, so
-    that none is left running. Returns the seeds whose command failed (a status but 0)."""
+    that none is left running. Each command's start stays in `unended[seed]` (Unix time, recorded) until it ends:
+    a study killed outright leaves it there for `--resume` (`unended_walls`). Returns the seeds whose command
+    failed (a status but 0)."""
     queue = [(seed, command) for seed in protocol.seeds if (command := next_command(protocol, out, seed, stop_after))]
     pool = GpuPool(gpu_slots(protocol.runs_per_gpu), gpu_lock_dir())
     running: dict[subprocess.Popen, tuple[int, Slot, float]] = {}
@@ -326,6 +335,7 @@ def train_seeds(
         if process.returncode != 0:
             failed.append(seed)
         walls.setdefault(seed, []).append(time.perf_counter() - started)
+        unended.pop(seed, None)
         record()
         pool.give_back(slot)
         result = seed_result(out, seed, walls[seed])
@@ -340,6 +350,8 @@ def train_seeds(
                 seed, command = queue.pop(0)
                 process = start_run(out, seed, command, slot.gpu, shared=protocol.runs_per_gpu > 1)
                 running[process] = (seed, slot, time.perf_counter())
+                unended[seed] = time.time()
+                record()
             if ended := first_ended(list(running)):
                 finish(ended)
             else:  # a run of this study may end, or another study may free a GPU
@@ -416,8 +428,9 @@ def parse_args(argv) -> argparse.Namespace:
     return args
 
 
-def read_study(out: pathlib.Path) -> tuple[Protocol, dict[int, list[float]]]:
-    """The protocol and wall clocks so far of the study in `out`; ValueError in one line naming what is wrong."""
+def read_study(out: pathlib.Path) -> tuple[Protocol, dict[int, list[float]], dict[int, float]]:
+    """The protocol, the wall clocks so far and the starts of commands not seen to end (`SEEDS_FILE`) of the study
+    in `out`; ValueError in one line naming what is wrong."""
     path = out / SEEDS_FILE
     try:
         saved = json.loads(path.read_text())
@@ -430,11 +443,21 @@ def read_study(out: pathlib.Path) -> tuple[Protocol, dict[int, list[float]]]:
             runs_per_gpu=int(saved.get("runs_per_gpu", 1)),  # studies before the option ran one run per GPU
         )
         walls = {int(seed): [float(wall) for wall in values] for seed, values in saved["walls"].items()}
+        # Studies before it recorded no starts.
+        unended = {int(seed): float(started) for seed, started in saved.get("unended", {}).items()}
     except FileNotFoundError:
         raise ValueError(f"{out} holds no {SEEDS_FILE}: not a study of experiments.seeds") from None
     except (OSError, ValueError, TypeError, KeyError, AttributeError) as error:
         raise ValueError(f"{path} is damaged ({type(error).__name__}: {error}); start a new study") from None
-    return protocol, walls
+    return protocol, walls, unended
+
+
+def unended_walls(out: pathlib.Path, unended: dict[int, float]) -> dict[int, float]:
+    """The wall clocks of the commands a study started and never saw end (it was killed outright: SIGKILL, a
+    machine's time limit), seed -> seconds, each to the last line its seed's log got: a run writes there to its
+    end, its checkpoint's line last. A command whose log is gone counts nothing."""
+    logs = {seed: seed_log(out, seed) for seed in unended}
+    return {seed: max(0.0, log.stat().st_mtime - unended[seed]) for seed, log in logs.items() if log.exists()}
 
 
 def interrupt(signum, frame) -> None:
@@ -458,7 +481,14 @@ def open_study(args: argparse.Namespace) -> tuple[Protocol, pathlib.Path, dict[i
     directory, before any run starts."""
     if args.resume:
         out = pathlib.Path(args.resume)
-        protocol, walls = read_study(out)
+        protocol, walls, unended = read_study(out)
+        for seed, wall in unended_walls(out, unended).items():
+            walls.setdefault(seed, []).append(wall)
+            print(
+                f"seed {seed}: its last command was not seen to end (the study was killed); its wall clock is counted "
+                f"to the last line of its log: {wall:.0f} s",
+                file=sys.stderr,
+            )
         return protocol, out, walls
     import jax
 
@@ -487,12 +517,14 @@ def study(args: argparse.Namespace) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
 
+    unended: dict[int, float] = {}
+
     def record() -> None:
-        rundir.write_json(out / SEEDS_FILE, {**dataclasses.asdict(protocol), "walls": walls})
+        rundir.write_json(out / SEEDS_FILE, {**dataclasses.asdict(protocol), "walls": walls, "unended": unended})
 
     record()
     try:
-        failed = train_seeds(protocol, out, walls, args.stop_after_minutes, record)
+        failed = train_seeds(protocol, out, walls, unended, args.stop_after_minutes, record)
     except KeyboardInterrupt:
         print(f"\ninterrupted; continue with: python -m experiments.seeds --resume {out}", file=sys.stderr)
         return STOPPED_BY_SIGNAL

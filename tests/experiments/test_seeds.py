@@ -178,6 +178,20 @@ def test_a_damaged_study_file_is_named_in_one_line(tmp_path):
     assert seeds.read_study(tmp_path)[0].runs_per_gpu == 1
 
 
+def test_a_command_a_killed_study_never_saw_end_counts_to_its_logs_last_line(tmp_path, capsys):
+    # A study killed outright by a machine's time limit kept no wall clock of the command it was running: its
+    # seed's table showed the resumed command's 345 s alone, where the seed had taken ~945 s.
+    started = time.time() - 1000.0
+    study = {"config": "ppo_arm2d", "seeds": [0, 1], "goal": 0.9, "minutes": 30.0, "overrides": []}
+    saved = {**study, "walls": {"0": [50.0]}, "unended": {"0": started, "1": started}}
+    (tmp_path / seeds.SEEDS_FILE).write_text(json.dumps(saved))
+    seeds.seed_log(tmp_path, 0).write_text("interrupted: checkpoint at update 340 saved\n")
+    os.utime(seeds.seed_log(tmp_path, 0), (started + 600.0, started + 600.0))
+    _, _, walls = seeds.open_study(seeds.parse_args(["--resume", str(tmp_path)]))
+    assert walls == {0: [50.0, pytest.approx(600.0)]}  # seed 1's command wrote no log: it never started
+    assert "seed 0: its last command was not seen to end" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("stage", ["", rundir.TEACHER_DIR, rundir.WARM_START_DIR])
 def test_a_seed_stopped_in_any_stage_resumes_and_one_without_checkpoints_starts_again(tmp_path, stage):
     protocol = seeds.Protocol("ppo_sorter3", (4,), 0.8, 15.0, ())
@@ -238,13 +252,15 @@ def test_sigterm_stops_the_study_and_its_runs_at_a_checkpoint_leaving_none_runni
     while not rundir.any_checkpoint_files(out / "seed-0") and time.monotonic() < deadline:
         time.sleep(0.5)
     run_pid = int((out / "seed-0" / ".lock").read_text())
+    assert list(json.loads((out / seeds.SEEDS_FILE).read_text())["unended"]) == ["0"]  # for a killed study's resume
     process.send_signal(signal.SIGTERM)
     _, stderr = process.communicate(timeout=300)
     assert process.returncode == 130, stderr[-2000:]
     assert stderr.strip().splitlines()[-1] == f"interrupted; continue with: python -m experiments.seeds --resume {out}"
     with pytest.raises(ProcessLookupError):
         os.kill(run_pid, 0)
-    assert len(json.loads((out / seeds.SEEDS_FILE).read_text())["walls"]["0"]) == 1
+    saved = json.loads((out / seeds.SEEDS_FILE).read_text())
+    assert len(saved["walls"]["0"]) == 1 and saved["unended"] == {}
 
 
 SORTER_TINY = [
