@@ -14,6 +14,11 @@ its command's wall clock (from the command's start to its end, summed over the c
 worst seed, the mean with a bootstrap 95% interval, the device and the command. The result is "met" when the worst
 seed reaches --goal within --minutes: a result is its worst seed.
 
+`--perturb NAME=V1,V2 ... [--worst-corner]` also evaluates each finished seed as a user would,
+`python -m experiments.eval OUT/seed-S --episodes N --perturb ... [--worst-corner]` (N from --perturb-episodes,
+1,000 by default), in a slot as its training was, and adds a table: each perturbation's placed fraction per seed,
+the worst seed and the mean. Config overrides go before --perturb, which takes every word after it.
+
 `python -m experiments.seeds --resume OUT [--stop-after-minutes M]` continues: finished seeds are kept, a stopped
 one resumes from its checkpoint. `--stop-after-minutes` passes to each run, for machines that limit a command's
 time; a seed whose runs were stopped counts its commands' wall clocks together. A study killed outright (SIGKILL, a
@@ -43,8 +48,9 @@ import numpy as np
 
 from experiments import distributed
 from experiments.run import minutes
+from jaxarm import ranges
 from jaxarm.exits import STOPPED_BY_SIGNAL
-from jaxarm.runner import filelock, paths, rundir, stats
+from jaxarm.runner import filelock, paths, robustness, rundir, stats
 
 SEEDS_FILE = "seeds.json"
 """What was asked (preset, seeds, goal, overrides), each seed's commands' wall clocks so far ("walls") and the
@@ -55,6 +61,8 @@ POLL_S = 0.5
 """How often a study looks for an ended run or a GPU another study freed, seconds."""
 MAX_RUNS_PER_GPU = 16
 """More runs than share one GPU usefully: each holds its own compiled programs and buffers."""
+PERTURB_EPISODES = 1000
+"""Episodes per row of each seed's robustness table, as `experiments.eval` evaluates by default."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,11 +75,32 @@ class Protocol:
     minutes: float | None
     overrides: tuple[str, ...]
     runs_per_gpu: int = 1
+    perturb: tuple[str, ...] = ()
+    worst_corner: bool = False
+    perturb_episodes: int = PERTURB_EPISODES
 
     def __post_init__(self):
         # A study with no slot would wait for one forever (a seeds.json edited by hand).
         if not 1 <= self.runs_per_gpu <= MAX_RUNS_PER_GPU:
             raise ValueError(f"runs_per_gpu must be from 1 to {MAX_RUNS_PER_GPU}, got {self.runs_per_gpu}")
+        ranges.check_value("perturb_episodes", self.perturb_episodes, int, ranges.AT_ONCE)
+
+    @property
+    def robustness_request(self) -> list[str]:
+        """What each finished seed's `experiments.eval` is asked, in the words that name its table
+        (`rundir.robustness_stem`); empty where the study asks for no robustness table."""
+        return [*self.perturb, *(["--worst-corner"] if self.worst_corner else [])]
+
+    @property
+    def robustness_options(self) -> list[str]:
+        """The study's options that ask for the robustness tables, as its command line gives them."""
+        if not self.robustness_request:
+            return []
+        episodes = (
+            [] if self.perturb_episodes == PERTURB_EPISODES else ["--perturb-episodes", str(self.perturb_episodes)]
+        )
+        corner = ["--worst-corner"] if self.worst_corner else []
+        return [*episodes, *corner, *(["--perturb", *self.perturb] if self.perturb else [])]
 
     @property
     def command(self) -> str:
@@ -79,7 +108,9 @@ class Protocol:
         minutes = [] if self.minutes is None else ["--minutes", f"{self.minutes:g}"]
         shared = [] if self.runs_per_gpu == 1 else ["--runs-per-gpu", str(self.runs_per_gpu)]
         seeds = ["--seeds", ",".join(map(str, self.seeds)), "--goal", f"{self.goal:g}", *minutes, *shared]
-        return " ".join(["python -m experiments.seeds --config", self.config, *seeds, *self.overrides])
+        # --perturb last: it takes every word after it.
+        options = [*seeds, *self.overrides, *self.robustness_options]
+        return " ".join(["python -m experiments.seeds --config", self.config, *options])
 
     def run_command(self, seed: int, out: pathlib.Path) -> list[str]:
         """The command a user types to train `seed` into `out`."""
@@ -87,6 +118,13 @@ class Protocol:
             "python", "-m", "experiments.run", "--config", self.config, "--out", str(out), *self.overrides,
             f"seed={seed}",
         ]  # fmt: skip
+
+    def evaluation_command(self, run_dir: pathlib.Path) -> list[str]:
+        """The command a user types to evaluate the run in `run_dir` under the study's perturbations."""
+        perturb = ["--perturb", *self.perturb] if self.perturb else []
+        corner = ["--worst-corner"] if self.worst_corner else []
+        episodes = ["--episodes", str(self.perturb_episodes)]
+        return ["python", "-m", "experiments.eval", str(run_dir), *episodes, *perturb, *corner]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -155,9 +193,14 @@ def fraction(text: str) -> float:
     return value
 
 
-def summarise(protocol: Protocol, results: Sequence[SeedResult]) -> dict:
+def summarise(
+    protocol: Protocol, results: Sequence[SeedResult], tables: dict[int, list[dict] | None] | None = None
+) -> dict:
     """The study's row: each seed's placed and wall clock, the worst seed, the mean with its bootstrap interval,
-    the devices and whether the worst seed met the goal (in time, where --minutes was given)."""
+    the devices and whether the worst seed met the goal (in time, where --minutes was given); with the seeds'
+    robustness `tables` (`robustness_tables`), a row per perturbation (`robustness_summary`) and each seed's
+    worst corner."""
+    tables = tables or {}
     placed = np.array([np.nan if result.placed is None else result.placed for result in results])
     done = all(result.finished for result in results)
     in_time = protocol.minutes is None or all(result.wall_s <= 60 * protocol.minutes for result in results)
@@ -175,7 +218,75 @@ def summarise(protocol: Protocol, results: Sequence[SeedResult]) -> dict:
         "met": bool(done and in_time and np.min(placed) >= protocol.goal),
         "finished": done,
         "runs_per_gpu": protocol.runs_per_gpu,
+        "robustness": robustness_summary(protocol, tables),
+        "robustness_command": (
+            " ".join(protocol.evaluation_command(pathlib.Path("OUT/seed-S"))) if protocol.robustness_request else None
+        ),
+        "worst_corners": {
+            str(seed): next(
+                (
+                    row["param"].removeprefix(f"{robustness.WORST_CORNER}: ")
+                    for row in rows
+                    if row_label(row) == robustness.WORST_CORNER
+                ),
+                None,
+            )
+            for seed, rows in tables.items()
+            if rows
+        },
     }
+
+
+def row_label(row: dict) -> str:
+    """The name of a row of a robustness table, the same for every seed: "nominal", NAME=V, a combined change as
+    its table names it, and "worst corner" for every seed's own corner."""
+    if row["param"].startswith(robustness.WORST_CORNER):
+        return robustness.WORST_CORNER
+    return row["param"] if row["value"] is None else f"{row['param']}={row['value']:g}"
+
+
+def robustness_summary(protocol: Protocol, tables: dict[int, list[dict] | None]) -> list[dict]:
+    """A row per perturbation of the seeds' robustness `tables` (seed -> its rows, None where it has none yet), in
+    their order: each seed's placed fraction under it (None where its table is missing), then the worst seed and
+    the mean with its bootstrap interval once every seed has one."""
+    labels = dict.fromkeys(row_label(row) for rows in tables.values() for row in rows or [])
+    summary = []
+    for label in labels:
+        placed = {
+            seed: next((row["success_rate"] for row in rows or [] if row_label(row) == label), None)
+            for seed, rows in tables.items()
+        }
+        values = np.array([np.nan if value is None else value for value in placed.values()])
+        complete = not np.isnan(values).any()
+        low, high = stats.bootstrap_interval(values) if complete else (None, None)
+        summary.append(
+            {
+                "perturbation": label,
+                "placed": {str(seed): value for seed, value in placed.items()},
+                "worst": float(np.min(values)) if complete else None,
+                "mean": float(np.mean(values)) if complete else None,
+                "interval": [low, high] if complete else None,
+            }
+        )
+    return summary
+
+
+def robustness_tables(protocol: Protocol, out: pathlib.Path) -> dict[int, list[dict] | None]:
+    """seed -> the rows of its run's robustness table for the study's request (`latest_robustness_table`), None
+    where it has none or it cannot be read; {} where the study asks for none."""
+    if not protocol.robustness_request:
+        return {}
+    return {seed: robustness_rows(protocol, out, seed) for seed in protocol.seeds}
+
+
+def robustness_rows(protocol: Protocol, out: pathlib.Path, seed: int) -> list[dict] | None:
+    """The rows of seed-S's robustness table for the study's request, None where it has none or it is damaged."""
+    path = rundir.latest_robustness_table(seed_dir(out, seed), protocol.perturb_episodes, protocol.robustness_request)
+    try:
+        rows = json.loads(path.read_text())["rows"] if path else None
+    except (OSError, ValueError, TypeError, KeyError):
+        return None
+    return rows if isinstance(rows, list) else None
 
 
 def markdown(summary: dict) -> str:
@@ -206,7 +317,34 @@ def markdown(summary: dict) -> str:
             f"worst seed {percent(summary['worst'])}; mean {percent(summary['mean'])} (bootstrap 95% interval "
             f"{percent(low)}–{percent(high)}); goal {goal}: {'**met**' if summary['met'] else 'not met'}",
         ]
+    if summary["robustness"]:
+        lines += ["", *robustness_markdown(summary)]
     return "\n".join(lines) + "\n"
+
+
+def robustness_markdown(summary: dict) -> list[str]:
+    """The lines of the robustness table: a row per perturbation, a column per seed, then the worst and the mean;
+    then each seed's worst corner, where one was found."""
+
+    def percent(value: float | None) -> str:
+        return "—" if value is None else f"{100 * value:.1f}%"
+
+    seeds = [str(seed["seed"]) for seed in summary["seeds"]]
+    lines = [
+        f"Placed under each perturbation (`{summary['robustness_command']}`, each seed's run as OUT/seed-S):",
+        "",
+        "| perturbation | " + " | ".join(f"seed {seed}" for seed in seeds) + " | worst | mean |",
+        "|---|" + "---:|" * (len(seeds) + 2),
+    ]
+    for row in summary["robustness"]:
+        cells = [percent(row["placed"][seed]) for seed in seeds]
+        lines.append(
+            f"| {row['perturbation']} | {' | '.join(cells)} | {percent(row['worst'])} | {percent(row['mean'])} |"
+        )
+    corners = summary["worst_corners"]
+    if any(corners.values()):
+        lines += ["", *(f"- seed {seed}: {corner}" for seed, corner in corners.items() if corner)]
+    return lines
 
 
 def seed_dir(out: pathlib.Path, seed: int) -> pathlib.Path:
@@ -311,6 +449,61 @@ class GpuPool:
             handle.close()
 
 
+def evaluation_command(protocol: Protocol, out: pathlib.Path, seed: int) -> list[str] | None:
+    """The command that evaluates `seed`'s finished run under the study's perturbations, or None where the study
+    asks for none, the run has not finished or its table is written."""
+    needed = protocol.robustness_request and seed_result(out, seed, []).finished
+    return (
+        protocol.evaluation_command(seed_dir(out, seed))
+        if needed and not robustness_rows(protocol, out, seed)
+        else None
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class Command:
+    """A command the study runs for `seed`: its training's next (`next_command`), or with `evaluating` its
+    robustness evaluation (`evaluation_command`)."""
+
+    seed: int
+    argv: list[str]
+    evaluating: bool = False
+
+
+def pending_commands(protocol: Protocol, out: pathlib.Path, stop_after: float | None) -> list[Command]:
+    """Each unfinished seed's next training command, then each finished seed's robustness evaluation not yet
+    written."""
+    training = [
+        Command(seed, argv) for seed in protocol.seeds if (argv := next_command(protocol, out, seed, stop_after))
+    ]
+    evaluations = [
+        Command(seed, argv, True) for seed in protocol.seeds if (argv := evaluation_command(protocol, out, seed))
+    ]
+    return training + evaluations
+
+
+@dataclasses.dataclass(frozen=True)
+class Failures:
+    """The seeds whose training commands (runs) and whose robustness evaluations ended with a status but 0."""
+
+    runs: list[int] = dataclasses.field(default_factory=list)
+    evaluations: list[int] = dataclasses.field(default_factory=list)
+
+
+def evaluation_after(protocol: Protocol, out: pathlib.Path, seed: int, returncode: int) -> list[Command]:
+    """The robustness evaluation `seed` needs now that a training command of it ended with `returncode`: none
+    where the command failed or the seed's run has not finished (`evaluation_command`)."""
+    argv = evaluation_command(protocol, out, seed) if returncode == 0 else None
+    return [Command(seed, argv, True)] if argv else []
+
+
+def evaluation_ended(seed: int, returncode: int, failures: Failures) -> None:
+    """Says how `seed`'s robustness evaluation ended, and counts it in `failures` where it failed."""
+    if returncode != 0:
+        failures.evaluations.append(seed)
+    print(f"seed {seed}: robustness evaluation rc {returncode}", flush=True)
+
+
 def train_seeds(
     protocol: Protocol,
     out: pathlib.Path,
@@ -318,40 +511,46 @@ def train_seeds(
     unended: dict[int, float],
     stop_after: float | None,
     record,
-) -> list[int]:
+) -> Failures:
     """Runs every unfinished seed's next command, as many at once as there are GPUs free of other studies'
     runs (`GpuPool`), appending each command's wall clock to `walls[seed]` and calling `record()` after each ends,
     an interrupted one too: on Ctrl-C or SIGTERM the runs are told to stop (they checkpoint) and waited for, so
     that none is left running. Each command's start stays in `unended[seed]` (Unix time, recorded) until it ends:
-    a study killed outright leaves it there for `--resume` (`unended_walls`). Returns the seeds whose command
-    failed (a status but 0)."""
-    queue = [(seed, command) for seed in protocol.seeds if (command := next_command(protocol, out, seed, stop_after))]
+    a study killed outright leaves it there for `--resume` (`unended_walls`). A seed that has finished then gets
+    its robustness evaluation where the study asks for one (`evaluation_command`), its time not counted in the
+    seed's wall clock. Returns the seeds whose commands failed."""
+    queue = pending_commands(protocol, out, stop_after)
     pool = GpuPool(gpu_slots(protocol.runs_per_gpu), gpu_lock_dir())
-    running: dict[subprocess.Popen, tuple[int, Slot, float]] = {}
-    failed: list[int] = []
+    running: dict[subprocess.Popen, tuple[Command, Slot, float]] = {}
+    failures = Failures()
 
     def finish(process: subprocess.Popen) -> None:
-        seed, slot, started = running.pop(process)
+        command, slot, started = running.pop(process)
+        seed = command.seed
+        pool.give_back(slot)
+        if command.evaluating:
+            return evaluation_ended(seed, process.returncode, failures)
         if process.returncode != 0:
-            failed.append(seed)
+            failures.runs.append(seed)
         walls.setdefault(seed, []).append(time.perf_counter() - started)
         unended.pop(seed, None)
         record()
-        pool.give_back(slot)
         result = seed_result(out, seed, walls[seed])
         state = f"placed {result.placed:.3f}" if result.finished and result.placed is not None else "not finished"
         print(f"seed {seed}: rc {process.returncode}, {state} after {result.wall_s:.0f} s", flush=True)
+        queue.extend(evaluation_after(protocol, out, seed, process.returncode))
 
     try:
         while queue or running:
             while queue:
                 if (slot := pool.take()) is None:
                     break
-                seed, command = queue.pop(0)
-                process = start_run(out, seed, command, slot.gpu, shared=protocol.runs_per_gpu > 1)
-                running[process] = (seed, slot, time.perf_counter())
-                unended[seed] = time.time()
-                record()
+                command = queue.pop(0)
+                process = start_run(out, command.seed, command.argv, slot.gpu, shared=protocol.runs_per_gpu > 1)
+                running[process] = (command, slot, time.perf_counter())
+                if not command.evaluating:
+                    unended[command.seed] = time.time()
+                    record()
             if ended := first_ended(list(running)):
                 finish(ended)
             else:  # a run of this study may end, or another study may free a GPU
@@ -365,7 +564,7 @@ def train_seeds(
                 finish(wait_any(list(running)))
             except KeyboardInterrupt:
                 signal_all(running, signal.SIGINT)  # a second Ctrl-C: the runs' second, which ends them at once
-    return failed
+    return failures
 
 
 def signal_all(running: dict[subprocess.Popen, tuple], signum: int) -> None:
@@ -377,9 +576,10 @@ def signal_all(running: dict[subprocess.Popen, tuple], signum: int) -> None:
 
 
 def start_run(out: pathlib.Path, seed: int, command: list[str], gpu: str | None, shared: bool) -> subprocess.Popen:
-    """Starts `command` (`python -m experiments.run ...`) with this interpreter, on `gpu` alone where one is
-    named, its output appended to OUT/seed-S.log. A run on a `shared` GPU allocates its memory as it goes (unless
-    the environment says otherwise): JAX takes 75% of a GPU at its start, leaving too little for a second run."""
+    """Starts `command` (`python -m experiments.run ...` or `experiments.eval ...`) with this interpreter, on `gpu`
+    alone where one is named, its output appended to OUT/seed-S.log. A run on a `shared` GPU allocates its memory
+    as it goes (unless the environment says otherwise): JAX takes 75% of a GPU at its start, leaving too little for
+    a second run."""
     env = dict(os.environ) if gpu is None else {**os.environ, "CUDA_VISIBLE_DEVICES": gpu}
     if shared:
         env.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
@@ -416,15 +616,38 @@ def parse_args(argv) -> argparse.Namespace:
     parser.add_argument(
         "--runs-per-gpu", type=runs_per_gpu, help="runs sharing each GPU at once (default 1; on a CPU, runs at once)"
     )
+    parser.add_argument(
+        "--perturb",
+        nargs="+",
+        metavar="NAME=V1,V2",
+        default=[],
+        help="evaluate each finished seed under these changes of its env's params, as experiments.eval --perturb "
+        "does; give config overrides before it",
+    )
+    parser.add_argument(
+        "--worst-corner",
+        action="store_true",
+        help="evaluate each finished seed at its worst corner, as experiments.eval --worst-corner does",
+    )
+    parser.add_argument(
+        "--perturb-episodes",
+        type=int,
+        help=f"episodes per perturbation of each seed's evaluation (default {PERTURB_EPISODES:,})",
+    )
     parser.add_argument("overrides", nargs="*", help="config overrides key=value, the same for every seed")
     args = parser.parse_args(argv)
     if bool(args.config) == bool(args.resume):
         parser.error("give --config NAME (a new study) or --resume OUT (a stopped one)")
-    if args.resume and (args.overrides or args.out or args.runs_per_gpu):  # else left aside without a word
+    asked = [
+        args.overrides, args.out, args.runs_per_gpu, args.perturb, args.worst_corner, args.perturb_episodes,
+    ]  # fmt: skip
+    if args.resume and any(asked):  # else left aside without a word
         parser.error(
-            "--resume takes what the study was asked, and where, from its seeds.json; give no overrides, --out or "
-            "--runs-per-gpu"
+            "--resume takes what the study was asked, and where, from its seeds.json; give no overrides, --out, "
+            "--runs-per-gpu, --perturb, --worst-corner or --perturb-episodes"
         )
+    if args.perturb_episodes is not None and not (args.perturb or args.worst_corner):
+        parser.error("--perturb-episodes counts the episodes of --perturb or --worst-corner; give one of them")
     return args
 
 
@@ -441,6 +664,10 @@ def read_study(out: pathlib.Path) -> tuple[Protocol, dict[int, list[float]], dic
             minutes=None if saved["minutes"] is None else float(saved["minutes"]),
             overrides=tuple(str(item) for item in saved["overrides"]),
             runs_per_gpu=int(saved.get("runs_per_gpu", 1)),  # studies before the option ran one run per GPU
+            # Studies before the options evaluated no perturbation.
+            perturb=tuple(str(item) for item in saved.get("perturb", [])),
+            worst_corner=bool(saved.get("worst_corner", False)),
+            perturb_episodes=int(saved.get("perturb_episodes", PERTURB_EPISODES)),
         )
         walls = {int(seed): [float(wall) for wall in values] for seed, values in saved["walls"].items()}
         # Studies before it recorded no starts.
@@ -499,14 +726,46 @@ def open_study(args: argparse.Namespace) -> tuple[Protocol, pathlib.Path, dict[i
     # GPUs' memory from the runs (on a GPU, JAX takes most of it at start: two runs failed so, out of memory).
     jax.config.update("jax_platforms", "cpu")
     # Refused here, not once per seed: the largest seed, as any other, must be a seed the config takes.
-    apply_overrides(configs.get(args.config), [*args.overrides, f"seed={max(args.seeds)}"])
+    config = apply_overrides(configs.get(args.config), [*args.overrides, f"seed={max(args.seeds)}"])
+    protocol = Protocol(
+        args.config,
+        args.seeds,
+        args.goal,
+        args.minutes,
+        tuple(args.overrides),
+        args.runs_per_gpu or 1,
+        tuple(args.perturb),
+        args.worst_corner,
+        PERTURB_EPISODES if args.perturb_episodes is None else args.perturb_episodes,
+    )
+    check_robustness_request(protocol, config)
     out = pathlib.Path(args.out) if args.out else rundir.new_run_dir(f"seeds-{args.config}")
     paths.check_output_dir(out, "--out")
     if (out / SEEDS_FILE).exists():
         raise ValueError(f"{out} holds a study already; continue it with --resume {out}, or give another --out")
     out.mkdir(parents=True, exist_ok=True)
-    protocol = Protocol(args.config, args.seeds, args.goal, args.minutes, tuple(args.overrides), args.runs_per_gpu or 1)
     return protocol, out, {}
+
+
+def check_robustness_request(protocol: Protocol, config) -> None:
+    """ValueError in one line for a perturbation `experiments.eval` would refuse the seeds' runs (`config`, the
+    resolved preset) after their training: words that are not NAME=V1,V2 or NAME=V+NAME=V, a name that is not a
+    param of the env (a config override given after --perturb, say), a value outside its range; or --worst-corner
+    where the preset randomises nothing."""
+    if protocol.worst_corner and not config.randomize:
+        raise ValueError(f"--worst-corner: {protocol.config} randomises no env param")
+    if not protocol.perturb:
+        return
+    _, env_params = config.make_eval_env()
+    try:
+        for text in protocol.perturb:
+            if "+" in text:
+                change = robustness.parse_combined(text)
+                robustness.check_perturbations(env_params, {name: [value] for name, value in change.items()})
+            else:
+                robustness.check_perturbations(env_params, dict([robustness.parse_perturbation(text)]))
+    except robustness.PerturbationError as error:
+        raise ValueError(f"--perturb: {error} (config overrides go before --perturb)") from None
 
 
 def study(args: argparse.Namespace) -> int:
@@ -524,23 +783,26 @@ def study(args: argparse.Namespace) -> int:
 
     record()
     try:
-        failed = train_seeds(protocol, out, walls, unended, args.stop_after_minutes, record)
+        failures = train_seeds(protocol, out, walls, unended, args.stop_after_minutes, record)
     except KeyboardInterrupt:
         print(f"\ninterrupted; continue with: python -m experiments.seeds --resume {out}", file=sys.stderr)
         return STOPPED_BY_SIGNAL
     results = [seed_result(out, seed, walls.get(seed, [])) for seed in protocol.seeds]
-    summary = summarise(protocol, results)
+    summary = summarise(protocol, results, robustness_tables(protocol, out))
     rundir.write_json(out / "summary.json", summary)
     (out / "seeds.md").write_text(markdown(summary))
     print(markdown(summary), end="")
     resume = f"python -m experiments.seeds --resume {out}"
-    if failed:  # a study whose runs failed (a seed the config refuses, a full disk, a crash) failed (rc 0 before)
-        logs = ", ".join(str(seed_log(out, seed)) for seed in failed)
-        print(
-            f"error: the runs of seeds {', '.join(map(str, failed))} failed (their logs say why: {logs}); fix that "
-            f"and continue with: {resume}",
-            file=sys.stderr,
-        )
+    # A study whose runs failed (a seed the config refuses, a full disk, a crash) failed (rc 0 before).
+    for kind, failed in (("runs", failures.runs), ("robustness evaluations", failures.evaluations)):
+        if failed:
+            logs = ", ".join(str(seed_log(out, seed)) for seed in failed)
+            print(
+                f"error: the {kind} of seeds {', '.join(map(str, failed))} failed (their logs say why: {logs}); fix "
+                f"that and continue with: {resume}",
+                file=sys.stderr,
+            )
+    if failures.runs or failures.evaluations:
         return 2
     if not summary["finished"]:
         unfinished = ", ".join(str(seed_log(out, result.seed)) for result in results if not result.finished)

@@ -71,6 +71,93 @@ def test_a_study_is_met_only_when_its_worst_seed_meets_the_goal_in_time():
     assert "**met**" in seeds.markdown(met) and "(not finished)" in seeds.markdown(stopped)
 
 
+def write_robustness(
+    run_dir: pathlib.Path, request: list[str], update: int, rows: list[tuple[str, float | None, float]]
+):
+    """A robustness table as `experiments.eval` writes it of `update`'s checkpoint: rows (param, value, placed)."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "eval.json").write_text(json.dumps({"success_rate": 0.99, "finished": True, "device": "cpu"}))
+    table = [{"param": param, "value": value, "success_rate": placed} for param, value, placed in rows]
+    stem = rundir.robustness_stem(run_dir, 16, 12345, str(update), request)
+    stem.with_suffix(".json").write_text(json.dumps({"device": "cpu", "perturb": request, "rows": table}))
+
+
+def test_each_finished_seed_is_evaluated_once_and_the_study_tabulates_the_worst_seed_per_perturbation(tmp_path):
+    protocol = seeds.Protocol(
+        "ppo_arm2d", (0, 1, 2), 0.9, None, (), perturb=("action_scale=0.2",), worst_corner=True, perturb_episodes=16
+    )
+    request = ["action_scale=0.2", "--worst-corner"]
+    assert protocol.robustness_request == request
+    assert protocol.command == (
+        "python -m experiments.seeds --config ppo_arm2d --seeds 0,1,2 --goal 0.9 --perturb-episodes 16 --worst-corner "
+        "--perturb action_scale=0.2"
+    )
+    write_robustness(seeds.seed_dir(tmp_path, 0), request, 30, [("nominal", None, 0.5)])  # an older checkpoint's
+    write_robustness(
+        seeds.seed_dir(tmp_path, 0),
+        request,
+        300,
+        [("nominal", None, 1.0), ("action_scale", 0.2, 0.75), ("worst corner: goal_size=20", None, 0.5)],
+    )
+    write_robustness(seeds.seed_dir(tmp_path, 1), ["action_scale=0.2"], 300, [("nominal", None, 1.0)])  # not asked
+    (seeds.seed_dir(tmp_path, 2)).mkdir()  # not finished
+    assert seeds.evaluation_command(protocol, tmp_path, 0) is None  # written
+    assert seeds.evaluation_command(protocol, tmp_path, 1) == [
+        "python", "-m", "experiments.eval", str(seeds.seed_dir(tmp_path, 1)), "--episodes", "16",
+        "--perturb", "action_scale=0.2", "--worst-corner",
+    ]  # fmt: skip
+    assert seeds.evaluation_command(protocol, tmp_path, 2) is None  # its training first
+    assert [command.seed for command in seeds.pending_commands(protocol, tmp_path, None)] == [2, 1]
+
+    results = [result(0, 0.99), result(1, 0.97), result(2, 0.98)]
+    summary = seeds.summarise(protocol, results, seeds.robustness_tables(protocol, tmp_path))
+    nominal, scaled, corner = summary["robustness"]
+    assert nominal["placed"] == {"0": 1.0, "1": None, "2": None} and nominal["worst"] is None
+    assert scaled["perturbation"] == "action_scale=0.2" and scaled["placed"]["0"] == 0.75
+    assert corner["perturbation"] == "worst corner" and summary["worst_corners"] == {"0": "goal_size=20"}
+    text = seeds.markdown(summary)
+    assert "| action_scale=0.2 | 75.0% | — | — | — | — |" in text and "- seed 0: goal_size=20" in text
+
+    for seed in (1, 2):
+        write_robustness(
+            seeds.seed_dir(tmp_path, seed),
+            request,
+            300,
+            [("nominal", None, 1.0), ("action_scale", 0.2, 0.25 * seed), ("worst corner: goal_size=60", None, 1.0)],
+        )
+    summary = seeds.summarise(protocol, results, seeds.robustness_tables(protocol, tmp_path))
+    scaled = summary["robustness"][1]
+    assert scaled["worst"] == 0.25 and scaled["mean"] == pytest.approx(0.5) and len(scaled["interval"]) == 2
+    assert "| action_scale=0.2 | 75.0% | 25.0% | 50.0% | 25.0% | 50.0% |" in seeds.markdown(summary)
+    assert seeds.pending_commands(protocol, tmp_path, None) == []
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--perturb", "no_such_param=1"], "--perturb: "),
+        (["--perturb", "action_scale=-1"], "--perturb: "),
+        (["--perturb", "action_scale"], "--perturb: a perturbation is NAME=V1,V2,..., got 'action_scale'"),
+        (["--perturb", "action_scale=0.2", "num_envs=8"], "(config overrides go before --perturb)"),
+        (["--worst-corner"], "--worst-corner: ppo_arm2d randomises no env param"),
+    ],
+)
+def test_a_perturbation_the_eval_would_refuse_is_one_line_before_any_run_starts(tmp_path, capsys, extra, message):
+    out = tmp_path / "study"
+    assert seeds.main(["--config", "ppo_arm2d", "--seeds", "0", "--out", str(out), *extra]) == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith("error: ") and message in line
+    assert not out.exists()
+
+
+def test_perturb_episodes_without_a_perturbation_is_refused(capsys):
+    with pytest.raises(SystemExit) as exited:
+        seeds.parse_args(["--config", "ppo_arm2d", "--perturb-episodes", "8"])
+    assert exited.value.code == 2 and "give one of them" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="perturb_episodes"):
+        seeds.Protocol("ppo_arm2d", (0,), 0.9, None, (), perturb=("action_scale=0.2",), perturb_episodes=0)
+
+
 def test_a_seed_reports_the_tries_its_run_took(tmp_path):
     seeds.seed_dir(tmp_path, 3).mkdir()
     evaluation = {"success_rate": 0.9, "finished": True, "device": "cpu"}
@@ -148,12 +235,21 @@ def test_a_study_whose_run_failed_says_so_in_one_line_and_fails(tmp_path, capsys
     assert "holds files but no run" in seeds.seed_log(out, 0).read_text()
 
 
-def test_a_resumed_study_takes_no_out_overrides_or_runs_per_gpu(tmp_path, capsys):
+def test_a_resumed_study_takes_no_out_overrides_runs_per_gpu_or_perturbations(tmp_path, capsys):
     # Each was left aside without a word: the study keeps what its seeds.json says.
-    for extra in (["--out", str(tmp_path / "elsewhere")], ["num_envs=8"], ["--runs-per-gpu", "2"]):
+    asked = (
+        ["--out", str(tmp_path / "elsewhere")],
+        ["num_envs=8"],
+        ["--runs-per-gpu", "2"],
+        ["--perturb", "action_scale=0.2"],
+        ["--worst-corner"],
+        ["--perturb-episodes", "8"],
+    )
+    for extra in asked:
         with pytest.raises(SystemExit) as exited:
             seeds.parse_args(["--resume", str(tmp_path), *extra])
-        assert exited.value.code == 2 and "give no overrides, --out or --runs-per-gpu" in capsys.readouterr().err
+        err = capsys.readouterr().err
+        assert exited.value.code == 2 and "give no overrides, --out, --runs-per-gpu, --perturb, --worst-corner" in err
 
 
 @pytest.mark.parametrize("text", ["0", "17", "two"])
@@ -240,6 +336,30 @@ def test_each_seed_is_a_separate_run_a_stopped_one_resumes_and_reproduces_an_uns
     assert json.loads((stopped / seeds.SEEDS_FILE).read_text())["walls"] == walls
     assert "seed-0:" not in capsys.readouterr().out
     assert computed(tmp_path / "whole" / "seed-0") == computed(stopped / "seed-0")
+
+
+@pytest.mark.slow
+def test_a_study_evaluates_each_seed_under_its_perturbations_as_experiments_eval_does(tmp_path, capsys):
+    out = tmp_path / "study"
+    perturb = ["--perturb-episodes", "16", "--perturb", "action_scale=0.05,0.2"]
+    assert (
+        seeds.main(["--config", "ppo_arm2d_fixed", "--seeds", "0", "--goal", "0", "--out", str(out), *SMALL, *perturb])
+        == 0
+    )
+    summary = json.loads((out / "summary.json").read_text())
+    rows = summary["robustness"]
+    assert [row["perturbation"] for row in rows] == ["nominal", "action_scale=0.05", "action_scale=0.2"]
+    (table,) = seeds.seed_dir(out, 0).glob("robustness-16-*.json")  # the eval's own, as a user's command writes it
+    written = {(row["param"], row["value"]): row["success_rate"] for row in json.loads(table.read_text())["rows"]}
+    assert [row["worst"] for row in rows] == [
+        written[("nominal", None)],
+        written[("action_scale", 0.05)],
+        written[("action_scale", 0.2)],
+    ]
+    assert summary["command"].endswith("--perturb-episodes 16 --perturb action_scale=0.05,0.2")
+    assert "seed 0: robustness evaluation rc 0" in capsys.readouterr().out
+    assert seeds.main(["--resume", str(out)]) == 0  # nothing left to run
+    assert "robustness evaluation" not in capsys.readouterr().out
 
 
 @pytest.mark.slow
