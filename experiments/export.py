@@ -87,6 +87,11 @@ def main(argv=None) -> int:
         return 2
     for path in written:
         print(f"wrote {path}")
+    if not rundir.read_evaluation(run_dir).get("finished"):
+        print(
+            f"note: {run_dir} has not finished training: this is the policy of update {origin.read(out_dir)}; export "
+            "again when it has"
+        )
     if not any(path.name == "policy.onnx" for path in written):
         print('no policy.onnx: jax2onnx is not installed (pip install -e ".[export]")')
     return 0

@@ -45,7 +45,6 @@ from jaxarm.deploy.stream import limit_ratios
 from jaxarm.deployable import panda_sort
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.envs.panda_sort.objects import pose_index, velocity_index
-from jaxarm.export import numpy_policy, origin
 from jaxarm.runner import paths, rundir
 
 LATENCY_BUDGETS_MS = ranges.Range(gt=0, le=wire.Timing.connect_timeout * 1e3)
@@ -140,12 +139,7 @@ def rehearse_run(run_dir: pathlib.Path, episodes: int, seed: int, fault: Fault |
     steps = int(params.max_episode_steps)
     if fault is not None and fault.tick >= steps:  # a fault no episode reaches: reported as none before
         raise ValueError(f"--fault-tick {fault.tick}: an episode of the run's env has ticks 0 to {steps - 1}")
-    policy_path = run_dir / "export" / "policy.npz"
-    if not policy_path.exists():
-        raise ValueError(f"no {policy_path}: export the run first (python -m experiments.export {run_dir})")
-    policy = numpy_policy.load(policy_path)
-    if policy.observation_size != env.spec.observation_shape[0] or policy.action_size != env.spec.action_shape[0]:
-        raise ValueError(f"{policy_path} does not fit the run's env ({env.spec})")
+    policy, checkpoint_name = transfer.exported_policy(run_dir, env.spec)
     controller = panda_sort.controller(env, params)
     bins = panda_sort.scoring_bins(env.layout)
     sims = transfer.episode_starts(env, params, episodes, seed)
@@ -167,7 +161,7 @@ def rehearse_run(run_dir: pathlib.Path, episodes: int, seed: int, fault: Fault |
             rehearsal = rehearse(loop, setup, sim.shape, size, steps, done, fault)
         rehearsals.append(rehearsal)
         placements.append(placed(controller, sim, rehearsal, bins))
-    result = {"checkpoint": origin.read(policy_path.parent), "seed": seed, "fault": fault and fault.kind}
+    result = {"checkpoint": checkpoint_name, "seed": seed, "fault": fault and fault.kind}
     return result | summary(rehearsals, placements, timing) | {"wall_seconds": time.perf_counter() - began}
 
 

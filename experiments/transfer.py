@@ -41,12 +41,13 @@ import numpy as np
 from scipy import stats
 
 from jaxarm import deployable, envs, headless, ranges
+from jaxarm.agents.common import checkpoint
 from jaxarm.deploy.loop import Controller, DeploymentLoop, UnsafeAction
 from jaxarm.deploy.mujoco_robot import MujocoRobot, stock_solver
 from jaxarm.envs.observation import actor_observation
 from jaxarm.envs.panda.base import CONTROL_DT
 from jaxarm.export import numpy_policy, origin
-from jaxarm.runner import paths, rundir, video
+from jaxarm.runner import metrics_log, paths, rundir, video
 
 MODELS = ("jaxarm", "menagerie")
 VIDEO_SIZE = (240, 320)
@@ -219,15 +220,45 @@ def transfer(
         raise ValueError(f"{run_dir}'s env is {config.env}{kwargs}; transfer runs {', '.join(transferable_envs())}")
     if np.any(pose_bias) and not env.spec.flat_observation:
         raise ValueError("--pose-bias: a camera's policy is shown no position estimate to bias")
+    policy, checkpoint_name = exported_policy(run_dir, env.spec)
+    summary = run_episodes(env, params, policy, model_name, episodes, seed, clip, record, pose_bias)
+    return {"checkpoint": checkpoint_name} | summary
+
+
+def exported_policy(run_dir: pathlib.Path, spec) -> tuple[numpy_policy.NumpyPolicy, str]:
+    """RUN's exported numpy policy and the checkpoint it came from (its export.json); ValueError where there is
+    none or it does not fit `spec` (`fits`), PolicyFileError where it or its export.json is damaged. Warns on
+    standard error where the export is older than the run (`stale_export`)."""
     policy_path = run_dir / "export" / "policy.npz"
     if not policy_path.exists():
         raise ValueError(f"no {policy_path}: export the run first (python -m experiments.export {run_dir})")
     policy = numpy_policy.load(policy_path)
-    if not fits(policy, env.spec):
-        raise ValueError(f"{policy_path} does not fit the run's env ({env.spec})")
+    if not fits(policy, spec):
+        raise ValueError(f"{policy_path} does not fit the run's env ({spec})")
     checkpoint_name = origin.read(policy_path.parent)
-    summary = run_episodes(env, params, policy, model_name, episodes, seed, clip, record, pose_bias)
-    return {"checkpoint": checkpoint_name} | summary
+    if warning := stale_export(run_dir, checkpoint_name):
+        print(warning, file=sys.stderr, flush=True)
+    return policy, checkpoint_name
+
+
+def stale_export(run_dir: pathlib.Path, checkpoint_name: str) -> str | None:
+    """A warning where RUN/export holds the policy of an earlier update (`checkpoint_name`, from its export.json)
+    than the run has trained to since (its latest checkpoint, or where its checkpoints are gone its metrics' last
+    row): an export made before the run finished or was resumed, whose figures would not be the run's. None where
+    the export is of the latest update, or of the best checkpoint."""
+    if not checkpoint_name.isdigit():
+        return None
+    latest = checkpoint.latest_step(run_dir / "checkpoints")
+    if latest is None:
+        latest = max(
+            (int(row["updates"]) for row in metrics_log.read_metrics(run_dir, drop_partial_last=True)), default=0
+        )
+    if latest <= int(checkpoint_name):
+        return None
+    return (
+        f"warning: {run_dir / 'export'} holds update {checkpoint_name}'s policy, and the run has trained to update "
+        f"{latest} since; python -m experiments.export {run_dir} exports its latest"
+    )
 
 
 def main(argv=None) -> int:

@@ -169,6 +169,20 @@ def test_a_pose_bias_moves_the_estimates_the_policy_sees_and_not_the_scoring():
     assert np.count_nonzero(np.abs(moved) > 1e-6) == 9  # and its offsets from the tool and from its carry target
 
 
+def test_an_export_older_than_its_run_is_named_with_the_update_the_run_reached(tmp_path):
+    # An export made when a run first stopped (update 10) was driven for 200 episodes as if it were the run's
+    # final policy (update 1,230): the figures were update 10's, and nothing said so.
+    run_dir = tmp_path
+    rows = [{"updates": updates, "env_steps": 32 * updates, "wall_time": 1.0} for updates in (10, 1230)]
+    (run_dir / "metrics.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
+    warning = transfer.stale_export(run_dir, "10")
+    assert warning == (
+        f"warning: {run_dir / 'export'} holds update 10's policy, and the run has trained to update 1230 since; "
+        f"python -m experiments.export {run_dir} exports its latest"
+    )
+    assert transfer.stale_export(run_dir, "1230") is None and transfer.stale_export(run_dir, "best") is None
+
+
 @pytest.mark.mjx
 @pytest.mark.slow
 def test_the_transfer_cli_runs_an_exported_sorter_policy_on_both_pandas(tmp_path, capsys):

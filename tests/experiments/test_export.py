@@ -174,6 +174,20 @@ def test_the_numpy_policy_drives_the_gymnasium_adapter(exported):
     assert 1 <= steps <= 200
 
 
+def test_an_export_of_a_run_that_has_not_finished_says_so(tmp_path, capsys):
+    # A run stopped early and exported was later driven in stock MuJoCo as if it were the finished run's policy.
+    config = CONFIGS["ppo"]
+    trainer = learners.make_trainer(config)
+    rundir.write_config(tmp_path, config, "tiny_ppo")
+    checkpoint.save(tmp_path / "checkpoints", 1, trainer.init(jax.random.PRNGKey(0), config.hparams()))
+    assert export_cli.main([str(tmp_path), "--out", str(tmp_path / "early")]) == 0
+    note = f"note: {tmp_path} has not finished training: this is the policy of update 0; export again when it has"
+    assert note in capsys.readouterr().out
+    rundir.write_json(tmp_path / "eval.json", {"success_rate": 1.0, "finished": True})
+    assert export_cli.main([str(tmp_path), "--out", str(tmp_path / "final")]) == 0
+    assert "note:" not in capsys.readouterr().out
+
+
 def test_export_errors_are_one_line(tmp_path, capsys):
     assert export_cli.main([str(tmp_path)]) == 2
     assert "no config.json" in capsys.readouterr().err
