@@ -136,6 +136,11 @@ def rehearse_run(run_dir: pathlib.Path, episodes: int, seed: int, fault: Fault |
     env, params = config.make_eval_env()
     if not deployable.runs(env) or deployable.entry(env) is not panda_sort.DEPLOYABLE:
         raise ValueError(f"{run_dir}'s env is {config.env}; the rehearsal runs the sorter (panda_sort, panda_sort3)")
+    if not env.spec.flat_observation:  # a traceback before: a camera's spec has no flat observation shape
+        raise ValueError(
+            f"{run_dir}'s policy reads cameras; the rehearsal runs state policies (experiments.transfer runs camera "
+            "policies in stock MuJoCo)"
+        )
     steps = int(params.max_episode_steps)
     if fault is not None and fault.tick >= steps:  # a fault no episode reaches: reported as none before
         raise ValueError(f"--fault-tick {fault.tick}: an episode of the run's env has ticks 0 to {steps - 1}")

@@ -13,7 +13,8 @@ import time
 import numpy as np
 import pytest
 
-from experiments import rehearse
+from experiments import configs, rehearse
+from jaxarm.runner import rundir
 from tests.deploy.exported import export_random_policy, sorter_run
 
 STEPS = 10
@@ -61,6 +62,15 @@ def test_bad_options_are_one_line_before_anything_runs(options, message, tmp_pat
     err = capsys.readouterr().err
     assert err.startswith(f"error: {message}") and err.count("\n") == 1, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_camera_policy_is_refused_in_one_line(tmp_path, capsys):
+    rundir.write_config(tmp_path, configs.get("ppo_sorter_pixels_dr"), "ppo_sorter_pixels_dr")
+    assert rehearse.main([str(tmp_path)]) == 2
+    assert capsys.readouterr().err == (
+        f"error: {tmp_path}'s policy reads cameras; the rehearsal runs state policies (experiments.transfer runs "
+        "camera policies in stock MuJoCo)\n"
+    )
 
 
 def session_processes(session: int) -> list[int]:
