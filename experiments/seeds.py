@@ -272,21 +272,29 @@ def robustness_summary(protocol: Protocol, tables: dict[int, list[dict] | None])
 
 
 def robustness_tables(protocol: Protocol, out: pathlib.Path) -> dict[int, list[dict] | None]:
-    """seed -> the rows of its run's robustness table for the study's request (`latest_robustness_table`), None
-    where it has none or it cannot be read; {} where the study asks for none."""
+    """seed -> the rows of its run's robustness table for the study's request (`robustness_rows`), None where it
+    has none; {} where the study asks for none."""
     if not protocol.robustness_request:
         return {}
     return {seed: robustness_rows(protocol, out, seed) for seed in protocol.seeds}
 
 
 def robustness_rows(protocol: Protocol, out: pathlib.Path, seed: int) -> list[dict] | None:
-    """The rows of seed-S's robustness table for the study's request, None where it has none or it is damaged."""
-    path = rundir.latest_robustness_table(seed_dir(out, seed), protocol.perturb_episodes, protocol.robustness_request)
-    try:
-        rows = json.loads(path.read_text())["rows"] if path else None
-    except (OSError, ValueError, TypeError, KeyError):
-        return None
-    return rows if isinstance(rows, list) else None
+    """The rows of the robustness table `experiments.eval` wrote in seed-S's run of the study's request on its
+    episodes (any evaluation seed), of the latest checkpoint it evaluated; None where it wrote none. A table is
+    known by the request it records: its file's name holds only a digest of it. Unreadable tables and tables of
+    the best checkpoint (`--best`) are not counted."""
+    tables = {}
+    for path in seed_dir(out, seed).glob(f"robustness-{protocol.perturb_episodes}-*.json"):
+        checkpoint_name = path.stem.rsplit("-", 2)[1]
+        try:
+            table = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        asked = isinstance(table, dict) and table.get("perturb") == protocol.robustness_request
+        if asked and checkpoint_name.isdigit() and isinstance(table.get("rows"), list):
+            tables[int(checkpoint_name)] = table["rows"]
+    return tables[max(tables)] if tables else None
 
 
 def markdown(summary: dict) -> str:

@@ -329,24 +329,8 @@ def robustness_stem(
     """Where `experiments.eval --perturb` writes its table (stem of its .json, .md and .png): named as `eval_path`,
     and by a digest of the `request` (the perturbations asked for, in words), so that neither another checkpoint's
     table nor another request's replaces it; the same request of the same checkpoint writes the same table again."""
-    return run_dir / f"robustness-{episodes}-{seed}-{checkpoint_name}-{request_digest(request)}"
-
-
-def request_digest(request: Sequence[str]) -> str:
-    """The 8 hex digits that name a robustness table by what was asked (`robustness_stem`)."""
-    return hashlib.sha256("\n".join(request).encode()).hexdigest()[:8]
-
-
-def latest_robustness_table(run_dir: pathlib.Path, episodes: int, request: Sequence[str]) -> pathlib.Path | None:
-    """The .json of the table `experiments.eval` wrote of `request` on `episodes` episodes (any seed of the
-    evaluation) of the run's latest checkpoint it evaluated, or None where it wrote none; tables of the best
-    checkpoint (`--best`) are not counted."""
-    tables = {
-        int(path.stem.rsplit("-", 2)[1]): path
-        for path in run_dir.glob(f"robustness-{episodes}-*-{request_digest(request)}.json")
-        if path.stem.rsplit("-", 2)[1].isdigit()
-    }
-    return tables[max(tables)] if tables else None
+    digest = hashlib.sha256("\n".join(request).encode()).hexdigest()[:8]
+    return run_dir / f"robustness-{episodes}-{seed}-{checkpoint_name}-{digest}"
 
 
 def transfer_stem(
