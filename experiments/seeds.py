@@ -222,19 +222,14 @@ def summarise(
         "robustness_command": (
             " ".join(protocol.evaluation_command(pathlib.Path("OUT/seed-S"))) if protocol.robustness_request else None
         ),
-        "worst_corners": {
-            str(seed): next(
-                (
-                    row["param"].removeprefix(f"{robustness.WORST_CORNER}: ")
-                    for row in rows
-                    if row_label(row) == robustness.WORST_CORNER
-                ),
-                None,
-            )
-            for seed, rows in tables.items()
-            if rows
-        },
+        "worst_corners": {str(seed): worst_corner(rows) for seed, rows in tables.items() if rows},
     }
+
+
+def worst_corner(rows: list[dict]) -> str | None:
+    """The params a seed's worst-corner row set, as its table names them; None where it has no such row."""
+    prefix = f"{robustness.WORST_CORNER}: "
+    return next((row["param"].removeprefix(prefix) for row in rows if row["param"].startswith(prefix)), None)
 
 
 def row_label(row: dict) -> str:
@@ -297,11 +292,13 @@ def robustness_rows(protocol: Protocol, out: pathlib.Path, seed: int) -> list[di
     return tables[max(tables)] if tables else None
 
 
+def percent(value: float | None) -> str:
+    """A fraction as a table shows it, "—" where there is none."""
+    return "—" if value is None else f"{100 * value:.1f}%"
+
+
 def markdown(summary: dict) -> str:
     """`summary` as a table a reader takes in at a glance: a row per seed, then the worst and the mean."""
-
-    def percent(value: float | None) -> str:
-        return "—" if value is None else f"{100 * value:.1f}%"
 
     lines = [
         f"`{summary['command']}`",
@@ -333,9 +330,6 @@ def markdown(summary: dict) -> str:
 def robustness_markdown(summary: dict) -> list[str]:
     """The lines of the robustness table: a row per perturbation, a column per seed, then the worst and the mean;
     then each seed's worst corner, where one was found."""
-
-    def percent(value: float | None) -> str:
-        return "—" if value is None else f"{100 * value:.1f}%"
 
     seeds = [str(seed["seed"]) for seed in summary["seeds"]]
     lines = [
@@ -460,12 +454,9 @@ class GpuPool:
 def evaluation_command(protocol: Protocol, out: pathlib.Path, seed: int) -> list[str] | None:
     """The command that evaluates `seed`'s finished run under the study's perturbations, or None where the study
     asks for none, the run has not finished or its table is written."""
-    needed = protocol.robustness_request and seed_result(out, seed, []).finished
-    return (
-        protocol.evaluation_command(seed_dir(out, seed))
-        if needed and not robustness_rows(protocol, out, seed)
-        else None
-    )
+    if not protocol.robustness_request or not seed_result(out, seed, []).finished:
+        return None
+    return None if robustness_rows(protocol, out, seed) else protocol.evaluation_command(seed_dir(out, seed))
 
 
 @dataclasses.dataclass(frozen=True)
