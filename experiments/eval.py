@@ -230,10 +230,10 @@ def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> Non
     print(f"{text}\n({args.episodes} episodes a row, {time.perf_counter() - start:.1f} s with compilation)")
     flags = {"--randomized-ends": args.randomized_ends, "--worst-corner": args.worst_corner}
     request = [*args.perturb, *(flag for flag, asked in flags.items() if asked)]
-    stem = rundir.robustness_stem(run_dir, args.episodes, args.seed, checkpoint_name(state, args.best), request)
-    rundir.write_json(
-        stem.with_suffix(".json"), {"device": jax.devices()[0].device_kind, "perturb": request, "rows": rows}
-    )
+    checkpoint = checkpoint_name(state, args.best)
+    stem = rundir.robustness_stem(run_dir, args.episodes, args.seed, checkpoint, request)
+    table = {"device": jax.devices()[0].device_kind, "perturb": request, "episodes": args.episodes}
+    rundir.write_json(stem.with_suffix(".json"), {**table, "checkpoint": checkpoint, "rows": rows})
     stem.with_suffix(".md").write_text(text + "\n")
     robustness.plot(rows, stem.with_suffix(".png"), f"{run_dir.name}: robustness")
     print(f"wrote {stem}.json, .md and .png")

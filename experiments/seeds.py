@@ -277,18 +277,21 @@ def robustness_tables(protocol: Protocol, out: pathlib.Path) -> dict[int, list[d
 def robustness_rows(protocol: Protocol, out: pathlib.Path, seed: int) -> list[dict] | None:
     """The rows of the robustness table `experiments.eval` wrote in seed-S's run of the study's request on its
     episodes (any evaluation seed), of the latest checkpoint it evaluated; None where it wrote none. A table is
-    known by the request it records: its file's name holds only a digest of it. Unreadable tables and tables of
-    the best checkpoint (`--best`) are not counted."""
+    known by what it records (request, episodes, checkpoint): its file's name holds only a digest of the request.
+    Unreadable tables and tables of the best checkpoint (`--best`) are not counted."""
     tables = {}
-    for path in seed_dir(out, seed).glob(f"robustness-{protocol.perturb_episodes}-*.json"):
-        checkpoint_name = path.stem.rsplit("-", 2)[1]
+    for path in seed_dir(out, seed).glob("robustness-*.json"):
         try:
             table = json.loads(path.read_text())
         except (OSError, ValueError):
             continue
-        asked = isinstance(table, dict) and table.get("perturb") == protocol.robustness_request
-        if asked and checkpoint_name.isdigit() and isinstance(table.get("rows"), list):
-            tables[int(checkpoint_name)] = table["rows"]
+        if not isinstance(table, dict) or not isinstance(table.get("rows"), list):
+            continue
+        asked = table.get("perturb") == protocol.robustness_request
+        checkpoint = table.get("checkpoint")
+        on_its_episodes = table.get("episodes") == protocol.perturb_episodes
+        if asked and on_its_episodes and isinstance(checkpoint, str) and checkpoint.isdigit():
+            tables[int(checkpoint)] = table["rows"]
     return tables[max(tables)] if tables else None
 
 

@@ -405,7 +405,10 @@ def test_robustness_rows_vmap_each_params_values_and_match_the_nominal(finished_
     request = ["action_scale=0.1,0.002", "goal_size=0.05"]
     assert eval_cli.main([str(finished_run), "--episodes", "12", "--perturb", *request]) == 0
     stem = robustness_stem(finished_run, 12, request)
-    rows = json.loads(stem.with_suffix(".json").read_text())["rows"]
+    table = json.loads(stem.with_suffix(".json").read_text())
+    # What a study of seeds matches a table by: the request, its episodes and the checkpoint evaluated.
+    assert (table["perturb"], table["episodes"], table["checkpoint"]) == (request, 12, "24")
+    rows = table["rows"]
     assert [(row["param"], row["value"]) for row in rows] == [
         ("nominal", None),
         ("action_scale", 0.1),
@@ -425,7 +428,10 @@ def test_robustness_rows_of_params_changed_together(finished_run):
     request = ["action_scale=0.002", "action_scale=0.1+goal_size=40", "action_scale=0.002+goal_size=30"]
     assert eval_cli.main([str(finished_run), "--episodes", "12", "--perturb", *request]) == 0
     stem = robustness_stem(finished_run, 12, request)
-    rows = json.loads(stem.with_suffix(".json").read_text())["rows"]
+    table = json.loads(stem.with_suffix(".json").read_text())
+    # What a study of seeds matches a table by: the request, its episodes and the checkpoint evaluated.
+    assert (table["perturb"], table["episodes"], table["checkpoint"]) == (request, 12, "24")
+    rows = table["rows"]
     assert [(row["param"], row["value"]) for row in rows] == [
         ("nominal", None),
         ("action_scale", 0.002),

@@ -79,7 +79,8 @@ def write_robustness(
     (run_dir / "eval.json").write_text(json.dumps({"success_rate": 0.99, "finished": True, "device": "cpu"}))
     table = [{"param": param, "value": value, "success_rate": placed} for param, value, placed in rows]
     stem = rundir.robustness_stem(run_dir, 16, 12345, str(update), request)
-    stem.with_suffix(".json").write_text(json.dumps({"device": "cpu", "perturb": request, "rows": table}))
+    recorded = {"device": "cpu", "perturb": request, "episodes": 16, "checkpoint": str(update), "rows": table}
+    stem.with_suffix(".json").write_text(json.dumps(recorded))
 
 
 def test_each_finished_seed_is_evaluated_once_and_the_study_tabulates_the_worst_seed_per_perturbation(tmp_path):
