@@ -12,7 +12,8 @@ one program.
 Writes OUT/summary.json and OUT/seeds.md: each seed's placed fraction (its eval.json's success on fresh episodes),
 its command's wall clock (from the command's start to its end, summed over the commands of a resumed seed), the
 worst seed, the mean with a bootstrap 95% interval, the device and the command. The result is "met" when the worst
-seed reaches --goal within --minutes: a result is its worst seed.
+seed reaches --goal within --minutes: a result is its worst seed. Studies of one preset's seeds run apart (hosts
+lent one at a time, days apart) join into one such row: `python -m experiments.seeds_join STUDY ... --out OUT`.
 
 `--perturb NAME=V1,V2 ... [--worst-corner]` also evaluates each finished seed as a user would,
 `python -m experiments.eval OUT/seed-S --episodes N --perturb ... [--worst-corner]` (N from --perturb-episodes,
@@ -208,6 +209,8 @@ def summarise(
     return {
         "preset": protocol.config,
         "command": protocol.command,
+        # What was asked, in full: `experiments.seeds_join` joins studies that asked the same.
+        "protocol": dataclasses.asdict(protocol),
         "seeds": [dataclasses.asdict(result) for result in results],
         "worst": float(np.min(placed)) if done else None,
         "mean": float(np.mean(placed)) if done else None,
@@ -303,8 +306,10 @@ def percent(value: float | None) -> str:
 def markdown(summary: dict) -> str:
     """`summary` as a table a reader takes in at a glance: a row per seed, then the worst and the mean."""
 
+    joined = [f"`{command}`" for command in summary.get("joined", [])]
     lines = [
         f"`{summary['command']}`",
+        *([f"(joined from {'; '.join(joined)})"] if joined else []),
         "",
         "| seed | placed | command wall | tries | device |",
         "|---:|---:|---:|---:|---|",
@@ -653,24 +658,30 @@ def parse_args(argv) -> argparse.Namespace:
     return args
 
 
+def protocol_from(saved: dict) -> Protocol:
+    """The protocol a study recorded (its seeds.json, or the "protocol" of its summary.json); KeyError, TypeError or
+    ValueError where the record is damaged."""
+    return Protocol(
+        config=str(saved["config"]),
+        seeds=tuple(int(seed) for seed in saved["seeds"]),
+        goal=float(saved["goal"]),
+        minutes=None if saved["minutes"] is None else float(saved["minutes"]),
+        overrides=tuple(str(item) for item in saved["overrides"]),
+        runs_per_gpu=int(saved.get("runs_per_gpu", 1)),  # studies before the option ran one run per GPU
+        # Studies before the options evaluated no perturbation.
+        perturb=tuple(str(item) for item in saved.get("perturb", [])),
+        worst_corner=bool(saved.get("worst_corner", False)),
+        perturb_episodes=int(saved.get("perturb_episodes", PERTURB_EPISODES)),
+    )
+
+
 def read_study(out: pathlib.Path) -> tuple[Protocol, dict[int, list[float]], dict[int, float]]:
     """The protocol, the wall clocks so far and the starts of commands not seen to end (`SEEDS_FILE`) of the study
     in `out`; ValueError in one line naming what is wrong."""
     path = out / SEEDS_FILE
     try:
         saved = json.loads(path.read_text())
-        protocol = Protocol(
-            config=str(saved["config"]),
-            seeds=tuple(int(seed) for seed in saved["seeds"]),
-            goal=float(saved["goal"]),
-            minutes=None if saved["minutes"] is None else float(saved["minutes"]),
-            overrides=tuple(str(item) for item in saved["overrides"]),
-            runs_per_gpu=int(saved.get("runs_per_gpu", 1)),  # studies before the option ran one run per GPU
-            # Studies before the options evaluated no perturbation.
-            perturb=tuple(str(item) for item in saved.get("perturb", [])),
-            worst_corner=bool(saved.get("worst_corner", False)),
-            perturb_episodes=int(saved.get("perturb_episodes", PERTURB_EPISODES)),
-        )
+        protocol = protocol_from(saved)
         walls = {int(seed): [float(wall) for wall in values] for seed, values in saved["walls"].items()}
         # Studies before it recorded no starts.
         unended = {int(seed): float(started) for seed, started in saved.get("unended", {}).items()}
