@@ -232,8 +232,9 @@ def write_robustness(run_dir: pathlib.Path, config, trainer, state, args) -> Non
     request = [*args.perturb, *(flag for flag, asked in flags.items() if asked)]
     checkpoint = checkpoint_name(state, args.best)
     stem = rundir.robustness_stem(run_dir, args.episodes, args.seed, checkpoint, request)
-    table = {"device": jax.devices()[0].device_kind, "perturb": request, "episodes": args.episodes}
-    rundir.write_json(stem.with_suffix(".json"), {**table, "checkpoint": checkpoint, "rows": rows})
+    device = jax.devices()[0].device_kind
+    record = {"device": device, "perturb": request, "episodes": args.episodes, "checkpoint": checkpoint, "rows": rows}
+    rundir.write_json(stem.with_suffix(".json"), record)
     stem.with_suffix(".md").write_text(text + "\n")
     robustness.plot(rows, stem.with_suffix(".png"), f"{run_dir.name}: robustness")
     print(f"wrote {stem}.json, .md and .png")

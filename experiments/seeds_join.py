@@ -27,9 +27,9 @@ from jaxarm.runner import paths, robustness, rundir
 
 @dataclasses.dataclass(frozen=True)
 class Study:
-    """What one study's summary says: its command, what it asked, each seed's result and robustness rows."""
+    """What one study's summary says: what it asked (its command is `protocol.command`), each seed's result and
+    robustness rows."""
 
-    command: str
     protocol: seeds.Protocol
     results: tuple[seeds.SeedResult, ...]
     tables: dict[int, list[dict] | None]
@@ -52,7 +52,6 @@ def read_study(study: pathlib.Path) -> Study:
         )
     try:
         return Study(
-            command=str(summary["command"]),
             protocol=seeds.protocol_from(summary["protocol"]),
             results=tuple(seeds.SeedResult(**result) for result in summary["seeds"]),
             tables=robustness_rows(summary),
@@ -83,21 +82,21 @@ def robustness_rows(summary: dict) -> dict[int, list[dict] | None]:
 def join(studies: list[Study]) -> dict:
     """The row one study of all the `studies`' seeds would write, with "joined": each study's command; ValueError
     in one line where two studies asked differently or trained a seed twice."""
-    first = studies[0]
+    first = studies[0].protocol
     for study in studies:
-        if dataclasses.replace(study.protocol, seeds=()) != dataclasses.replace(first.protocol, seeds=()):
+        if dataclasses.replace(study.protocol, seeds=()) != dataclasses.replace(first, seeds=()):
             raise ValueError(
-                f"`{study.command}` asked differently from `{first.command}`: only studies that ask the same (preset, "
-                "goal, minutes, overrides, runs per GPU, perturbations) join"
+                f"`{study.protocol.command}` asked differently from `{first.command}`: only studies that ask the same "
+                "(preset, goal, minutes, overrides, runs per GPU, perturbations) join"
             )
     trained = [result.seed for study in studies for result in study.results]
     if twice := sorted({seed for seed in trained if trained.count(seed) > 1}):
         raise ValueError(f"seeds {', '.join(map(str, twice))} were trained by more than one study: join each once")
     results = sorted((result for study in studies for result in study.results), key=lambda result: result.seed)
-    protocol = dataclasses.replace(first.protocol, seeds=tuple(result.seed for result in results))
+    protocol = dataclasses.replace(first, seeds=tuple(result.seed for result in results))
     tables = {seed: rows for study in studies for seed, rows in study.tables.items()}
     ordered = {result.seed: tables[result.seed] for result in results} if protocol.robustness_request else {}
-    return {**seeds.summarise(protocol, results, ordered), "joined": [study.command for study in studies]}
+    return {**seeds.summarise(protocol, results, ordered), "joined": [study.protocol.command for study in studies]}
 
 
 def main(argv=None) -> int:

@@ -54,7 +54,7 @@ def test_two_studies_join_into_the_row_one_study_of_all_their_seeds_writes(tmp_p
     assert joined["worst"] == 0.95 and not joined["met"]  # seed 1 took 700 s of a 10-minute limit
     assert joined["worst_corners"] == {"0": "g=0", "1": "g=1", "3": "g=3"}
     assert joined["joined"] == [first.command, second.command]
-    assert "(joined from `python -m experiments.seeds --config ppo_arm2d --seeds 3,0 " in (seeds.markdown(joined))
+    assert "(joined from `python -m experiments.seeds --config ppo_arm2d --seeds 3,0 " in seeds.markdown(joined)
 
 
 def test_the_cli_writes_the_joined_row_and_refuses_to_overwrite_a_study(tmp_path, capsys):
